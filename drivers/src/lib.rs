@@ -1,0 +1,1 @@
+//! Device drivers: filled by the drivers issue.

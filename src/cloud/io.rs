@@ -1,0 +1,1 @@
+//! PLY, PCD and text IO (being written)

@@ -1,0 +1,18 @@
+//! sqscan: find known objects in laser range scans by fitting tapered superquadrics.
+//!
+//! The library behind the `sqscand` daemon and the `sqscan` tool. Modules by job:
+//! - [`geometry`]: the tapered superellipsoid (inside-outside function, distances, pose
+//!   Jacobian, surface sampling, ray queries).
+//! - [`model`]: object models (one to three superquadric parts) loaded from `models/*.toml`.
+//! - [`cloud`]: point clouds, organized range images, PLY/PCD/text IO.
+//! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
+//!
+//! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
+//! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
+//! choice comes from a seeded generator.
+
+pub mod cloud;
+pub mod geometry;
+pub mod model;
+pub mod pose;
+pub mod sim;
