@@ -1,1 +1,14 @@
-//! (being written)
+//! Geometry of tapered superquadrics: the inside-outside function, distances, the pose
+//! Jacobian, surface sampling and ray queries.
+//!
+//! Functions named `*_local` or taking `Vector3` points work in the superquadric's own frame;
+//! the methods of [`PlacedSuperquadric`] take points in the frame the pose maps into.
+
+mod ray;
+mod sampling;
+mod superquadric;
+
+pub use superquadric::*;
+
+#[cfg(test)]
+mod tests;

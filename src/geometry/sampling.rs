@@ -1,0 +1,110 @@
+//! Surface sampling close to uniform over the surface area (not over the parameter angles).
+//!
+//! The classic parametrisation `x = a1 cos^e1(eta) cos^e2(omega)` crowds points at the edges of
+//! box-like shapes (for e = 0.1 nearly all of a flat face maps to a sliver of parameter space).
+//! Instead, directions from the centre are laid out on the six faces of a cube; each direction
+//! meets the surface at one point (a superellipsoid is star-shaped about its centre). A quadtree
+//! over every cube face is refined until a cell's surface patch is smaller than half a sample's
+//! share of area, and the cells are walked in quadtree order with error diffusion of area: a
+//! point is emitted each time another `spacing^2` of area has been passed. That gives one point
+//! per `spacing^2` of surface, spread evenly, deterministically.
+
+use super::Superquadric;
+use super::superquadric::PlacedSuperquadric;
+use nalgebra::{Point3, Vector3};
+
+/// Depth of the first uniform split of every cube face (4^3 = 64 cells): deep enough that the
+/// four-triangle area estimate of a cell is good before the adaptive refinement starts.
+const MIN_DEPTH: u32 = 3;
+/// Cells stop splitting here whatever their area (4^12 cells a face is far below any spacing
+/// that makes sense for objects a robot picks up).
+const MAX_DEPTH: u32 = 12;
+
+impl Superquadric {
+    /// Points on the surface, in the local frame, about `spacing` metres apart.
+    ///
+    /// Returns an empty set for a non-positive or non-finite spacing.
+    pub fn sample_surface(&self, spacing: f64) -> Vec<Vector3<f64>> {
+        let mut out = Vec::new();
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return out;
+        }
+        let mut walk = Walk { sq: self, share: spacing * spacing, acc: 0.0, out: &mut out };
+        for face in 0..6 {
+            walk.cell(face, -1.0, -1.0, 2.0, 0);
+        }
+        out
+    }
+
+    /// The surface point in the direction of the cube-face point `(u, v)` of face `face`.
+    fn cube_surface_point(&self, face: usize, u: f64, v: f64) -> Vector3<f64> {
+        let d = match face {
+            0 => Vector3::new(1.0, u, v),
+            1 => Vector3::new(-1.0, -u, v),
+            2 => Vector3::new(u, 1.0, v),
+            3 => Vector3::new(-u, -1.0, v),
+            4 => Vector3::new(u, v, 1.0),
+            _ => Vector3::new(u, -v, -1.0),
+        };
+        self.taper(&self.untapered_surface_along(&d.normalize()))
+    }
+}
+
+struct Walk<'a> {
+    sq: &'a Superquadric,
+    share: f64,
+    acc: f64,
+    out: &'a mut Vec<Vector3<f64>>,
+}
+
+impl Walk<'_> {
+    fn cell(&mut self, face: usize, u0: f64, v0: f64, size: f64, depth: u32) {
+        let sq = self.sq;
+        let half = 0.5 * size;
+        if depth < MIN_DEPTH {
+            self.children(face, u0, v0, half, depth);
+            return;
+        }
+        let p00 = sq.cube_surface_point(face, u0, v0);
+        let p10 = sq.cube_surface_point(face, u0 + size, v0);
+        let p11 = sq.cube_surface_point(face, u0 + size, v0 + size);
+        let p01 = sq.cube_surface_point(face, u0, v0 + size);
+        let c = sq.cube_surface_point(face, u0 + half, v0 + half);
+        // Four triangles fanned about the centre follow a curved patch better than two.
+        let area = 0.5
+            * ((p00 - c).cross(&(p10 - c)).norm()
+                + (p10 - c).cross(&(p11 - c)).norm()
+                + (p11 - c).cross(&(p01 - c)).norm()
+                + (p01 - c).cross(&(p00 - c)).norm());
+        if area > 0.5 * self.share && depth < MAX_DEPTH {
+            self.children(face, u0, v0, half, depth);
+            return;
+        }
+        self.acc += area;
+        if self.acc >= self.share {
+            self.out.push(c);
+            // Carry at most one share: a too-large leaf at MAX_DEPTH must not dump a burst of
+            // points into the next cells.
+            self.acc = (self.acc - self.share).min(self.share);
+        }
+    }
+
+    fn children(&mut self, face: usize, u0: f64, v0: f64, half: f64, depth: u32) {
+        // Serpentine order keeps consecutive cells adjacent, which spreads the diffused error.
+        self.cell(face, u0, v0, half, depth + 1);
+        self.cell(face, u0 + half, v0, half, depth + 1);
+        self.cell(face, u0 + half, v0 + half, half, depth + 1);
+        self.cell(face, u0, v0 + half, half, depth + 1);
+    }
+}
+
+impl PlacedSuperquadric {
+    /// Surface points in the pose's frame, about `spacing` metres apart.
+    pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
+        self.shape
+            .sample_surface(spacing)
+            .into_iter()
+            .map(|q| self.pose.transform_point(&Point3::from(q)))
+            .collect()
+    }
+}
