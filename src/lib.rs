@@ -16,3 +16,4 @@ pub mod geometry;
 pub mod model;
 pub mod pose;
 pub mod sim;
+pub mod spec;

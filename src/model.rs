@@ -1,1 +1,300 @@
-//! (being written)
+//! Object models: one to three tapered superquadric parts, loaded from `models/*.toml`.
+//!
+//! The format is documented in `models/README.md`. A compound object gives every part's pose in
+//! the object frame (what the simulator renders and what "the object's pose" means) and the
+//! connectivity the detector votes on (paper Fig. 2: the angle between the part z axes and the
+//! distance between the part centres). The two are redundant on purpose: loading checks that they
+//! agree, which catches a mistyped model before it silently detects the wrong thing.
+
+use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::pose::PoseSpec;
+use crate::spec::{SpecError, read_toml};
+use nalgebra::{Isometry3, Vector3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Connectivity given in a file must match the part poses to this much.
+const ANGLE_TOLERANCE_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
+const DISTANCE_TOLERANCE_M: f64 = 0.001;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ModelFile {
+    name: Option<String>,
+    #[serde(default)]
+    description: String,
+    #[serde(default)]
+    part: Vec<PartFile>,
+    #[serde(default)]
+    connection: Vec<ConnectionFile>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PartFile {
+    name: String,
+    a: [f64; 3],
+    e1: f64,
+    e2: f64,
+    #[serde(default)]
+    kx: f64,
+    #[serde(default)]
+    ky: f64,
+    m: Option<u32>,
+    #[serde(default)]
+    pose: PoseSpec,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ConnectionFile {
+    parts: [String; 2],
+    angle_rad: Option<f64>,
+    angle_deg: Option<f64>,
+    distance: f64,
+}
+
+/// One superquadric part of a model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Part {
+    pub name: String,
+    pub shape: Superquadric,
+    /// The part's pose in the object frame.
+    pub pose_in_object: Isometry3<f64>,
+    /// Hypotheses to search for this part (paper's m); `None` lets the detector derive it from
+    /// the ratio of part size to scene extent.
+    pub hypotheses: Option<u32>,
+}
+
+/// The relation of two parts (paper eq. 6, 7).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Connection {
+    /// Indices into [`Model::parts`].
+    pub parts: [usize; 2],
+    /// Angle between the part z axes (rad).
+    pub angle: f64,
+    /// Distance between the part centres (m).
+    pub distance: f64,
+}
+
+/// A validated object model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Model {
+    pub name: String,
+    pub description: String,
+    pub parts: Vec<Part>,
+    pub connections: Vec<Connection>,
+    /// Where the model was read from (for messages and provenance).
+    pub source: PathBuf,
+}
+
+/// The angle between two z axes, folded to `[0, pi/2]` when either axis has no sign (an
+/// untapered part is symmetric under `z -> -z`).
+pub fn axis_angle(za: &Vector3<f64>, zb: &Vector3<f64>, signed: bool) -> f64 {
+    let c = (za.dot(zb) / (za.norm() * zb.norm())).clamp(-1.0, 1.0);
+    let angle = c.acos();
+    if signed { angle } else { angle.min(std::f64::consts::PI - angle) }
+}
+
+impl Model {
+    /// Load a model given by name (looked up as `NAME.toml` in `models_dir`) or by file path.
+    pub fn load(name_or_path: &str, models_dir: &Path) -> Result<Model, SpecError> {
+        Self::from_file(&resolve(name_or_path, models_dir))
+    }
+
+    /// Load and validate a model file.
+    pub fn from_file(path: &Path) -> Result<Model, SpecError> {
+        let file: ModelFile = read_toml(path)?;
+        Self::validate(file, path)
+    }
+
+    /// Parse and validate model TOML text (`path` names it in messages).
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Model, SpecError> {
+        let file: ModelFile = crate::spec::parse_toml(text, path)?;
+        Self::validate(file, path)
+    }
+
+    fn validate(file: ModelFile, path: &Path) -> Result<Model, SpecError> {
+        let bad = |field: String, msg: String| SpecError::invalid(path, field, msg);
+        let name = match file.name {
+            Some(n) => n,
+            None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+        };
+        if name.is_empty() || name.chars().any(|c| c.is_whitespace()) {
+            return Err(bad("name".into(), format!("{name:?} must be a non-empty word")));
+        }
+        if file.part.is_empty() || file.part.len() > 3 {
+            return Err(bad("part".into(), format!("{} parts given; a model has 1 to 3", file.part.len())));
+        }
+        let mut parts: Vec<Part> = Vec::with_capacity(file.part.len());
+        for (i, p) in file.part.into_iter().enumerate() {
+            let field = |f: &str| format!("part[{i}] ({}).{f}", p.name);
+            if p.name.is_empty() {
+                return Err(bad(format!("part[{i}].name"), "must not be empty".into()));
+            }
+            if parts.iter().any(|q| q.name == p.name) {
+                return Err(bad(field("name"), "two parts share this name".into()));
+            }
+            let shape = Superquadric::new(p.a, p.e1, p.e2, p.kx, p.ky).map_err(|e| {
+                let f = match e {
+                    crate::geometry::ShapeError::Size { .. } => "a",
+                    crate::geometry::ShapeError::Exponent { name, .. } => name,
+                    crate::geometry::ShapeError::Taper { name, .. } => name,
+                };
+                bad(field(f), e.to_string())
+            })?;
+            if shape.max_size() > 2.0 {
+                return Err(bad(field("a"), format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a)));
+            }
+            if let Some(m) = p.m {
+                if !(1..=1000).contains(&m) {
+                    return Err(bad(field("m"), format!("{m} hypotheses: give 1 to 1000")));
+                }
+            }
+            let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
+            parts.push(Part { name: p.name, shape, pose_in_object, hypotheses: p.m });
+        }
+        let mut connections = Vec::new();
+        for (i, c) in file.connection.into_iter().enumerate() {
+            let field = |f: &str| format!("connection[{i}].{f}");
+            let mut idx = [0usize; 2];
+            for (k, n) in c.parts.iter().enumerate() {
+                idx[k] = parts
+                    .iter()
+                    .position(|p| &p.name == n)
+                    .ok_or_else(|| bad(field("parts"), format!("no part named {n:?}")))?;
+            }
+            if idx[0] == idx[1] {
+                return Err(bad(field("parts"), "a part cannot connect to itself".into()));
+            }
+            let angle = match (c.angle_rad, c.angle_deg) {
+                (Some(r), None) => r,
+                (None, Some(d)) => d.to_radians(),
+                _ => return Err(bad(field("angle_rad"), "give exactly one of angle_rad, angle_deg".into())),
+            };
+            if !(0.0..=std::f64::consts::PI + 1e-9).contains(&angle) {
+                return Err(bad(field("angle_rad"), format!("{angle} rad is outside [0, pi]")));
+            }
+            if !(c.distance.is_finite() && c.distance >= 0.0 && c.distance < 2.0) {
+                return Err(bad(field("distance"), format!("{} m is not a centre distance in metres", c.distance)));
+            }
+            // The given connectivity must be the one the part poses have.
+            let (pa, pb) = (&parts[idx[0]], &parts[idx[1]]);
+            let signed = pa.shape.is_tapered() && pb.shape.is_tapered();
+            let za = pa.pose_in_object.rotation * Vector3::z();
+            let zb = pb.pose_in_object.rotation * Vector3::z();
+            let posed_angle = axis_angle(&za, &zb, signed);
+            let given_angle = if signed { angle } else { angle.min(std::f64::consts::PI - angle) };
+            if (posed_angle - given_angle).abs() > ANGLE_TOLERANCE_RAD {
+                return Err(bad(
+                    field("angle"),
+                    format!(
+                        "{:.2} deg, but the part poses put the z axes {:.2} deg apart",
+                        angle.to_degrees(),
+                        posed_angle.to_degrees()
+                    ),
+                ));
+            }
+            let posed_distance =
+                (pa.pose_in_object.translation.vector - pb.pose_in_object.translation.vector).norm();
+            if (posed_distance - c.distance).abs() > DISTANCE_TOLERANCE_M {
+                return Err(bad(
+                    field("distance"),
+                    format!("{} m, but the part poses put the centres {posed_distance:.4} m apart", c.distance),
+                ));
+            }
+            if connections.iter().any(|k: &Connection| {
+                (k.parts == idx) || (k.parts == [idx[1], idx[0]])
+            }) {
+                return Err(bad(field("parts"), "these parts are already connected".into()));
+            }
+            connections.push(Connection { parts: idx, angle, distance: c.distance });
+        }
+        // The connections must tie all parts into one tree: the detector votes a compound over them.
+        if connections.len() != parts.len() - 1 {
+            return Err(bad(
+                "connection".into(),
+                format!("{} parts need {} connections, {} given", parts.len(), parts.len() - 1, connections.len()),
+            ));
+        }
+        let mut reached = vec![false; parts.len()];
+        reached[0] = true;
+        for _ in 0..parts.len() {
+            for c in &connections {
+                if reached[c.parts[0]] || reached[c.parts[1]] {
+                    reached[c.parts[0]] = true;
+                    reached[c.parts[1]] = true;
+                }
+            }
+        }
+        if let Some(i) = reached.iter().position(|r| !r) {
+            return Err(bad("connection".into(), format!("part {:?} is not connected to the others", parts[i].name)));
+        }
+        Ok(Model { name, description: file.description, parts, connections, source: path.to_owned() })
+    }
+
+    pub fn is_compound(&self) -> bool {
+        self.parts.len() > 1
+    }
+
+    /// The parts placed in a frame, given the object's pose in that frame.
+    pub fn placed_parts(&self, object_pose: &Isometry3<f64>) -> Vec<PlacedSuperquadric> {
+        self.parts.iter().map(|p| PlacedSuperquadric::new(p.shape, object_pose * p.pose_in_object)).collect()
+    }
+
+    /// Radius of a sphere about the object origin that contains every part.
+    pub fn bounding_radius(&self) -> f64 {
+        self.parts
+            .iter()
+            .map(|p| p.pose_in_object.translation.vector.norm() + p.shape.bounding_radius())
+            .fold(0.0, f64::max)
+    }
+
+    /// The lowest point of the object above its frame origin along the object z axis (negative
+    /// when the origin is above the bottom): used to stand an object on a table.
+    pub fn lowest_z(&self) -> f64 {
+        self.parts
+            .iter()
+            .flat_map(|p| {
+                PlacedSuperquadric::new(p.shape, p.pose_in_object).sample_surface(p.shape.min_size() / 4.0)
+            })
+            .map(|q| q.z)
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The file a model argument names: an existing path or anything ending in `.toml` is a path,
+/// anything else a name in `models_dir`.
+pub fn resolve(name_or_path: &str, models_dir: &Path) -> PathBuf {
+    let p = Path::new(name_or_path);
+    if name_or_path.ends_with(".toml") || p.components().count() > 1 || p.is_file() {
+        p.to_owned()
+    } else {
+        models_dir.join(format!("{name_or_path}.toml"))
+    }
+}
+
+/// The models directory: `$SQSCAN_MODELS_DIR`, else `./models` when it exists, else the one in
+/// the source tree this binary was built from.
+pub fn default_models_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("SQSCAN_MODELS_DIR") {
+        return PathBuf::from(d);
+    }
+    let local = PathBuf::from("models");
+    if local.is_dir() {
+        return local;
+    }
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/models"))
+}
+
+/// Every model in a directory, sorted by name; files that fail to load are returned as errors
+/// beside the good ones so one broken file does not hide the rest.
+pub fn load_dir(dir: &Path) -> Result<Vec<Result<Model, SpecError>>, SpecError> {
+    let entries = std::fs::read_dir(dir).map_err(|source| SpecError::Io { path: dir.to_owned(), source })?;
+    let mut paths: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    paths.sort();
+    Ok(paths.iter().map(|p| Model::from_file(p)).collect())
+}
