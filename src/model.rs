@@ -249,18 +249,6 @@ impl Model {
             .map(|p| p.pose_in_object.translation.vector.norm() + p.shape.bounding_radius())
             .fold(0.0, f64::max)
     }
-
-    /// The lowest point of the object above its frame origin along the object z axis (negative
-    /// when the origin is above the bottom): used to stand an object on a table.
-    pub fn lowest_z(&self) -> f64 {
-        self.parts
-            .iter()
-            .flat_map(|p| {
-                PlacedSuperquadric::new(p.shape, p.pose_in_object).sample_surface(p.shape.min_size() / 4.0)
-            })
-            .map(|q| q.z)
-            .fold(f64::INFINITY, f64::min)
-    }
 }
 
 /// The file a model argument names: an existing path or anything ending in `.toml` is a path,

@@ -2,7 +2,8 @@
 //!
 //! A superquadric has no closed-form ray intersection, so the ray is clipped to the shape's
 //! bounding box, marched in steps a fraction of the smallest size (no part of the solid is
-//! thinner than twice that along any axis), and the first step that lands inside is refined by
+//! thinner than twice that along any axis), a dip of the residual between two outside samples is
+//! searched for a grazing crossing, and the first step that lands inside is refined by
 //! the Illinois variant of regula falsi on the residual, which is close to linear in the distance
 //! near the surface.
 
@@ -10,9 +11,8 @@ use super::Superquadric;
 use super::superquadric::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 
-/// Steps per smallest half-size while marching. A ray that only grazes the surface within a
-/// fraction of a step can be missed; for a scanner those are grazing returns a real sensor loses
-/// too.
+/// Steps per smallest half-size while marching; grazing rays that dip in and out between two
+/// samples are caught by a golden-section search of the dip.
 const STEPS_PER_MIN_SIZE: f64 = 4.0;
 /// Refinement stops when the bracket is this small (m).
 const T_TOLERANCE: f64 = 1e-8;
@@ -52,17 +52,65 @@ impl Superquadric {
             return Some(ta);
         }
         let step = self.min_size() / STEPS_PER_MIN_SIZE / dir_len;
+        // The previous sample, to notice a dip of the residual between samples: a ray that only
+        // grazes the surface can enter and leave it between two samples that are both outside.
+        let (mut tp, mut fp) = (ta, f64::INFINITY);
         while ta < t1 {
             let tb = (ta + step).min(t1);
             let fb = f(tb);
             if fb <= 0.0 {
                 return Some(refine(&f, ta, fa, tb, fb));
             }
+            if fa < fp && fa < fb && fa < GRAZE_RESIDUAL {
+                let (tm, fm) = golden_min(&f, tp, tb);
+                if fm <= 0.0 {
+                    // Every sample so far was outside, so the first crossing lies in [tp, tm].
+                    return Some(refine(&f, tp, f(tp), tm, fm));
+                }
+            }
+            (tp, fp) = (ta, fa);
             ta = tb;
             fa = fb;
         }
         None
     }
+}
+
+/// Below this residual a local dip between samples is searched for a hidden crossing; far from
+/// the surface the residual cannot dip below zero between samples one step apart.
+const GRAZE_RESIDUAL: f64 = 0.5;
+
+/// Golden-section search for the minimum of `f` on `[a, b]`, stopping early once `f <= 0`.
+fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
+    const R: f64 = 0.618_033_988_749_895;
+    let mut c = b - R * (b - a);
+    let mut d = a + R * (b - a);
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..60 {
+        if fc <= 0.0 {
+            return (c, fc);
+        }
+        if fd <= 0.0 {
+            return (d, fd);
+        }
+        if b - a <= T_TOLERANCE {
+            break;
+        }
+        if fc < fd {
+            b = d;
+            d = c;
+            fd = fc;
+            c = b - R * (b - a);
+            fc = f(c);
+        } else {
+            a = c;
+            c = d;
+            fc = fd;
+            d = a + R * (b - a);
+            fd = f(d);
+        }
+    }
+    if fc < fd { (c, fc) } else { (d, fd) }
 }
 
 /// Illinois regula falsi on a bracket with `fa > 0 >= fb`; returns a `t` with `f(t) <= 0` (the

@@ -99,6 +99,14 @@ impl Walk<'_> {
 }
 
 impl PlacedSuperquadric {
+    /// The lowest `z` of the surface in the pose's frame (used to stand a shape on a table).
+    ///
+    /// Dense sampling rather than a closed form (a tapered superquadric has none): at 1/64 of
+    /// the smallest size the sagitta of a round bottom between samples is below 1e-4 of it.
+    pub fn lowest_z(&self) -> f64 {
+        self.sample_surface(self.shape.min_size() / 64.0).iter().map(|p| p.z).fold(f64::INFINITY, f64::min)
+    }
+
     /// Surface points in the pose's frame, about `spacing` metres apart.
     pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
         self.shape
