@@ -1,0 +1,64 @@
+//! `sqscan`: the command-line tool of sqscan: simulator, model viewer, cloud inspector (and, as
+//! they land, the offline detector, evaluator and the daemon's client).
+
+mod files;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(name = "sqscan", version, about = "Find known objects in laser range scans", long_about = None)]
+struct Cli {
+    /// Directory of object models [default: $SQSCAN_MODELS_DIR, else ./models, else the source tree's]
+    #[arg(long, global = true, value_name = "DIR")]
+    models_dir: Option<PathBuf>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate one sweep of a scene: writes cloud.ply, cloud.pcd, range.png and truth.json
+    Simulate(files::SimulateArgs),
+    /// Sample a model's surface into a PLY file (one colour a part)
+    ShowModel(files::ShowModelArgs),
+    /// Print a point cloud file's point count, finite points, organization and bounding box
+    Info(files::InfoArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let models_dir = cli.models_dir.clone().unwrap_or_else(sqscan::model::default_models_dir);
+    let result: Result<()> = match cli.command {
+        Command::Simulate(a) => files::simulate(a, &models_dir),
+        Command::ShowModel(a) => files::show_model(a, &models_dir),
+        Command::Info(a) => files::info(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // One line: the chain of contexts, outermost first.
+            eprintln!("sqscan: error: {}", format!("{e:#}").replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Write a file atomically: a temporary file beside it, then a rename, so a reader never sees a
+/// half-written file and an interrupted run never leaves one.
+pub fn write_atomic(path: &std::path::Path, write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>) -> Result<()> {
+    use std::io::Write;
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(std::path::Path::new("."));
+    let tmp = dir.join(format!(".{}.tmp{}", path.file_name().unwrap_or_default().to_string_lossy(), std::process::id()));
+    let file = std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    let r = write(&mut w).and_then(|()| w.flush().map_err(Into::into));
+    if let Err(e) = r {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e.context(format!("cannot write {}", path.display())));
+    }
+    drop(w);
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
+}
