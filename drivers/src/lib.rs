@@ -10,5 +10,6 @@
 
 // pub mod error;
 pub mod powercube;
+pub mod profile;
 
 // pub use error::Error;
