@@ -14,7 +14,10 @@ use crate::profile::ProfileError;
 pub enum Error {
     /// No (matching) answer in time.
     #[error("timed out after {after:?} waiting for {waiting_for}")]
-    Timeout { waiting_for: &'static str, after: Duration },
+    Timeout {
+        waiting_for: &'static str,
+        after: Duration,
+    },
 
     /// A PowerCube telegram was malformed or failed its checksum.
     #[error("PowerCube framing: {0}")]
@@ -49,7 +52,12 @@ pub enum Error {
 
     /// A requested value the device or the codec cannot represent.
     #[error("{quantity} = {value} outside [{min}, {max}]")]
-    OutOfRange { quantity: &'static str, value: f64, min: f64, max: f64 },
+    OutOfRange {
+        quantity: &'static str,
+        value: f64,
+        min: f64,
+        max: f64,
+    },
 }
 
 impl Error {
@@ -78,7 +86,12 @@ mod tests {
 
     #[test]
     fn codec_errors_convert_and_classify() {
-        let e: Error = FrameError::BadChecksum { received: 1, schunk: 2, player: 3 }.into();
+        let e: Error = FrameError::BadChecksum {
+            received: 1,
+            schunk: 2,
+            player: 3,
+        }
+        .into();
         assert!(e.is_checksum() && e.is_transient());
         let e: Error = FrameError::BadEscape(0x41).into();
         assert!(!e.is_checksum() && e.is_transient());

@@ -8,8 +8,9 @@
 //! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol.
 //! - [`profile`]: our own binary frame for laser profile streams.
 
-// pub mod error;
+pub mod error;
+pub mod flir;
 pub mod powercube;
 pub mod profile;
 
-// pub use error::Error;
+pub use error::Error;
