@@ -102,13 +102,13 @@ impl Profile {
         if self.fraction_bits > MAX_FRACTION_BITS {
             return Err(ProfileError::BadFractionBits(self.fraction_bits));
         }
-        if let Some(i) = &self.intensity {
-            if i.len() != n {
-                return Err(ProfileError::IntensityLength {
-                    columns: n,
-                    intensity: i.len(),
-                });
-            }
+        if let Some(i) = &self.intensity
+            && i.len() != n
+        {
+            return Err(ProfileError::IntensityLength {
+                columns: n,
+                intensity: i.len(),
+            });
         }
         Ok(())
     }

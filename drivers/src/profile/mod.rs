@@ -4,7 +4,7 @@
 //! frames; see `frame` for the byte layout and the crate README for the rationale.
 //!
 //! - [`frame`]: [`Profile`], [`encode_profile`], the incremental [`ProfileDecoder`].
-//! - [`crc`]: CRC-32/IEEE.
+//! - [`crc`]: the CRC-32/IEEE checksum.
 //! - [`seq`]: [`SequenceTracker`] for drops, duplicates and reordering.
 
 pub mod crc;
