@@ -8,6 +8,8 @@
 //! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol.
 //! - [`profile`]: our own binary frame for laser profile streams.
 
+#![forbid(unsafe_code)]
+
 pub mod error;
 pub mod flir;
 pub mod powercube;
