@@ -387,6 +387,48 @@ mod tests {
     }
 
     #[test]
+    fn whole_session_byte_by_byte() {
+        // Power-up banner, start-up with echo still on, resolution and limit queries, a move,
+        // a refused move, an asynchronous limit hit, and a reset answer.
+        let transcript: &[u8] = b"Pan-Tilt Controller v2.13.4r0(D46-17/E)\r\n\
+            ft *\r\ned *\r\n*\r\n*\r\n\
+            * 185.1428\r\n* 46.2857\r\n* -3090\r\n* 3090\r\n\
+            *\r\n! Maximum allowable Pan position is 3090\r\n!P\r\n\
+            !T!T!P!P*\r\n";
+        let mut p = ReplyParser::new();
+        let mut got = Vec::new();
+        for b in transcript {
+            p.push(std::slice::from_ref(b));
+            got.extend(std::iter::from_fn(|| p.next_reply()));
+        }
+        assert_eq!(
+            got,
+            [
+                Unparsed("Pan-Tilt Controller v2.13.4r0(D46-17/E)".into()),
+                Ok,
+                Ok,
+                Ok,
+                Ok,
+                Value(Number::Float(185.1428)),
+                Value(Number::Float(46.2857)),
+                Value(Number::Int(-3090)),
+                Value(Number::Int(3090)),
+                Ok,
+                Error(PtuError::OutOfRange(
+                    "Maximum allowable Pan position is 3090".into()
+                )),
+                LimitHit(Axis::Pan),
+                LimitHit(Axis::Tilt),
+                LimitHit(Axis::Tilt),
+                LimitHit(Axis::Pan),
+                LimitHit(Axis::Pan),
+                Ok,
+            ]
+        );
+        assert_eq!(p.partial_len(), 0);
+    }
+
+    #[test]
     fn numbers() {
         assert_eq!(first_number("is 3090."), Some(Number::Int(3090)));
         assert_eq!(first_number("v2 D46-17 (12)"), Some(Number::Int(12)));

@@ -398,8 +398,8 @@ impl FrameDecoder {
         None
     }
 
-    /// Feeds one byte directly (bypassing the queue; do not mix with queued bytes pending).
-    pub fn feed(&mut self, byte: u8) -> Option<Result<Frame, FrameError>> {
+    /// Runs one byte through the state machine, counting errors.
+    fn feed(&mut self, byte: u8) -> Option<Result<Frame, FrameError>> {
         let item = self.step(byte);
         match &item {
             Some(Ok(_)) => {}
@@ -552,8 +552,8 @@ mod tests {
 
     #[test]
     fn every_special_byte_is_escaped_in_telid_data_and_bcc() {
-        // TelID1 = 0x02 / 0x03 / 0x10: module 8 (0x00 | len) with 2 and 3 data bytes, module 16
-        // (0x00 | len) too; TelID0 never reaches 0x10 (max 0x0B).
+        // TelID1 is 0x02 / 0x03 for modules 8, 16, 24 with 2 / 3 data bytes. TelID1 can never be
+        // 0x10 (that would need 16 data bytes) and TelID0 never is special (0x04..=0x0B).
         for (module, data) in [
             (8u8, &[0x01u8, 0x01][..]), // TelID1 0x02
             (8, &[0x01, 0x01, 0x01]),   // TelID1 0x03
@@ -571,6 +571,26 @@ mod tests {
                 [Ok(Frame::request(id(module), Payload::new(data).unwrap()))]
             );
         }
+    }
+
+    #[test]
+    fn escaped_telid_and_data_byte_literal() {
+        // Module 16, data [02 03 10]: TelID 06 03, Schunk BCC 06+03+02+03+10 = 0x1E.
+        let wire = encode_request(id(16), &[0x02, 0x03, 0x10]).unwrap();
+        assert_eq!(
+            wire,
+            [
+                0x02, 0x06, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x1E, 0x03
+            ]
+        );
+        // The same from the module: TelID0 0x0A, BCC 0x0A+03+02+03+10 = 0x22.
+        let wire = encode_reply(id(16), &[0x02, 0x03, 0x10]).unwrap();
+        assert_eq!(
+            wire,
+            [
+                0x02, 0x0A, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x22, 0x03
+            ]
+        );
     }
 
     #[test]
