@@ -67,7 +67,7 @@ fn sample_cloud(multi_count: bool) -> PointCloud {
             "rgb",
             FieldData::F32(
                 (0..n)
-                    .map(|i| f32::from_bits(0xff00_0000 | (i as u32 * 0x0102_03)))
+                    .map(|i| f32::from_bits(0xff00_0000 | (i as u32 * 0x0001_0203)))
                     .collect(),
             ),
         ),

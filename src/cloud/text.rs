@@ -39,12 +39,23 @@ fn parse_spec(line: usize, rest: &str) -> Result<Vec<Spec>, CloudError> {
                     count,
                 })
             });
-            parsed.ok_or_else(|| {
+            parsed.filter(|s| !s.name.is_empty()).ok_or_else(|| {
                 let msg = format!("{COLUMNS_TAG} entry {} is not name:kind[*count]", quote(w));
                 CloudError::header(line, msg)
             })
         })
-        .collect()
+        .collect::<Result<Vec<Spec>, CloudError>>()
+        .and_then(|specs| {
+            for (i, s) in specs.iter().enumerate() {
+                if matches!(s.name.as_str(), "x" | "y" | "z")
+                    || specs[..i].iter().any(|t| t.name == s.name)
+                {
+                    let msg = format!("{COLUMNS_TAG} column `{}` appears twice", s.name);
+                    return Err(CloudError::header(line, msg));
+                }
+            }
+            Ok(specs)
+        })
 }
 
 /// Reads a plain text cloud (see the [`io`](super::io) module docs).
@@ -297,6 +308,10 @@ mod tests {
         assert_eq!(
             e(b"# sqscan-columns: x y z i:u9\n"),
             "header line 1: sqscan-columns: entry `i:u9` is not name:kind[*count]"
+        );
+        assert_eq!(
+            e(b"# sqscan-columns: x y z x:f32\n1 2 3 4\n"),
+            "header line 1: sqscan-columns: column `x` appears twice"
         );
     }
 }
