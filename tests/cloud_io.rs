@@ -666,3 +666,34 @@ fn valid_files_read_back() {
     let be = valid_files().pop().unwrap();
     assert_eq!(read_ply(&be[..]).unwrap().points, vec![[1.0, 2.0, 3.0]]);
 }
+
+/// Header numbers that stress size arithmetic.
+const EXTREME: [u64; 9] = [0, 1, 2, 3, 255, 65536, 1 << 32, 1 << 62, u64::MAX];
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    #[test]
+    fn extreme_header_numbers_never_panic(
+        nums in proptest::collection::vec(prop::sample::select(EXTREME.to_vec()), 4),
+        data in prop::sample::select(vec!["ascii", "binary", "binary_compressed"]),
+        tail in proptest::collection::vec(any::<u8>(), 0..200),
+    ) {
+        let pcd = format!(
+            "FIELDS x y z n\nSIZE 4 4 4 8\nTYPE F F F F\nCOUNT 1 1 1 {}\nWIDTH {}\nHEIGHT {}\n\
+             POINTS {}\nDATA {data}\n",
+            nums[0], nums[1], nums[2], nums[3]
+        );
+        let ply = format!(
+            "ply\nformat binary_little_endian 1.0\nelement e {}\nproperty list uint uint l\n\
+             element vertex {}\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
+            nums[0], nums[1]
+        );
+        let ply_ascii = ply.replace("binary_little_endian", "ascii");
+        for head in [pcd, ply, ply_ascii] {
+            let mut bytes = head.into_bytes();
+            bytes.extend_from_slice(&tail);
+            read_all_ways(&bytes);
+        }
+    }
+}

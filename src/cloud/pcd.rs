@@ -355,12 +355,16 @@ fn empty_columns(h: &Header, capacity: usize) -> Vec<Option<Column>> {
 }
 
 fn read_ascii(h: &Header, body: &[u8]) -> Result<Vec<Column>, CloudError> {
-    let per_point: usize = h.fields.iter().map(|f| f.count).sum();
+    let per_point = h
+        .fields
+        .iter()
+        .try_fold(0usize, |acc, f| acc.checked_add(f.count))
+        .ok_or_else(|| CloudError::Format("PCD header: values per point overflow".into()))?;
     // Every value takes at least two bytes (a digit and a separator): bound the reservation by
-    // the data present, not by POINTS.
-    let capacity = h.points.min(body.len() / (2 * per_point).max(1) + 1);
+    // the data present, not by POINTS or COUNT.
+    let capacity = h.points.min(body.len() / per_point.saturating_mul(2));
     let mut cols = empty_columns(h, capacity);
-    let mut tokens: Vec<&[u8]> = Vec::with_capacity(per_point);
+    let mut tokens: Vec<&[u8]> = Vec::new();
     let mut point = 0usize;
     let mut line_no = h.data_line;
     for (line, _) in lines(body) {
@@ -657,6 +661,17 @@ mod tests {
         assert!(e.contains("overflows"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 1000000000\nDATA ascii\n1 2 3\n"));
         assert!(e.contains("point 1"), "{e}");
+        let huge_count = "FIELDS x y z n\nCOUNT 1 1 1 1000000000000000000\nWIDTH 9\nDATA";
+        let e = err(&format!("{huge_count} ascii\n1 2 3 4\n"));
+        assert!(e.contains("4 values, expected 1000000000000000003"), "{e}");
+        let e = err(&format!("{huge_count} binary\n1 2 3 4\n"));
+        assert!(e.starts_with("point 0: unexpected end of file"), "{e}");
+        let e = err(&format!(
+            "{huge_count} binary_compressed\n1 2 3 4 5 6 7 8\n"
+        ));
+        assert!(e.contains("overflow"), "{e}");
+        let e = err("FIELDS x y z n m\nCOUNT 1 1 1 18446744073709551615 9\nWIDTH 9\nDATA ascii\n");
+        assert!(e.contains("values per point overflow"), "{e}");
     }
 
     #[test]
