@@ -181,11 +181,18 @@ fn sniff(bytes: &[u8]) -> Format {
     if bytes.starts_with(b"ply\n") || bytes.starts_with(b"ply\r\n") {
         return Format::Ply;
     }
-    let pcd_start: [&[u8]; 4] = [b"# .PCD", b"VERSION", b"FIELDS", b"COLUMNS"];
-    if pcd_start.iter().any(|m| bytes.starts_with(m)) {
-        Format::Pcd
-    } else {
-        Format::Text
+    if bytes.starts_with(b"# .PCD") {
+        return Format::Pcd;
+    }
+    // PCD headers may open with other comments: look at the first line that is not one.
+    let first = lines(bytes)
+        .take(100)
+        .map(|(line, _)| line.trim_ascii_start())
+        .find(|line| !line.is_empty() && !line.starts_with(b"#"));
+    let keywords: [&[u8]; 3] = [b"VERSION", b"FIELDS", b"COLUMNS"];
+    match first {
+        Some(line) if keywords.iter().any(|k| line.starts_with(k)) => Format::Pcd,
+        _ => Format::Text,
     }
 }
 
@@ -446,11 +453,9 @@ pub(crate) fn assemble(
         height,
         fields,
     };
-    // The readers build columns of matching lengths; a mismatch would be a bug here, but report
-    // it rather than hand out an inconsistent cloud.
-    cloud
-        .validate()
-        .map_err(|e| CloudError::Format(format!("internal: inconsistent columns: {e}")))?;
+    // Catches field names a file can carry but a cloud cannot (control characters, `x` twice);
+    // the readers build columns of matching lengths.
+    cloud.validate()?;
     Ok(cloud)
 }
 
@@ -548,7 +553,7 @@ mod tests {
             -0.0,
             1e-7,
             3.4028235e38,
-            1.17549435e-38,
+            f32::MIN_POSITIVE,
             1e-45,
             123456.79,
             f32::INFINITY,
@@ -590,6 +595,11 @@ mod tests {
         assert_eq!(sniff(b"ply\nformat"), Format::Ply);
         assert_eq!(sniff(b"# .PCD v0.7"), Format::Pcd);
         assert_eq!(sniff(b"FIELDS x y z"), Format::Pcd);
+        assert_eq!(
+            sniff(b"# made by hand\n\nVERSION .5\nFIELDS x y z"),
+            Format::Pcd
+        );
+        assert_eq!(sniff(b"# x y z\n1 2 3\n"), Format::Text);
         assert_eq!(sniff(b"1 2 3\n"), Format::Text);
         assert_eq!(format_of(Path::new("a/b.PLY"), None), Format::Ply);
         assert_eq!(

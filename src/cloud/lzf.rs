@@ -155,14 +155,14 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
             if out.len() + len > expected_len {
                 return err(start, "output longer than the declared size");
             }
-            if back >= len {
-                out.extend_from_within(from..from + len);
-            } else {
-                // Overlapping copy: a run repeating the last `back` bytes.
-                for i in from..from + len {
-                    let b = out[i];
-                    out.push(b);
-                }
+            // The source may overlap the bytes being produced (a run repeating the last `back`
+            // bytes): copy in chunks that are already there, each twice as long as the last.
+            let mut copied = 0;
+            while copied < len {
+                let src = from + copied;
+                let n = (len - copied).min(out.len() - src);
+                out.extend_from_within(src..src + n);
+                copied += n;
             }
         }
     }

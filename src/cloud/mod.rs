@@ -142,10 +142,11 @@ impl FieldData {
         self.len() == 0
     }
 
-    /// Value `i` converted to `f64` (exact for every kind but `f64` itself, which is returned as
-    /// is). `None` when out of range.
+    /// Value `i` as `f64` (exact for every kind); `None` when out of range.
+    // The macro expands to every variant, the `f64` one included.
+    #[allow(clippy::useless_conversion)]
     pub fn get_f64(&self, i: usize) -> Option<f64> {
-        with_field_data!(self, v => v.get(i).map(|&x| x as f64))
+        with_field_data!(self, v => v.get(i).map(|&x| f64::from(x)))
     }
 
     /// The values of the points `indices`, `count` values per point.

@@ -69,20 +69,26 @@ fn pcd_type(kind: ScalarKind) -> char {
 /// A header keyword's values and the line they were on.
 type Entry<T> = Option<(usize, T)>;
 
+/// Header entries as read, before they are checked against each other.
+#[derive(Default)]
+struct RawHeader {
+    fields: Entry<Vec<String>>,
+    sizes: Entry<Vec<usize>>,
+    types: Entry<Vec<char>>,
+    counts: Entry<Vec<usize>>,
+    width: Entry<usize>,
+    height: Entry<usize>,
+    points: Entry<usize>,
+}
+
 fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
-    let mut fields: Entry<Vec<String>> = None;
-    let mut sizes: Entry<Vec<usize>> = None;
-    let mut types: Entry<Vec<char>> = None;
-    let mut counts: Entry<Vec<usize>> = None;
-    let mut width: Entry<usize> = None;
-    let mut height: Entry<usize> = None;
-    let mut points: Entry<usize> = None;
+    let mut raw = RawHeader::default();
     let mut seen_version = false;
     let mut seen_viewpoint = false;
 
-    for (line_no, (raw, next)) in (1..).zip(lines(buf)) {
+    for (line_no, (bytes, next)) in (1..).zip(lines(buf)) {
         let err = |msg: String| CloudError::header(line_no, msg);
-        let text = std::str::from_utf8(raw)
+        let text = std::str::from_utf8(bytes)
             .map_err(|_| err("not text (binary data before the DATA line?)".into()))?;
         let text = text.trim();
         if text.is_empty() || text.starts_with('#') {
@@ -115,19 +121,19 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                 seen_version = true;
             }
             "FIELDS" | "COLUMNS" => {
-                dup(fields.is_some())?;
+                dup(raw.fields.is_some())?;
                 if values.is_empty() {
                     return Err(err(format!("{keyword} lists no fields")));
                 }
-                fields = Some((line_no, values.iter().map(|s| s.to_string()).collect()));
+                raw.fields = Some((line_no, values.iter().map(|s| s.to_string()).collect()));
             }
             "SIZE" => {
-                dup(sizes.is_some())?;
+                dup(raw.sizes.is_some())?;
                 let v = values.iter().map(|s| number(s)).collect::<Result<_, _>>()?;
-                sizes = Some((line_no, v));
+                raw.sizes = Some((line_no, v));
             }
             "TYPE" => {
-                dup(types.is_some())?;
+                dup(raw.types.is_some())?;
                 let v = values
                     .iter()
                     .map(|s| match s.as_bytes() {
@@ -135,27 +141,27 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                         _ => Err(err(format!("TYPE {} is not F, I or U", quote(s)))),
                     })
                     .collect::<Result<_, _>>()?;
-                types = Some((line_no, v));
+                raw.types = Some((line_no, v));
             }
             "COUNT" => {
-                dup(counts.is_some())?;
+                dup(raw.counts.is_some())?;
                 let v: Vec<usize> = values.iter().map(|s| number(s)).collect::<Result<_, _>>()?;
                 if v.contains(&0) {
                     return Err(err("COUNT 0 is not allowed".into()));
                 }
-                counts = Some((line_no, v));
+                raw.counts = Some((line_no, v));
             }
             "WIDTH" => {
-                dup(width.is_some())?;
-                width = Some((line_no, single()?));
+                dup(raw.width.is_some())?;
+                raw.width = Some((line_no, single()?));
             }
             "HEIGHT" => {
-                dup(height.is_some())?;
-                height = Some((line_no, single()?));
+                dup(raw.height.is_some())?;
+                raw.height = Some((line_no, single()?));
             }
             "POINTS" => {
-                dup(points.is_some())?;
-                points = Some((line_no, single()?));
+                dup(raw.points.is_some())?;
+                raw.points = Some((line_no, single()?));
             }
             "VIEWPOINT" => {
                 dup(seen_viewpoint)?;
@@ -178,13 +184,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                         )));
                     }
                 };
-                return finish_header(
-                    (fields, sizes, types, counts),
-                    (width, height, points),
-                    data,
-                    next,
-                    line_no,
-                );
+                return finish_header(raw, data, next, line_no);
             }
             _ => return Err(err(format!("unknown keyword {}", quote(keyword)))),
         }
@@ -194,20 +194,21 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     ))
 }
 
-type FieldEntries = (
-    Entry<Vec<String>>,
-    Entry<Vec<usize>>,
-    Entry<Vec<char>>,
-    Entry<Vec<usize>>,
-);
-
 fn finish_header(
-    (fields, sizes, types, counts): FieldEntries,
-    (width, height, points): (Entry<usize>, Entry<usize>, Entry<usize>),
+    raw: RawHeader,
     data: PcdData,
     data_start: usize,
     data_line: usize,
 ) -> Result<Header, CloudError> {
+    let RawHeader {
+        fields,
+        sizes,
+        types,
+        counts,
+        width,
+        height,
+        points,
+    } = raw;
     let Some((fields_line, names)) = fields else {
         return Err(CloudError::header(data_line, "no FIELDS line before DATA"));
     };
@@ -354,12 +355,16 @@ fn empty_columns(h: &Header, capacity: usize) -> Vec<Option<Column>> {
 }
 
 fn read_ascii(h: &Header, body: &[u8]) -> Result<Vec<Column>, CloudError> {
-    let per_point: usize = h.fields.iter().map(|f| f.count).sum();
+    let per_point = h
+        .fields
+        .iter()
+        .try_fold(0usize, |acc, f| acc.checked_add(f.count))
+        .ok_or_else(|| CloudError::Format("PCD header: values per point overflow".into()))?;
     // Every value takes at least two bytes (a digit and a separator): bound the reservation by
-    // the data present, not by POINTS.
-    let capacity = h.points.min(body.len() / (2 * per_point).max(1) + 1);
+    // the data present, not by POINTS or COUNT.
+    let capacity = h.points.min(body.len() / per_point.saturating_mul(2));
     let mut cols = empty_columns(h, capacity);
-    let mut tokens: Vec<&[u8]> = Vec::with_capacity(per_point);
+    let mut tokens: Vec<&[u8]> = Vec::new();
     let mut point = 0usize;
     let mut line_no = h.data_line;
     for (line, _) in lines(body) {
@@ -656,6 +661,17 @@ mod tests {
         assert!(e.contains("overflows"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 1000000000\nDATA ascii\n1 2 3\n"));
         assert!(e.contains("point 1"), "{e}");
+        let huge_count = "FIELDS x y z n\nCOUNT 1 1 1 1000000000000000000\nWIDTH 9\nDATA";
+        let e = err(&format!("{huge_count} ascii\n1 2 3 4\n"));
+        assert!(e.contains("4 values, expected 1000000000000000003"), "{e}");
+        let e = err(&format!("{huge_count} binary\n1 2 3 4\n"));
+        assert!(e.starts_with("point 0: unexpected end of file"), "{e}");
+        let e = err(&format!(
+            "{huge_count} binary_compressed\n1 2 3 4 5 6 7 8\n"
+        ));
+        assert!(e.contains("overflow"), "{e}");
+        let e = err("FIELDS x y z n m\nCOUNT 1 1 1 18446744073709551615 9\nWIDTH 9\nDATA ascii\n");
+        assert!(e.contains("values per point overflow"), "{e}");
     }
 
     #[test]

@@ -151,6 +151,9 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                     [ty, name] => (PropType::Scalar(kind(ty)?), name),
                     _ => return Err(err("property needs a type and a name".into())),
                 };
+                if element.props.iter().any(|p| p.name == *name) {
+                    return Err(err(format!("property `{name}` appears twice")));
+                }
                 element.props.push(Prop {
                     name: name.to_string(),
                     ty,

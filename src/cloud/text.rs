@@ -39,12 +39,23 @@ fn parse_spec(line: usize, rest: &str) -> Result<Vec<Spec>, CloudError> {
                     count,
                 })
             });
-            parsed.ok_or_else(|| {
+            parsed.filter(|s| !s.name.is_empty()).ok_or_else(|| {
                 let msg = format!("{COLUMNS_TAG} entry {} is not name:kind[*count]", quote(w));
                 CloudError::header(line, msg)
             })
         })
-        .collect()
+        .collect::<Result<Vec<Spec>, CloudError>>()
+        .and_then(|specs| {
+            for (i, s) in specs.iter().enumerate() {
+                if matches!(s.name.as_str(), "x" | "y" | "z")
+                    || specs[..i].iter().any(|t| t.name == s.name)
+                {
+                    let msg = format!("{COLUMNS_TAG} column `{}` appears twice", s.name);
+                    return Err(CloudError::header(line, msg));
+                }
+            }
+            Ok(specs)
+        })
 }
 
 /// Reads a plain text cloud (see the [`io`](super::io) module docs).
@@ -99,8 +110,9 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
                     ));
                 }
                 if let Some((spec_line, specs)) = spec.take() {
-                    let declared = 3 + specs.iter().map(|s| s.count).sum::<usize>();
-                    if declared != tokens.len() {
+                    let declared = specs.iter().try_fold(3usize, |n, s| n.checked_add(s.count));
+                    if declared != Some(tokens.len()) {
+                        let declared = declared.map_or("too many".into(), |n| n.to_string());
                         return Err(err(
                             None,
                             format!(
@@ -297,6 +309,14 @@ mod tests {
         assert_eq!(
             e(b"# sqscan-columns: x y z i:u9\n"),
             "header line 1: sqscan-columns: entry `i:u9` is not name:kind[*count]"
+        );
+        assert_eq!(
+            e(b"# sqscan-columns: x y z a:u8*18446744073709551615 b:u8\n1 2 3 4\n"),
+            "point 0 (line 2): 4 columns, but the sqscan-columns: line 1 declares too many"
+        );
+        assert_eq!(
+            e(b"# sqscan-columns: x y z x:f32\n1 2 3 4\n"),
+            "header line 1: sqscan-columns: column `x` appears twice"
         );
     }
 }
