@@ -12,6 +12,7 @@
 //! choice comes from a seeded generator.
 
 pub mod cloud;
+pub mod detect;
 pub mod geometry;
 pub mod model;
 pub mod pose;

@@ -452,6 +452,7 @@ pub(crate) fn assemble(
         width,
         height,
         fields,
+        viewpoint: None,
     };
     // Catches field names a file can carry but a cloud cannot (control characters, `x` twice);
     // the readers build columns of matching lengths.

@@ -202,6 +202,10 @@ pub struct PointCloud {
     pub width: usize,
     pub height: usize,
     pub fields: Vec<Field>,
+    /// Where the sensor was, as PCD's `VIEWPOINT` gives it: `[tx, ty, tz, qw, qx, qy, qz]` in the
+    /// cloud's frame. Camera-frame clouds have the sensor at the origin; the detector uses the
+    /// position to tell the front of a surface from its back. `None` when the file said nothing.
+    pub viewpoint: Option<[f64; 7]>,
 }
 
 fn is_finite_point(p: &[f32; 3]) -> bool {
@@ -216,6 +220,7 @@ impl PointCloud {
             height: 1,
             points,
             fields: Vec::new(),
+            viewpoint: None,
         }
     }
 
@@ -235,6 +240,7 @@ impl PointCloud {
             width,
             height,
             fields: Vec::new(),
+            viewpoint: None,
         }
     }
 
@@ -300,6 +306,7 @@ impl PointCloud {
                     data: f.data.select(f.count, indices),
                 })
                 .collect(),
+            viewpoint: self.viewpoint,
         }
     }
 

@@ -42,6 +42,7 @@ struct Header {
     data_start: usize,
     /// Line number of the `DATA` line.
     data_line: usize,
+    viewpoint: Option<[f64; 7]>,
 }
 
 fn pcd_kind(ty: char, size: usize) -> Option<ScalarKind> {
@@ -84,7 +85,7 @@ struct RawHeader {
 fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     let mut raw = RawHeader::default();
     let mut seen_version = false;
-    let mut seen_viewpoint = false;
+    let mut viewpoint: Option<[f64; 7]> = None;
 
     for (line_no, (bytes, next)) in (1..).zip(lines(buf)) {
         let err = |msg: String| CloudError::header(line_no, msg);
@@ -164,12 +165,15 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                 raw.points = Some((line_no, single()?));
             }
             "VIEWPOINT" => {
-                dup(seen_viewpoint)?;
-                seen_viewpoint = true;
-                if values.len() != 7 || values.iter().any(|v| v.parse::<f64>().is_err()) {
-                    return Err(err(
-                        "VIEWPOINT needs 7 numbers (tx ty tz qw qx qy qz)".into()
-                    ));
+                dup(viewpoint.is_some())?;
+                let nums: Vec<f64> = values.iter().filter_map(|v| v.parse::<f64>().ok()).collect();
+                match <[f64; 7]>::try_from(nums.as_slice()) {
+                    Ok(v) if values.len() == 7 && v.iter().all(|x| x.is_finite()) => viewpoint = Some(v),
+                    _ => {
+                        return Err(err(
+                            "VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)".into()
+                        ));
+                    }
                 }
             }
             "DATA" => {
@@ -184,7 +188,9 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                         )));
                     }
                 };
-                return finish_header(raw, data, next, line_no);
+                let mut header = finish_header(raw, data, next, line_no)?;
+                header.viewpoint = viewpoint;
+                return Ok(header);
             }
             _ => return Err(err(format!("unknown keyword {}", quote(keyword)))),
         }
@@ -311,6 +317,7 @@ fn finish_header(
         data,
         data_start,
         data_line,
+        viewpoint: None,
     })
 }
 
@@ -327,7 +334,9 @@ pub(crate) fn parse_pcd(buf: &[u8]) -> Result<PointCloud, CloudError> {
         PcdData::Binary => read_binary(&header, body)?,
         PcdData::BinaryCompressed => read_compressed(&header, body)?,
     };
-    assemble(columns, header.width, header.height)
+    let mut cloud = assemble(columns, header.width, header.height)?;
+    cloud.viewpoint = header.viewpoint;
+    Ok(cloud)
 }
 
 /// Bytes per point, or an error for absurd `SIZE`/`COUNT` products.
@@ -524,6 +533,11 @@ pub fn write_pcd(mut w: impl Write, cloud: &PointCloud, data: PcdData) -> Result
         types += &format!(" {}", pcd_type(kind));
         counts += &format!(" {}", f.count);
     }
+    let viewpoint = cloud
+        .viewpoint
+        .unwrap_or([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+        .map(|v| v.to_string())
+        .join(" ");
     let encoding = match data {
         PcdData::Ascii => "ascii",
         PcdData::Binary => "binary",
@@ -532,7 +546,7 @@ pub fn write_pcd(mut w: impl Write, cloud: &PointCloud, data: PcdData) -> Result
     let header = format!(
         "# .PCD v0.7 - Point Cloud Data file format\nVERSION 0.7\nFIELDS {names}\nSIZE {sizes}\n\
          TYPE {types}\nCOUNT {counts}\nWIDTH {width}\nHEIGHT {height}\n\
-         VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {encoding}\n"
+         VIEWPOINT {viewpoint}\nPOINTS {n}\nDATA {encoding}\n"
     );
     w.write_all(header.as_bytes())?;
     match data {

@@ -51,6 +51,8 @@ struct Header {
     elements: Vec<Element>,
     /// `(width, height)` from our `obj_info sqscan width W height H` line.
     organized: Option<(usize, usize)>,
+    /// From our `obj_info sqscan viewpoint tx ty tz qw qx qy qz` line.
+    viewpoint: Option<[f64; 7]>,
     data_start: usize,
     /// Line number of `end_header`.
     end_line: usize,
@@ -88,6 +90,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
     let mut organized = None;
+    let mut viewpoint = None;
     let mut vertex_line = 0;
     for (line_no, (raw, next)) in (1..).zip(lines(buf)) {
         let err = |msg: String| CloudError::header(line_no, msg);
@@ -103,6 +106,10 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
             [] | ["comment", ..] => {}
             ["obj_info", "sqscan", "width", w, "height", h] => {
                 organized = w.parse().ok().zip(h.parse().ok());
+            }
+            ["obj_info", "sqscan", "viewpoint", rest @ ..] => {
+                let v: Vec<f64> = rest.iter().filter_map(|t| t.parse().ok()).collect();
+                viewpoint = <[f64; 7]>::try_from(v.as_slice()).ok().filter(|v| v.iter().all(|x| x.is_finite()));
             }
             ["obj_info", ..] => {}
             ["format", f, _version] => {
@@ -185,6 +192,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                     encoding,
                     elements,
                     organized,
+                    viewpoint,
                     data_start: next,
                     end_line: line_no,
                 });
@@ -214,7 +222,9 @@ pub(crate) fn parse_ply(buf: &[u8]) -> Result<PointCloud, CloudError> {
         Some((w, h)) if h > 1 && w.checked_mul(h) == Some(n) => (w, h),
         _ => (n, 1),
     };
-    assemble(columns, width, height)
+    let mut cloud = assemble(columns, width, height)?;
+    cloud.viewpoint = header.viewpoint;
+    Ok(cloud)
 }
 
 /// Empty columns for the scalar properties of the vertex element (`None` for lists).
@@ -430,6 +440,10 @@ pub fn write_ply(
     if cloud.is_organized() {
         let (width, height) = dims(cloud);
         header += &format!("obj_info sqscan width {width} height {height}\n");
+    }
+    if let Some(v) = cloud.viewpoint {
+        let v: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+        header += &format!("obj_info sqscan viewpoint {}\n", v.join(" "));
     }
     header +=
         &format!("element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n");

@@ -296,8 +296,19 @@ pub fn simulate(scene: &Scene, seed: u64) -> Sweep {
             Field { name: "intensity".into(), count: 1, data: FieldData::U8(intensity) },
             Field { name: "label".into(), count: 1, data: FieldData::U32(labels) },
         ],
+        viewpoint: Some(viewpoint_of(rig)),
     };
     Sweep { profiles, columns, stamp_s, tilt_rad, pan_rad: rig.pan, range_m, cloud }
+}
+
+/// The sensor pose at mid-sweep as a PCD viewpoint `[tx, ty, tz, qw, qx, qy, qz]`: the sensor
+/// moves a few centimetres during a sweep, which does not matter for telling the front of a
+/// surface from its back.
+fn viewpoint_of(rig: &Rig) -> [f64; 7] {
+    let pose = rig.sensor_in_base(rig.pan, 0.5 * (rig.tilt_start + rig.tilt_end));
+    let t = pose.translation.vector;
+    let q = pose.rotation.quaternion();
+    [t.x, t.y, t.z, q.w, q.i, q.j, q.k]
 }
 
 /// Render the range image as 8-bit grey: near returns bright, far ones darker, no return black.

@@ -1,6 +1,7 @@
 //! `sqscan`: the command-line tool of sqscan: simulator, model viewer, cloud inspector (and, as
 //! they land, the offline detector, evaluator and the daemon's client).
 
+mod detect;
 mod files;
 
 use anyhow::{Context, Result};
@@ -26,6 +27,8 @@ enum Command {
     ShowModel(files::ShowModelArgs),
     /// Print a point cloud file's point count, finite points, organization and bounding box
     Info(files::InfoArgs),
+    /// Find an object in a point cloud file; prints one JSON object
+    Detect(detect::DetectArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +38,7 @@ fn main() -> ExitCode {
         Command::Simulate(a) => files::simulate(a, &models_dir),
         Command::ShowModel(a) => files::show_model(a, &models_dir),
         Command::Info(a) => files::info(a),
+        Command::Detect(a) => detect::detect(a, &models_dir),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,105 @@
+//! `sqscan detect`: find an object in a point-cloud file.
+
+use crate::write_atomic;
+use anyhow::{Result, bail};
+use clap::Args;
+use nalgebra::Point3;
+use sqscan::cloud::{self, Field, FieldData, PlyFormat, PointCloud};
+use sqscan::detect::{self, Params};
+use sqscan::model::Model;
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct DetectArgs {
+    /// Model name (looked up in the models directory) or model file
+    #[arg(long)]
+    model: String,
+    /// Point cloud file (.pcd, .ply, or text with x y z per line)
+    #[arg(long)]
+    cloud: PathBuf,
+    /// Seed of every random choice of the search
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Report every accepted instance that does not overlap a better one
+    #[arg(long)]
+    all: bool,
+    /// Write the input cloud with the detected surfaces added in colour (PLY)
+    #[arg(long, value_name = "DETECTED.ply")]
+    out: Option<PathBuf>,
+    /// Ignore points farther than this from the viewpoint (m), e.g. a wall behind the table
+    #[arg(long, value_name = "M")]
+    max_range: Option<f64>,
+    /// Sensor position "x,y,z" in the cloud's frame [default: the file's VIEWPOINT, else the origin]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    viewpoint: Option<Point3<f64>>,
+    /// Hypotheses for the (largest) part [default: the model's m, else from the scene's extent]
+    #[arg(long, value_name = "M")]
+    hypotheses: Option<usize>,
+    /// RANSAC trials per hypothesis
+    #[arg(long, default_value_t = 10)]
+    trials: usize,
+    /// Keep the dominant plane instead of removing it
+    #[arg(long)]
+    keep_plane: bool,
+}
+
+pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
+    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
+    match v.as_slice() {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Point3::new(*x, *y, *z)),
+        _ => Err(format!("{s:?}: give three finite numbers x,y,z")),
+    }
+}
+
+/// Detector parameters from the common flags and the cloud's own viewpoint.
+pub fn params_for(cloud: &PointCloud, seed: u64, viewpoint: Option<Point3<f64>>) -> Params {
+    let file_viewpoint = cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+    Params { seed, viewpoint: viewpoint.or(file_viewpoint).or(Some(Point3::origin())), ..Params::default() }
+}
+
+pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
+    if a.max_range.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
+        bail!("--max-range: give a distance > 0 m");
+    }
+    if a.trials == 0 || a.hypotheses == Some(0) {
+        bail!("--trials and --hypotheses must be at least 1");
+    }
+    let model = Model::load(&a.model, models_dir)?;
+    let cloud = cloud::read_cloud(&a.cloud)?;
+    let mut params = params_for(&cloud, a.seed, a.viewpoint);
+    params.all = a.all;
+    params.max_range = a.max_range;
+    params.hypotheses = a.hypotheses;
+    params.trials = a.trials;
+    params.remove_plane = !a.keep_plane;
+    let report = detect::detect(&cloud.points, &model, &params);
+    println!("{}", detect::output::report_json(&report, a.all));
+    if let Some(out) = &a.out {
+        let shown: Vec<&detect::Detection> =
+            if a.all { report.detections.iter().collect() } else { report.detections.iter().take(1).collect() };
+        let coloured = with_detections(&cloud, &shown);
+        write_atomic(out, |w| Ok(cloud::write_ply(w, &coloured, PlyFormat::BinaryLittleEndian)?))?;
+    }
+    Ok(())
+}
+
+/// The input's points in grey plus every detected part's surface (green when found, orange for
+/// the most similar thing when not), as one PLY with red, green, blue.
+fn with_detections(input: &PointCloud, detections: &[&detect::Detection]) -> PointCloud {
+    let mut points: Vec<[f32; 3]> = input.points.iter().filter(|p| p.iter().all(|v| v.is_finite())).copied().collect();
+    let mut rgb: Vec<[u8; 3]> = vec![[150, 150, 150]; points.len()];
+    for d in detections {
+        let colour = if d.found { [40, 220, 60] } else { [250, 140, 20] };
+        for part in d.parts.iter().filter_map(|p| p.placed) {
+            for q in part.sample_surface(part.shape.min_size() / 8.0) {
+                points.push([q.x as f32, q.y as f32, q.z as f32]);
+                rgb.push(colour);
+            }
+        }
+    }
+    let mut out = PointCloud::from_points(points);
+    for (c, name) in ["red", "green", "blue"].iter().enumerate() {
+        out.fields.push(Field { name: (*name).into(), count: 1, data: FieldData::U8(rgb.iter().map(|x| x[c]).collect()) });
+    }
+    out
+}

@@ -1,0 +1,150 @@
+//! A uniform voxel grid over a point set: radius queries and voxel subsampling.
+//!
+//! Queries in the detector always use radii close to one size (the part's smallest or largest
+//! half-size), so a hash grid with cells of about that size answers a radius query by visiting
+//! 27 cells, and is built in one pass with one sort — cheaper to build than a k-d tree for the
+//! few thousand to few hundred thousand points of a sweep, and as fast to query at these radii.
+
+use nalgebra::Point3;
+
+/// Points bucketed into cubic cells; every cell's points are contiguous in `order`.
+pub struct Grid {
+    cell: f64,
+    origin: Point3<f64>,
+    dims: [usize; 3],
+    /// `starts[c]..starts[c + 1]` indexes `order` for cell `c`.
+    starts: Vec<u32>,
+    order: Vec<u32>,
+}
+
+impl Grid {
+    /// Build a grid with the given cell size over `points` (all finite).
+    pub fn new(points: &[Point3<f64>], cell: f64) -> Grid {
+        let cell = cell.max(1e-6);
+        let mut lo = Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY);
+        let mut hi = Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+        for p in points {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        if points.is_empty() {
+            lo = Point3::origin();
+            hi = Point3::origin();
+        }
+        // Bound the cell count: a few stray far points must not make a huge sparse array.
+        let mut cell = cell;
+        let dims = loop {
+            let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
+            if d.iter().try_fold(1usize, |acc, &x| acc.checked_mul(x)).is_some_and(|n| n <= 8 * points.len().max(1024)) {
+                break d;
+            }
+            cell *= 1.5;
+        };
+        let n_cells = dims[0] * dims[1] * dims[2];
+        let mut g = Grid { cell, origin: lo, dims, starts: vec![0; n_cells + 1], order: Vec::new() };
+        let ids: Vec<usize> = points.iter().map(|p| g.cell_index(p)).collect();
+        for &c in &ids {
+            g.starts[c + 1] += 1;
+        }
+        for c in 0..n_cells {
+            g.starts[c + 1] += g.starts[c];
+        }
+        let mut fill = g.starts.clone();
+        g.order = vec![0; points.len()];
+        for (i, &c) in ids.iter().enumerate() {
+            g.order[fill[c] as usize] = i as u32;
+            fill[c] += 1;
+        }
+        g
+    }
+
+    pub fn cell_size(&self) -> f64 {
+        self.cell
+    }
+
+    #[inline]
+    fn coords(&self, p: &Point3<f64>) -> [usize; 3] {
+        [0, 1, 2].map(|k| (((p[k] - self.origin[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1))
+    }
+
+    #[inline]
+    fn cell_index(&self, p: &Point3<f64>) -> usize {
+        let c = self.coords(p);
+        (c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]
+    }
+
+    /// Call `f(index)` for every point within `radius` of `centre`.
+    pub fn for_each_within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64, mut f: impl FnMut(usize)) {
+        let r2 = radius * radius;
+        let lo = self.coords(&(centre - nalgebra::Vector3::repeat(radius)));
+        let hi = self.coords(&(centre + nalgebra::Vector3::repeat(radius)));
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                let row = (z * self.dims[1] + y) * self.dims[0];
+                let (a, b) = (self.starts[row + lo[0]] as usize, self.starts[row + hi[0] + 1] as usize);
+                for &i in &self.order[a..b] {
+                    let i = i as usize;
+                    if (points[i] - centre).norm_squared() <= r2 {
+                        f(i);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Indices of the points within `radius` of `centre`.
+    pub fn within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64) -> Vec<usize> {
+        let mut out = Vec::new();
+        self.for_each_within(points, centre, radius, |i| out.push(i));
+        out
+    }
+}
+
+/// One representative point per voxel of side `voxel` (the point nearest the voxel's centroid is
+/// not worth its cost here: the first point in each voxel, in input order, is kept). Returns
+/// indices into `points`, in input order.
+pub fn voxel_subsample(points: &[Point3<f64>], voxel: f64) -> Vec<usize> {
+    if points.is_empty() || !(voxel > 0.0) {
+        return (0..points.len()).collect();
+    }
+    let mut seen = std::collections::HashSet::with_capacity(points.len() / 4);
+    let mut keep = Vec::new();
+    for (i, p) in points.iter().enumerate() {
+        let key = [0, 1, 2].map(|k| (p[k] / voxel).floor() as i64);
+        if seen.insert(key) {
+            keep.push(i);
+        }
+    }
+    keep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    #[test]
+    fn radius_queries_match_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let pts: Vec<Point3<f64>> = (0..3000)
+            .map(|_| Point3::new(rng.random_range(-1.0..1.0), rng.random_range(-0.5..0.5), rng.random_range(0.0..0.3)))
+            .collect();
+        let grid = Grid::new(&pts, 0.05);
+        for _ in 0..200 {
+            let c = Point3::new(rng.random_range(-1.2..1.2), rng.random_range(-0.6..0.6), rng.random_range(-0.1..0.4));
+            let r = rng.random_range(0.01..0.2);
+            let mut got = grid.within(&pts, &c, r);
+            got.sort();
+            let want: Vec<usize> = (0..pts.len()).filter(|&i| (pts[i] - c).norm() <= r).collect();
+            assert_eq!(got, want);
+        }
+    }
+
+    #[test]
+    fn subsampling_keeps_one_point_per_voxel() {
+        let pts: Vec<Point3<f64>> = (0..100).map(|i| Point3::new(i as f64 * 0.001, 0.0, 0.0)).collect();
+        assert_eq!(voxel_subsample(&pts, 0.01).len(), 10);
+    }
+}

@@ -1,0 +1,192 @@
+//! Dominant plane removal (paper III-A).
+//!
+//! 100 seed points spread evenly over the data each get a plane patch fitted to their
+//! neighbourhood (normal: the eigenvector of the covariance's smallest eigenvalue). Every patch
+//! plane is verified against the other seeds: a seed supports a plane when its normal distance is
+//! below the median of all seed-to-plane distances of all hypotheses (the paper's median rule,
+//! read as one global threshold: a per-hypothesis median would give every hypothesis half the
+//! seeds). The best-supported plane is refined on all the points near it, and removed only when
+//! it holds more points than the rest of the scene.
+
+use super::grid::Grid;
+use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
+
+/// Seeds spread over the data, as in the paper.
+const SEEDS: usize = 100;
+/// Neighbours a seed's patch is fitted to.
+const PATCH_POINTS: usize = 30;
+
+/// A plane `n . p + d = 0` with unit normal `n`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plane {
+    pub normal: Vector3<f64>,
+    pub d: f64,
+}
+
+impl Plane {
+    #[inline]
+    pub fn signed_distance(&self, p: &Point3<f64>) -> f64 {
+        self.normal.dot(&p.coords) + self.d
+    }
+
+    /// `[nx, ny, nz, d]`.
+    pub fn coefficients(&self) -> [f64; 4] {
+        [self.normal.x, self.normal.y, self.normal.z, self.d]
+    }
+
+    fn flipped(&self) -> Plane {
+        Plane { normal: -self.normal, d: -self.d }
+    }
+}
+
+/// The result of plane removal.
+#[derive(Debug, Clone)]
+pub struct PlaneRemoval {
+    /// The dominant plane, its normal pointing to the side where the rest of the scene (the
+    /// objects on it) lies; `None` when no plane held more points than the rest.
+    pub plane: Option<Plane>,
+    /// Points on the plane within `band` (m) of it.
+    pub inliers: usize,
+    /// The half-width of the band removed (m): three robust standard deviations of the
+    /// inliers' distances.
+    pub band: f64,
+    /// Indices of the points kept (off the plane, and above it when `keep_below` is false).
+    pub kept: Vec<usize>,
+}
+
+/// Plane through a point set: centroid and the smallest-eigenvalue eigenvector.
+fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -> Option<(Plane, f64)> {
+    let mut n = 0usize;
+    let mut c = Vector3::zeros();
+    for i in idx.clone() {
+        c += points[i].coords;
+        n += 1;
+    }
+    if n < 3 {
+        return None;
+    }
+    c /= n as f64;
+    let mut cov = Matrix3::zeros();
+    for i in idx {
+        let d = points[i].coords - c;
+        cov += d * d.transpose();
+    }
+    cov /= n as f64;
+    let eig = SymmetricEigen::new(cov);
+    let k = eig.eigenvalues.imin();
+    let normal = eig.eigenvectors.column(k).into_owned().try_normalize(1e-12)?;
+    // The smallest eigenvalue is the mean squared distance to the plane.
+    Some((Plane { normal, d: -normal.dot(&c) }, eig.eigenvalues[k].max(0.0)))
+}
+
+/// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
+/// (under a table) too; by default they are dropped, since nothing there stands on it.
+pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool) -> PlaneRemoval {
+    let all: Vec<usize> = (0..points.len()).collect();
+    let none = PlaneRemoval { plane: None, inliers: 0, band: 0.0, kept: all };
+    if points.len() < SEEDS {
+        return none;
+    }
+    // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
+    let Some((whole, _)) = fit_plane(points, 0..points.len()) else { return none };
+    let (u, v) = orthonormal_basis(&whole.normal);
+    let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        let (a, b) = (u.dot(&p.coords), v.dot(&p.coords));
+        umin = umin.min(a);
+        umax = umax.max(a);
+        vmin = vmin.min(b);
+        vmax = vmax.max(b);
+    }
+    let side = (SEEDS as f64).sqrt().ceil() as usize;
+    let mut seed_of_cell: Vec<Option<(usize, f64)>> = vec![None; side * side];
+    let (du, dv) = ((umax - umin).max(1e-9) / side as f64, (vmax - vmin).max(1e-9) / side as f64);
+    for (i, p) in points.iter().enumerate() {
+        let (a, b) = (u.dot(&p.coords), v.dot(&p.coords));
+        let (cu, cv) = (((a - umin) / du) as usize, ((b - vmin) / dv) as usize);
+        let (cu, cv) = (cu.min(side - 1), cv.min(side - 1));
+        // The point nearest the cell centre represents the cell.
+        let (ca, cb) = (umin + (cu as f64 + 0.5) * du, vmin + (cv as f64 + 0.5) * dv);
+        let d = (a - ca).powi(2) + (b - cb).powi(2);
+        let slot = &mut seed_of_cell[cv * side + cu];
+        if slot.is_none_or(|(_, best)| d < best) {
+            *slot = Some((i, d));
+        }
+    }
+    let seeds: Vec<usize> = seed_of_cell.into_iter().flatten().map(|(i, _)| i).collect();
+    // Patch radius: enough for PATCH_POINTS neighbours at the cloud's mean density.
+    let area = ((umax - umin) * (vmax - vmin)).max(1e-9);
+    let radius = (PATCH_POINTS as f64 * area / points.len() as f64 / std::f64::consts::PI).sqrt() * 1.5;
+    let grid = Grid::new(points, radius);
+    let hypotheses: Vec<(usize, Plane)> = seeds
+        .iter()
+        .filter_map(|&s| {
+            let near = grid.within(points, &points[s], radius);
+            fit_plane(points, near.iter().copied()).map(|(p, _)| (s, p))
+        })
+        .collect();
+    if hypotheses.is_empty() {
+        return none;
+    }
+    let mut all_d: Vec<f64> = Vec::with_capacity(hypotheses.len() * seeds.len());
+    for (_, h) in &hypotheses {
+        all_d.extend(seeds.iter().map(|&s| h.signed_distance(&points[s]).abs()));
+    }
+    let threshold = median(&mut all_d);
+    let (_, best) = hypotheses
+        .iter()
+        .map(|(s, h)| {
+            let support = seeds.iter().filter(|&&t| t != *s && h.signed_distance(&points[t]).abs() < threshold).count();
+            (support, *h)
+        })
+        .max_by_key(|(support, _)| *support)
+        .expect("hypotheses is not empty");
+    // Refine on all points: least squares on the points near the plane, with a band from their
+    // robust spread, three times.
+    let mut plane = best;
+    let mut band = threshold.max(0.005);
+    for _ in 0..3 {
+        let near = (0..points.len()).filter(|&i| plane.signed_distance(&points[i]).abs() < band);
+        let Some((p, _)) = fit_plane(points, near) else { return none };
+        plane = if p.normal.dot(&plane.normal) < 0.0 { p.flipped() } else { p };
+        let mut dist: Vec<f64> = points
+            .iter()
+            .map(|q| plane.signed_distance(q).abs())
+            .filter(|&d| d < band)
+            .collect();
+        // 1.4826 MAD estimates sigma; three sigma hold 99.7 % of the plane's noise.
+        band = (3.0 * 1.4826 * median(&mut dist)).max(0.002);
+    }
+    let inliers = points.iter().filter(|q| plane.signed_distance(q).abs() < band).count();
+    if inliers * 2 <= points.len() {
+        return PlaneRemoval { plane: None, inliers, band, kept: (0..points.len()).collect() };
+    }
+    // Orient the normal towards the objects: the side with more off-plane points.
+    let above = points.iter().filter(|q| plane.signed_distance(q) >= band).count();
+    let below = points.iter().filter(|q| plane.signed_distance(q) <= -band).count();
+    if below > above {
+        plane = plane.flipped();
+    }
+    let kept = (0..points.len())
+        .filter(|&i| {
+            let d = plane.signed_distance(&points[i]);
+            d >= band || (keep_below && d <= -band)
+        })
+        .collect();
+    PlaneRemoval { plane: Some(plane), inliers, band, kept }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
+
+/// Two unit vectors completing `n` to an orthonormal basis.
+pub fn orthonormal_basis(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = n.cross(&helper).normalize();
+    (u, n.cross(&u))
+}

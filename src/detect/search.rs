@@ -1,0 +1,261 @@
+//! Hypothesis generation (paper III-B-1): RANSAC trials on subsampled data, each a
+//! Levenberg-Marquardt pose fit to about 30 points around a random seed point, started with the
+//! part's z axis along each of the sample's three central-moment directions; the best trial of
+//! every hypothesis is refined on the full-resolution points near it until M stops improving.
+//!
+//! Beyond the paper, every start is placed where the superquadric would touch the sampled patch
+//! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
+//! centroid, so a fit needs a few iterations instead of twenty; all starts get a short fit and
+//! only the best continues.
+
+use super::fit::{Fit, fit_pose, measure_of_fit};
+use super::grid::Grid;
+use crate::geometry::{PlacedSuperquadric, Superquadric};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, SymmetricEigen, UnitQuaternion, Vector3};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+
+/// Iterations of the short fit every start gets before the best one continues.
+const SCREEN_ITERATIONS: usize = 4;
+/// A trial needs at least this many points around its seed to say anything about the pose.
+const MIN_SAMPLE: usize = 8;
+/// Refinement rounds on the full-resolution points at most.
+const REFINE_ROUNDS: usize = 6;
+
+/// Where the detector searches: the full-resolution points and a subsampled copy, with grids.
+pub struct SearchSpace<'a> {
+    pub points: &'a [Point3<f64>],
+    pub grid: &'a Grid,
+    pub sub: &'a [Point3<f64>],
+    pub sub_grid: &'a Grid,
+    pub viewpoint: Option<Point3<f64>>,
+    /// Depth noise estimate (m, one sigma) near the scene: sets the inlier band.
+    pub noise: f64,
+    /// The support plane (normal towards the objects), when one was found: nothing the sensor
+    /// saw on it can reach through it.
+    pub plane: Option<super::plane::Plane>,
+}
+
+/// How a shape may be placed against the support plane: its surface samples, to find how deep a
+/// pose would push it through the plane.
+pub struct PlaneCheck {
+    samples: Vec<Vector3<f64>>,
+    tolerance: f64,
+}
+
+impl PlaneCheck {
+    pub fn new(shape: &Superquadric, noise: f64) -> PlaneCheck {
+        // The model approximates the object: allow a tenth of the smallest size of overlap beyond
+        // the noise before calling a pose impossible.
+        PlaneCheck { samples: shape.sample_surface(shape.min_size() / 4.0), tolerance: 3.0 * noise + 0.1 * shape.min_size() }
+    }
+
+    /// How far (m) the placed shape reaches through the plane (negative: it stays above).
+    pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &super::plane::Plane) -> f64 {
+        let n_local = placed.pose.rotation.inverse() * plane.normal;
+        let lowest = self.samples.iter().map(|q| n_local.dot(q)).fold(f64::INFINITY, f64::min);
+        -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + lowest)
+    }
+
+    /// Whether the pose is possible for an object resting on or above the plane.
+    pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
+        if std::env::var_os("SQSCAN_NOCHECK").is_some() { return true; }
+        space.plane.as_ref().is_none_or(|p| self.penetration(placed, p) <= self.tolerance)
+    }
+}
+
+/// Search settings of one part.
+#[derive(Debug, Clone, Copy)]
+pub struct SearchSettings {
+    pub trials: usize,
+    pub sample_points: usize,
+    pub fit_iterations: usize,
+}
+
+/// One refined hypothesis.
+#[derive(Debug, Clone, Copy)]
+pub struct Hypothesis {
+    pub placed: PlacedSuperquadric,
+    /// The paper's M after refinement.
+    pub m: f64,
+}
+
+/// Initial poses for a patch: z along each central-moment axis (both signs when the taper makes
+/// the sign observable, both spins of the x axis when the cross-section is not round), the
+/// centre one half-size behind the patch along its normal (on both sides when no viewpoint says
+/// which side faces the sensor).
+pub fn initial_poses(shape: &Superquadric, sample: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> Vec<Isometry3<f64>> {
+    let n = sample.len() as f64;
+    let c = sample.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / n;
+    let mut cov = Matrix3::zeros();
+    for p in sample {
+        let d = p.coords - c;
+        cov += d * d.transpose();
+    }
+    let eig = SymmetricEigen::new(cov / n);
+    // Axes sorted by eigenvalue: e[0] the smallest (the patch normal).
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
+    let e = order.map(|k| eig.eigenvectors.column(k).into_owned());
+    let normal = e[0];
+    let outward: Vec<Vector3<f64>> = match viewpoint {
+        Some(v) => {
+            let to_view = v.coords - c;
+            vec![if normal.dot(&to_view) >= 0.0 { normal } else { -normal }]
+        }
+        None => vec![normal, -normal],
+    };
+    let round = shape.is_revolution();
+    let mut out = Vec::with_capacity(24);
+    for k in 0..3 {
+        let z = e[k];
+        let spins: &[usize] = if round { &[1] } else { &[1, 2] };
+        for &s in spins {
+            let x0 = e[(k + s) % 3];
+            let x = (x0 - z * z.dot(&x0)).normalize();
+            let y = z.cross(&x);
+            let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
+            let mut rots = vec![r];
+            if shape.is_tapered() {
+                // Half a turn about x flips z (and y), keeping the frame right-handed.
+                rots.push(r * Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+            }
+            for r in rots {
+                // The half-size along the patch normal: how far behind the patch the centre lies.
+                let local_n = r.inverse() * normal;
+                let depth = (local_n.x * shape.a[0]).abs().max((local_n.y * shape.a[1]).abs()).max((local_n.z * shape.a[2]).abs());
+                for o in &outward {
+                    let centre = c - o * depth;
+                    out.push(Isometry3::from_parts(centre.into(), UnitQuaternion::from_rotation_matrix(&r)));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Fit the best of several starts: every start gets a short fit, the best continues.
+pub fn fit_from_starts(shape: &Superquadric, starts: &[Isometry3<f64>], sample: &[Point3<f64>], iterations: usize) -> Option<Fit> {
+    let five = shape.is_revolution();
+    let screened = starts
+        .iter()
+        .map(|s| fit_pose(&PlacedSuperquadric::new(*shape, *s), sample, SCREEN_ITERATIONS.min(iterations), five))
+        .min_by(|a, b| a.m.total_cmp(&b.m))?;
+    let rest = iterations.saturating_sub(screened.iterations);
+    if rest == 0 {
+        return Some(screened);
+    }
+    Some(fit_pose(&screened.placed, sample, rest, five))
+}
+
+/// Points of `space.points` near the surface of `placed` (within the inlier band) and within the
+/// part's reach.
+pub fn local_inliers(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Vec<Point3<f64>> {
+    let centre = Point3::from(placed.pose.translation.vector);
+    let mut out = Vec::new();
+    space.grid.for_each_within(space.points, &centre, placed.shape.bounding_radius() + band, |i| {
+        let p = &space.points[i];
+        if placed.surface_distance(p).abs() < band {
+            out.push(*p);
+        }
+    });
+    out
+}
+
+/// The inlier band for refinement: three noise sigmas, at least a tenth of the smallest size
+/// (so a rough RANSAC pose still gathers its object's points), at most half of it.
+pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
+    (3.0 * noise).max(0.1 * shape.min_size()).min(0.5 * shape.min_size()).max(0.002)
+}
+
+/// Refine a pose on the full-resolution points near it until M stops improving.
+pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothesis {
+    let shape = fit.placed.shape;
+    let final_band = refine_band(&shape, space.noise);
+    // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
+    // size, so the first round gathers points in a wide band and each round halves it.
+    let mut band = (0.3 * sample_radius(&shape)).max(final_band);
+    let mut best = Hypothesis { placed: fit.placed, m: f64::INFINITY };
+    let mut placed = fit.placed;
+    for _ in 0..REFINE_ROUNDS {
+        let inliers = local_inliers(space, &placed, band);
+        if inliers.len() < MIN_SAMPLE {
+            break;
+        }
+        let before = measure_of_fit(&placed, &inliers);
+        let coarse = band > final_band;
+        band = (0.5 * band).max(final_band);
+        if coarse {
+            // M over a wider band is not comparable with M over the final one: just fit.
+            placed = fit_pose(&placed, &inliers, iterations, shape.is_revolution()).placed;
+            continue;
+        }
+        if before >= best.m {
+            break;
+        }
+        best = Hypothesis { placed, m: before };
+        let f = fit_pose(&placed, &inliers, iterations, shape.is_revolution());
+        if f.m >= before * 0.999 {
+            break;
+        }
+        placed = f.placed;
+    }
+    if best.m.is_infinite() {
+        best.m = fit.m;
+    }
+    best
+}
+
+/// Radius of the neighbourhood a trial samples around its seed. The paper takes min(a1, a2, a3);
+/// for flat shapes (a bowl's a3 is a third of its width) that patch is too small to constrain six
+/// pose parameters, so the geometric mean of the sizes is used: the radius of the sphere of the
+/// same volume class, the same as min(a) for a round shape.
+pub fn sample_radius(shape: &Superquadric) -> f64 {
+    (shape.a[0] * shape.a[1] * shape.a[2]).cbrt()
+}
+
+/// One hypothesis: `settings.trials` RANSAC trials seeded from `seeds` (indices into
+/// `space.sub`), the best refined.
+pub fn hypothesis(
+    space: &SearchSpace<'_>,
+    shape: &Superquadric,
+    seeds: &[usize],
+    settings: &SearchSettings,
+    check: &PlaneCheck,
+    rng: &mut ChaCha8Rng,
+) -> Option<Hypothesis> {
+    if seeds.is_empty() {
+        return None;
+    }
+    let radius = sample_radius(shape);
+    let mut best: Option<Fit> = None;
+    let mut near = Vec::new();
+    let mut sample = Vec::with_capacity(settings.sample_points);
+    for _ in 0..settings.trials {
+        let s = seeds[rng.random_range(0..seeds.len())];
+        near.clear();
+        space.sub_grid.for_each_within(space.sub, &space.sub[s], radius, |i| near.push(i));
+        if near.len() < MIN_SAMPLE {
+            continue;
+        }
+        // A random subset of the neighbourhood (partial Fisher-Yates).
+        let k = settings.sample_points.min(near.len());
+        for i in 0..k {
+            let j = rng.random_range(i..near.len());
+            near.swap(i, j);
+        }
+        sample.clear();
+        sample.extend(near[..k].iter().map(|&i| space.sub[i]));
+        let starts = initial_poses(shape, &sample, space.viewpoint);
+        if let Some(f) = fit_from_starts(shape, &starts, &sample, settings.fit_iterations) {
+            if !check.allows(space, &f.placed) {
+                continue;
+            }
+            if best.as_ref().is_none_or(|b| f.m < b.m) {
+                best = Some(f);
+            }
+        }
+    }
+    let refined = refine(space, &best?, settings.fit_iterations);
+    check.allows(space, &refined.placed).then_some(refined)
+}

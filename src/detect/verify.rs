@@ -1,0 +1,191 @@
+//! Pose verification (paper III-B-2) and, beyond the paper, the acceptance test that lets the
+//! detector say "not here".
+//!
+//! The paper's criteria: within `1.2 max(a)` of a hypothesis' centre, `I` counts the points with
+//! `F^e1 < 1 - gamma` (inside the object, where a single view can see nothing) and `S` those with
+//! `1 - gamma <= F^e1 < 1 + gamma` (on its surface); hypotheses are ranked by M (ascending), S
+//! (descending) and I (ascending) and the lowest rank sum wins.
+//!
+//! Ranked voting always names a winner, even when the object is not there. Whether the winner
+//! *is* the object is judged on measures that do not depend on the other hypotheses:
+//! - coverage: the share of the model surface that faces the viewpoint (and is not seen too
+//!   obliquely) that has a measured point near it. An object that is there is seen on most of its
+//!   visible side unless something hides it; a similar shape fitted to a patch of something else
+//!   leaves much of its visible side empty;
+//! - the interior ratio `I / S`: a wrong shape or size swallows points of the real surface;
+//! - the RMS Euclidean (radial) distance of the surface points, against the sensor noise.
+
+use super::grid::Grid;
+use super::search::SearchSpace;
+use crate::geometry::PlacedSuperquadric;
+use nalgebra::{Point3, Vector3};
+
+/// Surface samples seen more obliquely than this (cosine) are not expected to hold points.
+const MIN_VIEW_COSINE: f64 = 0.3;
+
+/// The verification measures of one hypothesis.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Scores {
+    /// The paper's measure of fit (eq. 3).
+    pub m: f64,
+    /// The paper's surface points S (eq. 5).
+    pub s: usize,
+    /// The paper's interior points I (eq. 4).
+    pub i: usize,
+    /// Share of the expected visible surface that holds measured points, 0..1.
+    pub coverage: f64,
+    /// RMS distance (m) of the points within the Euclidean surface band.
+    pub rms: f64,
+    /// Points within the Euclidean surface band.
+    pub surface_points: usize,
+    /// Points inside the surface by more than the band: what a single view cannot see.
+    pub inside_points: usize,
+}
+
+impl Scores {
+    /// Inside points per surface point.
+    pub fn interior_ratio(&self) -> f64 {
+        self.inside_points as f64 / (self.surface_points as f64).max(1.0)
+    }
+}
+
+/// Compute the paper's S and I and the acceptance measures for a hypothesis.
+pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma: f64, spacing: f64) -> Scores {
+    let centre = Point3::from(placed.pose.translation.vector);
+    let shape = &placed.shape;
+    let radius = 1.2 * shape.max_size();
+    let band = (2.5 * space.noise).max(0.002);
+    let (mut s, mut i) = (0usize, 0usize);
+    let mut near_surface: Vec<Point3<f64>> = Vec::new();
+    let mut ss = 0.0;
+    let mut inside_points = 0usize;
+    space.grid.for_each_within(space.points, &centre, radius.max(shape.bounding_radius() + band), |k| {
+        let p = &space.points[k];
+        let within_paper_radius = (p - centre).norm() <= radius;
+        let g = placed.f_pow_e1(p);
+        if within_paper_radius {
+            if g < 1.0 - gamma {
+                i += 1;
+            } else if g < 1.0 + gamma {
+                s += 1;
+            }
+        }
+        let d = placed.surface_distance(p);
+        if d.abs() < band {
+            near_surface.push(*p);
+            ss += d * d;
+        } else if d < 0.0 {
+            inside_points += 1;
+        }
+    });
+    let surface_points = near_surface.len();
+    let rms = if surface_points > 0 { (ss / surface_points as f64).sqrt() } else { f64::INFINITY };
+    let coverage = coverage(placed, &near_surface, space.viewpoint, spacing);
+    Scores { m, s, i, coverage, rms, surface_points, inside_points }
+}
+
+/// Share of the visible model surface that has a measured point within reach.
+fn coverage(placed: &PlacedSuperquadric, observed: &[Point3<f64>], viewpoint: Option<Point3<f64>>, spacing: f64) -> f64 {
+    if observed.is_empty() {
+        return 0.0;
+    }
+    let centre = Point3::from(placed.pose.translation.vector);
+    // Without a viewpoint, look from far away in the direction the observed points face.
+    let mean_dir = observed.iter().fold(Vector3::zeros(), |a, p| a + (p - centre)) / observed.len() as f64;
+    let sample_spacing = (2.0 * spacing).max(placed.shape.min_size() / 6.0);
+    let reach = 1.2 * sample_spacing;
+    let grid = Grid::new(observed, reach);
+    let (mut expected, mut covered) = (0usize, 0usize);
+    for q in placed.shape.sample_surface(sample_spacing) {
+        let p = placed.pose.transform_point(&Point3::from(q));
+        let n = placed.pose.rotation * placed.shape.residual_grad(&q).grad;
+        let Some(n) = n.try_normalize(1e-300) else { continue };
+        let view = match viewpoint {
+            Some(v) => (v - p).normalize(),
+            None => mean_dir.try_normalize(1e-300).unwrap_or(Vector3::z()),
+        };
+        if n.dot(&view) < MIN_VIEW_COSINE {
+            continue;
+        }
+        expected += 1;
+        let mut hit = false;
+        grid.for_each_within(observed, &p, reach, |_| hit = true);
+        if hit {
+            covered += 1;
+        }
+    }
+    if expected == 0 { 0.0 } else { covered as f64 / expected as f64 }
+}
+
+/// Ranks of values (1 = best), ties sharing the better rank.
+pub fn ranks(values: &[f64], ascending: bool) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..values.len()).collect();
+    idx.sort_by(|&a, &b| {
+        let o = values[a].total_cmp(&values[b]);
+        if ascending { o } else { o.reverse() }
+    });
+    let mut out = vec![0; values.len()];
+    let mut rank = 1;
+    for (pos, &k) in idx.iter().enumerate() {
+        if pos > 0 && values[k] != values[idx[pos - 1]] {
+            rank = pos + 1;
+        }
+        out[k] = rank;
+    }
+    out
+}
+
+/// The paper's ranked voting: the sum over criteria of each candidate's rank. `criteria` holds
+/// one value per candidate for each criterion with its sort direction (`true` = smaller is
+/// better).
+pub fn rank_sums(criteria: &[(Vec<f64>, bool)]) -> Vec<usize> {
+    let n = criteria.first().map_or(0, |c| c.0.len());
+    let mut sums = vec![0; n];
+    for (values, ascending) in criteria {
+        for (k, r) in ranks(values, *ascending).into_iter().enumerate() {
+            sums[k] += r;
+        }
+    }
+    sums
+}
+
+/// Median nearest-neighbour distance of a point set (its sampling spacing), from up to 500 points.
+pub fn median_spacing(points: &[Point3<f64>], grid: &Grid) -> f64 {
+    if points.len() < 2 {
+        return 0.005;
+    }
+    let step = (points.len() / 500).max(1);
+    let r = grid.cell_size();
+    let mut d: Vec<f64> = points
+        .iter()
+        .step_by(step)
+        .filter_map(|p| {
+            let mut best = f64::INFINITY;
+            grid.for_each_within(points, p, r, |k| {
+                let e = (points[k] - p).norm();
+                if e > 0.0 && e < best {
+                    best = e;
+                }
+            });
+            best.is_finite().then_some(best)
+        })
+        .collect();
+    if d.is_empty() {
+        return r;
+    }
+    let mid = d.len() / 2;
+    *d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranked_voting_sums_ranks_with_ties() {
+        assert_eq!(ranks(&[0.3, 0.1, 0.3, 0.2], true), vec![3, 1, 3, 2]);
+        assert_eq!(ranks(&[5.0, 9.0, 1.0], false), vec![2, 1, 3]);
+        let sums = rank_sums(&[(vec![0.1, 0.2, 0.3], true), (vec![10.0, 30.0, 20.0], false), (vec![0.0, 5.0, 1.0], true)]);
+        assert_eq!(sums, vec![1 + 3 + 1, 2 + 1 + 3, 3 + 2 + 2]);
+    }
+}
