@@ -13,6 +13,7 @@
 
 pub mod cloud;
 pub mod detect;
+pub mod eval;
 pub mod geometry;
 pub mod model;
 pub mod pose;

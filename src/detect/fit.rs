@@ -107,7 +107,8 @@ mod tests {
 
     #[test]
     fn recovers_a_perturbed_pose_from_a_visible_half() {
-        let sq = Superquadric::new([0.06, 0.06, 0.02], 0.4, 1.0, 0.3, 0.3).unwrap();
+        // Not a body of revolution, so all six pose parameters are observable.
+        let sq = Superquadric::new([0.06, 0.045, 0.02], 0.4, 0.8, 0.3, 0.1).unwrap();
         let truth = PlacedSuperquadric::new(sq, Isometry3::new(Vector3::new(0.8, 0.1, 0.74), Vector3::new(0.1, -0.2, 0.3)));
         // The half facing +x+z, as a sensor up and in front would see it.
         let view = Vector3::new(1.0, 0.0, 1.0).normalize();

@@ -19,6 +19,7 @@ pub mod fit;
 pub mod grid;
 pub mod output;
 pub mod plane;
+pub mod rigid;
 pub mod search;
 pub mod verify;
 
@@ -294,19 +295,72 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         let t = Instant::now();
         let mut criteria: Vec<(Vec<f64>, bool)> = Vec::new();
         for c in 0..model.connections.len() {
-            criteria.push((combos.iter().map(|x| x.1[c].0).collect(), true));
-            criteria.push((combos.iter().map(|x| x.1[c].1).collect(), true));
+            criteria.push((combos.iter().map(|x| x.2[c].0).collect(), true));
+            criteria.push((combos.iter().map(|x| x.2[c].1).collect(), true));
         }
         for p in 0..model.parts.len() {
-            let sc: Vec<Scores> = combos.iter().map(|x| x.0[p].scores).collect();
+            let sc: Vec<Scores> = combos.iter().map(|x| x.1[p].scores).collect();
             criteria.extend(paper_criteria(&sc));
         }
         let sums = rank_sums(&criteria);
         let mut idx: Vec<usize> = (0..combos.len()).collect();
         idx.sort_by_key(|&k| sums[k]);
-        let mut combos: Vec<Option<(Vec<PartResult>, Vec<(f64, f64)>)>> = combos.into_iter().map(Some).collect();
-        for k in idx {
-            if let Some((parts, errors)) = combos[k].take() {
+        if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            for &k in idx.iter().take(12) {
+                let (_, parts, errs) = &combos[k];
+                let desc: Vec<String> = parts.iter().map(|p| match p.placed {
+                    Some(q) => { let t = q.pose.translation.vector; format!("{} ({:.3} {:.3} {:.3}) M {:.3} S {} cov {:.2} in {} surf {}", p.name, t.x, t.y, t.z, p.scores.m, p.scores.s, p.scores.coverage, p.scores.inside_points, p.scores.surface_points) }
+                    None => format!("{} -", p.name) }).collect();
+                eprintln!("combo sum {} A {:.1} deg D {:.3} | {}", sums[k], errs[0].0.to_degrees(), errs[0].1, desc.join(" | "));
+            }
+        }
+        // The best-ranked combination of every anchor candidate is refined as one rigid object
+        // and scored again.
+        let mut best_of_anchor: Vec<usize> = Vec::new();
+        for &k in &idx {
+            if best_of_anchor.iter().all(|&j| combos[j].0 != combos[k].0) {
+                best_of_anchor.push(k);
+            }
+        }
+        let refined: Vec<Detection> = best_of_anchor
+            .par_iter()
+            .map(|&k| {
+                let (_, parts, errors) = &combos[k];
+                let start = object_pose(model, parts);
+                let smallest = model.parts.iter().map(|p| p.shape).min_by(|a, b| volume(a).total_cmp(&volume(b))).expect("parts");
+                let coarse = 0.3 * search::sample_radius(&smallest);
+                let fine = search::refine_band(&smallest, noise);
+                let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
+                let placed = model.placed_parts(&pose);
+                let parts: Vec<PartResult> = model
+                    .parts
+                    .iter()
+                    .zip(placed)
+                    .map(|(p, q)| {
+                        let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
+                        let m = fit::measure_of_fit(&q, &inliers);
+                        PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, spacing) }
+                    })
+                    .collect();
+                let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
+                d.pose = pose;
+                d.connection_errors = errors.clone();
+                d
+            })
+            .collect();
+        let n_refined = refined.len();
+        if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            for d in &refined {
+                let t = d.pose.translation.vector;
+                eprintln!("refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}", d.found, d.confidence, t.x, t.y, t.z,
+                    d.parts.iter().map(|p| format!("{} cov {:.2} surf {} in {} rms {:.4}", p.name, p.scores.coverage, p.scores.surface_points, p.scores.inside_points, p.scores.rms)).collect::<Vec<_>>().join(" | "));
+            }
+        }
+        candidates.extend(refined);
+        let _ = n_refined;
+        let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
+        for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
+            if let Some((_, parts, errors)) = combos[k].take() {
                 candidates.push(finish(model, parts, errors, noise, &params.acceptance));
             }
         }
@@ -377,7 +431,8 @@ fn search_part(
         .collect()
 }
 
-type Combination = (Vec<PartResult>, Vec<(f64, f64)>);
+/// Which anchor candidate a combination grew from, its parts, and its connection errors.
+type Combination = (usize, Vec<PartResult>, Vec<(f64, f64)>);
 
 /// For each anchor candidate, search the other parts where their connections put them and list
 /// every combination with its connection errors `(A, D)`.
@@ -410,21 +465,21 @@ fn compound_combinations(
     let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
     let empty = |name: &str| PartResult { name: name.to_owned(), placed: None, scores: Scores { m: f64::INFINITY, ..Default::default() } };
     // Partial combinations: a placement (or none) per part.
-    let mut partial: Vec<Vec<PartResult>> = picked
+    let mut partial: Vec<(usize, Vec<PartResult>)> = picked
         .iter()
         .map(|&k| {
             let mut v: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
             v[anchor] = PartResult { name: model.parts[anchor].name.clone(), placed: Some(anchors[k].placed), scores: anchor_scores[k] };
-            v
+            (k, v)
         })
         .collect();
     for (step, &(part, parent, ci)) in visit.iter().enumerate() {
         let conn = &model.connections[ci];
         let shape = model.parts[part].shape;
         let mut next = Vec::new();
-        for (pi, combo) in partial.iter().enumerate() {
+        for (pi, (origin, combo)) in partial.iter().enumerate() {
             let Some(parent_placed) = combo[parent].placed else {
-                next.push(combo.clone());
+                next.push((*origin, combo.clone()));
                 continue;
             };
             // Seeds: subsampled points in the shell where this part's surface can be, that are
@@ -443,23 +498,23 @@ fn compound_combinations(
             let stream = stream_seed(params.seed, 1000 + (step * 100 + pi) as u64);
             let hyps = search_part(space, &shape, &seeds, m, &settings, stream);
             if hyps.is_empty() {
-                next.push(combo.clone());
+                next.push((*origin, combo.clone()));
                 continue;
             }
             let scores: Vec<Scores> = hyps.par_iter().map(|h| score(space, &h.placed, h.m, params.gamma, spacing)).collect();
             for (h, s) in hyps.iter().zip(scores) {
                 let mut c = combo.clone();
                 c[part] = PartResult { name: model.parts[part].name.clone(), placed: Some(h.placed), scores: s };
-                next.push(c);
+                next.push((*origin, c));
             }
         }
         partial = next;
     }
     partial
         .into_iter()
-        .map(|parts| {
+        .map(|(origin, parts)| {
             let errors = model.connections.iter().map(|c| connection_error(model, c, &parts)).collect();
-            (parts, errors)
+            (origin, parts, errors)
         })
         .collect()
 }

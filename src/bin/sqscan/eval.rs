@@ -1,0 +1,103 @@
+//! `sqscan eval`: detection rate, false "found" rate, time and pose errors against the
+//! simulator's ground truth.
+
+use anyhow::{Result, bail};
+use clap::Args;
+use serde_json::json;
+use sqscan::detect::Params;
+use sqscan::eval::{self, MAX_POSITION_ERROR_M, MAX_ROTATION_ERROR_RAD, Symmetry, median_p95};
+use sqscan::model::Model;
+use sqscan::sim::Scene;
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct EvalArgs {
+    /// Scene file (scenes/*.toml)
+    #[arg(long)]
+    scene: PathBuf,
+    /// Model name or file to detect
+    #[arg(long)]
+    model: String,
+    /// Trials: each re-simulates the sweep with new noise and searches with a new seed
+    #[arg(long, default_value_t = 100)]
+    trials: usize,
+    /// First seed (trial k uses seed + k for both the noise and the search)
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Remove the object from the scene and count false "found" answers
+    #[arg(long)]
+    absent: bool,
+    /// Print one JSON object instead of a table
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
+    if a.trials == 0 {
+        bail!("--trials must be at least 1");
+    }
+    let scene = Scene::from_file(&a.scene, models_dir)?;
+    let model = Model::load(&a.model, models_dir)?;
+    let Some((object, truth)) = eval::truth_pose(&scene, &model) else {
+        bail!("{}: no object of model {:?} (or with its first part's shape) in the scene", a.scene.display(), model.name);
+    };
+    let scene = if a.absent { scene.without_object(&object) } else { scene };
+    let symmetry = Symmetry::of(&model);
+    let progress = std::io::stderr().is_terminal();
+    let mut trials = Vec::with_capacity(a.trials);
+    for k in 0..a.trials {
+        let seed = a.seed.wrapping_add(k as u64);
+        let params = Params { seed, ..Params::default() };
+        let truth = if a.absent { None } else { Some(&truth) };
+        trials.push(eval::trial(&scene, &model, truth, &symmetry, seed, &params));
+        if progress {
+            let done = k + 1;
+            let bar = "#".repeat(done * 30 / a.trials);
+            eprint!("\r[{bar:<30}] {done}/{}", a.trials);
+            let _ = std::io::stderr().flush();
+        }
+    }
+    if progress {
+        eprintln!();
+    }
+    let n = trials.len() as f64;
+    let correct = trials.iter().filter(|t| t.correct).count();
+    let found = trials.iter().filter(|t| t.found).count();
+    let (t_med, t_p95) = median_p95(&trials.iter().map(|t| t.time_ms).collect::<Vec<_>>());
+    let (p_med, p_p95) = median_p95(&trials.iter().map(|t| t.position_error).collect::<Vec<_>>());
+    let (r_med, r_p95) = median_p95(&trials.iter().map(|t| t.rotation_error.to_degrees()).collect::<Vec<_>>());
+    let false_found = if a.absent { found } else { 0 };
+    if a.json {
+        println!(
+            "{}",
+            json!({
+                "scene": a.scene.display().to_string(), "model": model.name, "object": object,
+                "absent": a.absent, "trials": a.trials, "correct": correct,
+                "detection_rate": correct as f64 / n, "found": found, "false_found": false_found,
+                "time_ms": {"median": t_med, "p95": t_p95},
+                "position_error_m": {"median": if a.absent { f64::NAN } else { p_med }, "p95": if a.absent { f64::NAN } else { p_p95 }},
+                "rotation_error_deg": {"median": if a.absent { f64::NAN } else { r_med }, "p95": if a.absent { f64::NAN } else { r_p95 }},
+            })
+        );
+        return Ok(());
+    }
+    println!("scene      {}", a.scene.display());
+    println!("model      {} (scene object {:?}{})", model.name, object, if a.absent { ", removed" } else { "" });
+    println!("trials     {}", a.trials);
+    if a.absent {
+        println!("false found {false_found} ({:.1} %)", 100.0 * false_found as f64 / n);
+    } else {
+        println!(
+            "correct    {correct} ({:.1} %)  [position < {} mm, rotation < {:.0} deg, found]",
+            100.0 * correct as f64 / n,
+            MAX_POSITION_ERROR_M * 1e3,
+            MAX_ROTATION_ERROR_RAD.to_degrees()
+        );
+        println!("found      {found}");
+        println!("position   median {:.2} mm, p95 {:.2} mm", p_med * 1e3, p_p95 * 1e3);
+        println!("rotation   median {r_med:.2} deg, p95 {r_p95:.2} deg");
+    }
+    println!("time       median {t_med:.1} ms, p95 {t_p95:.1} ms");
+    Ok(())
+}
