@@ -32,9 +32,9 @@ use plane::{Plane, remove_dominant_plane};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-use search::{Hypothesis, SearchSettings, SearchSpace, hypothesis};
+use search::{Hypothesis, SearchSettings, SearchSpace};
 use std::time::Instant;
-use verify::{Scores, median_spacing, rank_sums, score};
+use verify::{Scores, SurfaceSamples, median_spacing, rank_sums, score};
 
 /// Detector settings. `Default` gives the paper's settings (n = 10 trials of 30 points, 20 LM
 /// iterations, gamma = 0.2) and the calibrated acceptance thresholds.
@@ -73,6 +73,8 @@ pub struct Acceptance {
     pub min_coverage: f64,
     /// Most inside points per surface point.
     pub max_interior_ratio: f64,
+    /// Most points just outside the surface per surface point.
+    pub max_shell_ratio: f64,
     /// Largest RMS surface distance, in noise sigmas.
     pub max_rms_sigmas: f64,
     /// Largest connection angle error of a compound (rad).
@@ -86,6 +88,7 @@ impl Default for Acceptance {
         Acceptance {
             min_coverage: 0.45,
             max_interior_ratio: 0.15,
+            max_shell_ratio: 0.08,
             max_rms_sigmas: 1.6,
             max_angle_error: 25f64.to_radians(),
             max_distance_error: 0.25,
@@ -238,6 +241,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let space =
         SearchSpace { points: &scene, grid: &grid, sub: &sub, sub_grid: &sub_grid, viewpoint: params.viewpoint, noise, plane };
     let spacing = median_spacing(&scene, &Grid::new(&scene, 0.02));
+    let samples: Vec<SurfaceSamples> = model.parts.iter().map(|p| SurfaceSamples::new(&p.shape, spacing)).collect();
     let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
 
     // The first (anchor) part: the largest, searched over the whole scene.
@@ -255,7 +259,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let mut search_ms = ms(t_search);
     let t_verify = Instant::now();
     let anchor_scores: Vec<Scores> =
-        anchors.par_iter().map(|h| score(&space, &h.placed, h.m, params.gamma, spacing)).collect();
+        anchors.par_iter().map(|h| score(&space, &h.placed, h.m, params.gamma, &samples[anchor])).collect();
     let anchor_rank = rank_sums(&paper_criteria(&anchor_scores));
     let mut verify_ms = ms(t_verify);
 
@@ -266,8 +270,8 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             let t = anchors[k].placed.pose.translation.vector;
             let z = anchors[k].placed.pose.rotation * Vector3::z();
             let s = &anchor_scores[k];
-            eprintln!("rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {}",
-                anchor_rank[k], t.x, t.y, t.z, z.x, z.y, z.z, s.m, s.s, s.i, s.coverage, s.rms, s.surface_points, s.inside_points);
+            eprintln!("rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
+                anchor_rank[k], t.x, t.y, t.z, z.x, z.y, z.z, s.m, s.s, s.i, s.coverage, s.rms, s.surface_points, s.inside_points, s.shell_points);
         }
     }
     let mut candidates: Vec<Detection> = Vec::new();
@@ -289,7 +293,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             }
         }
         let t = Instant::now();
-        let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, spacing);
+        let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, &samples);
         search_ms += ms(t);
         // Rank the combinations over the connection errors and every part's M, S, I.
         let t = Instant::now();
@@ -336,10 +340,11 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                     .parts
                     .iter()
                     .zip(placed)
-                    .map(|(p, q)| {
+                    .zip(&samples)
+                    .map(|((p, q), samples)| {
                         let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
                         let m = fit::measure_of_fit(&q, &inliers);
-                        PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, spacing) }
+                        PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, samples) }
                     })
                     .collect();
                 let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
@@ -422,11 +427,18 @@ fn search_part(
     seed: u64,
 ) -> Vec<Hypothesis> {
     let check = search::PlaneCheck::new(shape, space.noise);
-    (0..m)
+    let fits: Vec<fit::Fit> = (0..m)
         .into_par_iter()
         .filter_map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
-            hypothesis(space, shape, seeds, settings, &check, &mut rng)
+            search::ransac(space, shape, seeds, settings, &check, &mut rng)
+        })
+        .collect();
+    search::distinct(fits)
+        .par_iter()
+        .filter_map(|f| {
+            let h = search::refine(space, f, settings.fit_iterations);
+            check.allows(space, &h.placed).then_some(h)
         })
         .collect()
 }
@@ -445,7 +457,7 @@ fn compound_combinations(
     anchors: &[Hypothesis],
     anchor_scores: &[Scores],
     params: &Params,
-    spacing: f64,
+    samples: &[SurfaceSamples],
 ) -> Vec<Combination> {
     // Visit parts breadth-first from the anchor along the connections.
     let mut visit: Vec<(usize, usize, usize)> = Vec::new(); // (part, parent part, connection)
@@ -501,7 +513,7 @@ fn compound_combinations(
                 next.push((*origin, combo.clone()));
                 continue;
             }
-            let scores: Vec<Scores> = hyps.par_iter().map(|h| score(space, &h.placed, h.m, params.gamma, spacing)).collect();
+            let scores: Vec<Scores> = hyps.par_iter().map(|h| score(space, &h.placed, h.m, params.gamma, &samples[part])).collect();
             for (h, s) in hyps.iter().zip(scores) {
                 let mut c = combo.clone();
                 c[part] = PartResult { name: model.parts[part].name.clone(), placed: Some(h.placed), scores: s };
@@ -539,6 +551,7 @@ fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f6
     let pose = object_pose(model, &parts);
     // Pool the measures over the parts found (a hidden part lowers coverage by its share).
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
+    let mut shell = 0usize;
     for (p, r) in model.parts.iter().zip(&parts) {
         // Weight a part's coverage by its surface size.
         let w = p.shape.a[0] * p.shape.a[1] + p.shape.a[1] * p.shape.a[2] + p.shape.a[0] * p.shape.a[2];
@@ -547,6 +560,7 @@ fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f6
             covered += w * r.scores.coverage;
             surface += r.scores.surface_points;
             inside += r.scores.inside_points;
+            shell += r.scores.shell_points;
             if r.scores.rms.is_finite() {
                 ss += r.scores.rms * r.scores.rms * r.scores.surface_points as f64;
             }
@@ -559,6 +573,7 @@ fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f6
     let mut margins = vec![
         (coverage - acc.min_coverage) / 0.15,
         (acc.max_interior_ratio - interior) / 0.1,
+        (acc.max_shell_ratio - shell as f64 / (surface as f64).max(1.0)) / 0.04,
         (max_rms - rms) / (0.5 * max_rms),
     ];
     for (c, (a, d)) in model.connections.iter().zip(&connection_errors) {

@@ -40,6 +40,9 @@ pub struct Scores {
     pub surface_points: usize,
     /// Points inside the surface by more than the band: what a single view cannot see.
     pub inside_points: usize,
+    /// Points just outside the band (within 0.3 of the sample radius) that continue the explained
+    /// surface: a larger object of the same shape around a too-small fit leaves its surface here.
+    pub shell_points: usize,
 }
 
 impl Scores {
@@ -50,7 +53,7 @@ impl Scores {
 }
 
 /// Compute the paper's S and I and the acceptance measures for a hypothesis.
-pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma: f64, spacing: f64) -> Scores {
+pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma: f64, samples: &SurfaceSamples) -> Scores {
     let centre = Point3::from(placed.pose.translation.vector);
     let shape = &placed.shape;
     let radius = 1.2 * shape.max_size();
@@ -59,7 +62,9 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
     let mut ss = 0.0;
     let mut inside_points = 0usize;
-    space.grid.for_each_within(space.points, &centre, radius.max(shape.bounding_radius() + band), |k| {
+    let mut outside_near: Vec<Point3<f64>> = Vec::new();
+    let shell = band + 0.3 * super::search::sample_radius(shape);
+    space.grid.for_each_within(space.points, &centre, radius.max(shape.bounding_radius() + shell), |k| {
         let p = &space.points[k];
         let within_paper_radius = (p - centre).norm() <= radius;
         let g = placed.f_pow_e1(p);
@@ -76,30 +81,68 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
             ss += d * d;
         } else if d < 0.0 {
             inside_points += 1;
+        } else if d < shell {
+            outside_near.push(*p);
         }
     });
+    // Of the points just outside, those that continue the explained surface (a neighbour on it
+    // within reach): the data goes on past the model's edge, as when a smaller model sits on a
+    // larger object of the same shape. Points of another object across a gap do not count.
+    let reach = (2.5 * samples.data_spacing).max(band);
+    let shell_points = if outside_near.is_empty() || near_surface.is_empty() {
+        0
+    } else {
+        let g = Grid::new(&near_surface, reach);
+        outside_near
+            .iter()
+            .filter(|p| {
+                let mut adjacent = false;
+                g.for_each_within(&near_surface, p, reach, |_| adjacent = true);
+                adjacent
+            })
+            .count()
+    };
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 { (ss / surface_points as f64).sqrt() } else { f64::INFINITY };
-    let coverage = coverage(placed, &near_surface, space.viewpoint, spacing);
-    Scores { m, s, i, coverage, rms, surface_points, inside_points }
+    let coverage = coverage(placed, &near_surface, space.viewpoint, samples);
+    Scores { m, s, i, coverage, rms, surface_points, inside_points, shell_points }
+}
+
+/// A shape's surface samples with their outward normals, in the shape's frame, spaced for the
+/// coverage test: twice the data's point spacing (so a covered sample always has a point within
+/// reach), and at most a sixth of the smallest size.
+pub struct SurfaceSamples {
+    spacing: f64,
+    data_spacing: f64,
+    local: Vec<(Vector3<f64>, Vector3<f64>)>,
+}
+
+impl SurfaceSamples {
+    pub fn new(shape: &crate::geometry::Superquadric, data_spacing: f64) -> SurfaceSamples {
+        let spacing = (2.0 * data_spacing).max(shape.min_size() / 6.0);
+        let local = shape
+            .sample_surface(spacing)
+            .into_iter()
+            .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
+            .collect();
+        SurfaceSamples { spacing, data_spacing, local }
+    }
 }
 
 /// Share of the visible model surface that has a measured point within reach.
-fn coverage(placed: &PlacedSuperquadric, observed: &[Point3<f64>], viewpoint: Option<Point3<f64>>, spacing: f64) -> f64 {
+fn coverage(placed: &PlacedSuperquadric, observed: &[Point3<f64>], viewpoint: Option<Point3<f64>>, samples: &SurfaceSamples) -> f64 {
     if observed.is_empty() {
         return 0.0;
     }
     let centre = Point3::from(placed.pose.translation.vector);
     // Without a viewpoint, look from far away in the direction the observed points face.
     let mean_dir = observed.iter().fold(Vector3::zeros(), |a, p| a + (p - centre)) / observed.len() as f64;
-    let sample_spacing = (2.0 * spacing).max(placed.shape.min_size() / 6.0);
-    let reach = 1.2 * sample_spacing;
+    let reach = 1.2 * samples.spacing;
     let grid = Grid::new(observed, reach);
     let (mut expected, mut covered) = (0usize, 0usize);
-    for q in placed.shape.sample_surface(sample_spacing) {
-        let p = placed.pose.transform_point(&Point3::from(q));
-        let n = placed.pose.rotation * placed.shape.residual_grad(&q).grad;
-        let Some(n) = n.try_normalize(1e-300) else { continue };
+    for (q, n) in &samples.local {
+        let p = placed.pose.transform_point(&Point3::from(*q));
+        let n = placed.pose.rotation * n;
         let view = match viewpoint {
             Some(v) => (v - p).normalize(),
             None => mean_dir.try_normalize(1e-300).unwrap_or(Vector3::z()),

@@ -178,17 +178,62 @@ impl Superquadric {
         LnParts { lu, lv, ls, la, lb, lf }
     }
 
+    /// The plain (not log-domain) evaluation of eq. (1) of an untapered point, when every
+    /// exponent `2/e1`, `2/e2` is an integer (the shapes people write: e = 0.1, 0.2, 0.4, 0.5,
+    /// 1, 2) and the point is within 1e4 sizes, where integer powers cannot overflow. It needs
+    /// at most two transcendental calls instead of about ten, and the detector spends most of
+    /// its time here.
+    #[inline]
+    fn plain(&self, q: &Vector3<f64>) -> Option<Plain> {
+        let n1 = int_exponent(2.0 / self.e1)?;
+        let n2 = int_exponent(2.0 / self.e2)?;
+        let (rx, ry, rz) = (q.x.abs() / self.a[0], q.y.abs() / self.a[1], q.z.abs() / self.a[2]);
+        if rx > 1e4 || ry > 1e4 || rz > 1e4 {
+            return None;
+        }
+        let u = rx.powi(n2);
+        let v = ry.powi(n2);
+        let s = u + v;
+        let m = self.e2 / self.e1;
+        let a = match int_exponent(m) {
+            Some(k) => s.powi(k),
+            None => s.powf(m),
+        };
+        let b = rz.powi(n1);
+        Some(Plain { n1, n2, rx, ry, rz, s, a, f: a + b })
+    }
+
+    /// `F^e1` from `F`.
+    #[inline]
+    fn pow_e1(&self, f: f64) -> f64 {
+        if self.e1 == 1.0 {
+            f
+        } else if self.e1 == 0.5 {
+            f.sqrt()
+        } else {
+            f.powf(self.e1)
+        }
+    }
+
     /// The inside-outside function F (paper eq. 1) of a local point: < 1 inside, 1 on the
     /// surface, > 1 outside. May be `+inf` only for points absurdly far away (beyond 1e15 sizes).
     pub fn inside_outside(&self, p: &Vector3<f64>) -> f64 {
-        self.ln_f_parts(&self.untaper(p)).lf.exp()
+        let q = self.untaper(p);
+        match self.plain(&q) {
+            Some(pl) => pl.f,
+            None => self.ln_f_parts(&q).lf.exp(),
+        }
     }
 
     /// `F^e1`, the quantity of eq. (2) and (3): its deviation from 1 grows roughly linearly with
     /// the distance from the surface whatever the shape exponents, which is why the paper uses it.
     #[inline]
     pub fn f_pow_e1(&self, p: &Vector3<f64>) -> f64 {
-        (self.e1 * self.ln_f_parts(&self.untaper(p)).lf).exp()
+        let q = self.untaper(p);
+        match self.plain(&q) {
+            Some(pl) => self.pow_e1(pl.f),
+            None => (self.e1 * self.ln_f_parts(&q).lf).exp(),
+        }
     }
 
     /// The algebraic residual `F^e1 - 1` (paper eq. 2) of a local point.
@@ -201,11 +246,61 @@ impl Superquadric {
     pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
         let (fx, fy) = self.taper_factors(p.z);
         let q = Vector3::new(p.x / fx, p.y / fy, p.z);
-        let l = self.ln_f_parts(&q);
+        let (g, gx, gy, gz) = match self.plain(&q) {
+            Some(pl) => self.plain_grad(&q, &pl),
+            None => match self.log_grad(&q) {
+                Some(v) => v,
+                None => {
+                    let g = (self.e1 * self.ln_f_parts(&q).lf).exp();
+                    return ResidualGrad { residual: g - 1.0, grad: Vector3::zeros() };
+                }
+            },
+        };
+        // Chain through the untaper x = X / fx(Z): dx/dX = 1/fx, dx/dZ = -x kx / (a3 fx). Where
+        // the factor is clamped it does not depend on Z.
+        let t = p.z / self.a[2];
+        let dfx = if self.kx * t + 1.0 > 0.5 * (1.0 - self.kx.abs()) { self.kx / self.a[2] } else { 0.0 };
+        let dfy = if self.ky * t + 1.0 > 0.5 * (1.0 - self.ky.abs()) { self.ky / self.a[2] } else { 0.0 };
+        let grad = Vector3::new(
+            gx / fx,
+            gy / fy,
+            gz - gx * q.x * dfx / fx - gy * q.y * dfy / fy,
+        );
+        ResidualGrad { residual: g - 1.0, grad }
+    }
+
+    /// `F^e1` evaluated in the log domain only (the reference the fast path is tested against).
+    #[cfg(test)]
+    pub(crate) fn f_pow_e1_log(&self, p: &Vector3<f64>) -> f64 {
+        (self.e1 * self.ln_f_parts(&self.untaper(p)).lf).exp()
+    }
+
+    /// `F^e1` and its gradient in the untapered frame, plain form.
+    #[inline]
+    fn plain_grad(&self, q: &Vector3<f64>, pl: &Plain) -> (f64, f64, f64, f64) {
+        let g = self.pow_e1(pl.f);
+        if pl.f == 0.0 {
+            return (g, 0.0, 0.0, 0.0);
+        }
+        let dg_df = self.e1 * g / pl.f;
+        let m = self.e2 / self.e1;
+        let da_ds = if pl.s > 0.0 { m * pl.a / pl.s } else { 0.0 };
+        // d(r^n)/dq = n r^(n-1) sign(q) / a, with r = |q| / a.
+        let d = |r: f64, n: i32, c: f64, a: f64| if c == 0.0 && n > 1 { 0.0 } else { n as f64 * r.powi(n - 1) * c.signum() / a };
+        let gx = dg_df * da_ds * d(pl.rx, pl.n2, q.x, self.a[0]);
+        let gy = dg_df * da_ds * d(pl.ry, pl.n2, q.y, self.a[1]);
+        let gz = dg_df * d(pl.rz, pl.n1, q.z, self.a[2]);
+        (g, gx, gy, gz)
+    }
+
+    /// `F^e1` and its gradient in the untapered frame, log domain; `None` at the centre or for an
+    /// absurdly far point (gradient undefined or not finite).
+    fn log_grad(&self, q: &Vector3<f64>) -> Option<(f64, f64, f64, f64)> {
+        let l = self.ln_f_parts(q);
         let g = (self.e1 * l.lf).exp();
         if g == 0.0 || !g.is_finite() {
             // The centre (gradient undefined, any direction is as good) or an absurdly far point.
-            return ResidualGrad { residual: g - 1.0, grad: Vector3::zeros() };
+            return None;
         }
         // d(ln F) = wA d(lA) + wB d(lB) with wA = A/F, wB = B/F; d(lA) = (e2/e1) (wu dlu + wv dlv);
         // dlu/dx = (2/e2)/x. So dG/dx = G e1 dlnF/dx = 2 G wA wu / x, and likewise for y; z gives
@@ -220,17 +315,7 @@ impl Superquadric {
         let gx = if q.x != 0.0 { 2.0 * g * wa * wu / q.x } else { 0.0 };
         let gy = if q.y != 0.0 { 2.0 * g * wa * wv / q.y } else { 0.0 };
         let gz = if q.z != 0.0 { 2.0 * g * wb / q.z } else { 0.0 };
-        // Chain through the untaper x = X / fx(Z): dx/dX = 1/fx, dx/dZ = -x kx / (a3 fx). Where
-        // the factor is clamped it does not depend on Z.
-        let t = p.z / self.a[2];
-        let dfx = if self.kx * t + 1.0 > 0.5 * (1.0 - self.kx.abs()) { self.kx / self.a[2] } else { 0.0 };
-        let dfy = if self.ky * t + 1.0 > 0.5 * (1.0 - self.ky.abs()) { self.ky / self.a[2] } else { 0.0 };
-        let grad = Vector3::new(
-            gx / fx,
-            gy / fy,
-            gz - gx * q.x * dfx / fx - gy * q.y * dfy / fy,
-        );
-        ResidualGrad { residual: g - 1.0, grad }
+        Some((g, gx, gy, gz))
     }
 
     /// The point where the ray from the centre through `p` (taken in the untapered frame) meets
@@ -262,6 +347,25 @@ impl Superquadric {
         let lf = self.ln_f_parts(d).lf;
         d * (-0.5 * self.e1 * lf).exp()
     }
+}
+
+/// An exponent that is an integer (to rounding), as a power for `powi`.
+#[inline]
+fn int_exponent(v: f64) -> Option<i32> {
+    let r = v.round();
+    ((v - r).abs() < 1e-9 && (0.0..=64.0).contains(&r)).then_some(r as i32)
+}
+
+/// The terms of eq. (1) in plain form: `u = rx^n2`, `s = u + v`, `a = s^(e2/e1)`, `f = a + rz^n1`.
+struct Plain {
+    n1: i32,
+    n2: i32,
+    rx: f64,
+    ry: f64,
+    rz: f64,
+    s: f64,
+    a: f64,
+    f: f64,
 }
 
 struct LnParts {

@@ -268,3 +268,37 @@ fn ray_hits_lie_on_the_surface_and_are_the_first_hit() {
     let t = s.ray_hit(&Vector3::new(-1.0, 0.0, 0.0), &Vector3::x(), 5.0).unwrap();
     assert!((t - 0.9).abs() < 1e-7);
 }
+
+#[test]
+fn plain_and_log_domain_evaluations_agree_for_integer_exponents() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let nice = [0.1, 0.2, 0.4, 0.5, 1.0, 2.0];
+    for _ in 0..3000 {
+        let mut sq = random_sq(&mut rng);
+        sq.e1 = nice[rng.random_range(0..nice.len())];
+        sq.e2 = nice[rng.random_range(0..nice.len())];
+        let scale = [0.0, 1e-3, 0.5, 1.0, 1.5, 5.0, 100.0][rng.random_range(0..7)];
+        let mut p = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
+            .component_mul(&Vector3::from(sq.a))
+            * scale;
+        if rng.random_bool(0.3) {
+            p.y = 0.0;
+        }
+        let fast = sq.f_pow_e1(&p);
+        let reference = sq.f_pow_e1_log(&p);
+        assert!((fast - reference).abs() <= 1e-10 * reference.max(1e-300), "{fast} vs {reference} at {p:?} for {sq}");
+        // The gradient against central differences, away from the coordinate planes where the
+        // shape has kinks for e = 2.
+        if p.iter().all(|c| c.abs() > 1e-4) && scale > 0.1 && scale < 10.0 {
+            let g = sq.residual_grad(&p).grad;
+            let h = 1e-8;
+            for k in 0..3 {
+                let mut d = Vector3::zeros();
+                d[k] = h;
+                let fd = (sq.residual(&(p + d)) - sq.residual(&(p - d))) / (2.0 * h);
+                let tol = 1e-4 * g.norm().max(1.0);
+                assert!((fd - g[k]).abs() < tol, "d/d{k}: {} vs {fd} at {p:?} for {sq}", g[k]);
+            }
+        }
+    }
+}
