@@ -75,6 +75,9 @@ pub struct Acceptance {
     pub max_interior_ratio: f64,
     /// Most points just outside the surface per surface point.
     pub max_shell_ratio: f64,
+    /// Least share of each part's visible side that, where the sensor could have seen it, it
+    /// did (see [`verify::Visibility::seen_ratio`]).
+    pub min_seen: f64,
     /// Largest RMS surface distance, in noise sigmas.
     pub max_rms_sigmas: f64,
     /// Largest connection angle error of a compound (rad).
@@ -89,6 +92,7 @@ impl Default for Acceptance {
             min_coverage: 0.45,
             max_interior_ratio: 0.15,
             max_shell_ratio: 0.08,
+            min_seen: 0.5,
             max_rms_sigmas: 1.6,
             max_angle_error: 25f64.to_radians(),
             max_distance_error: 0.25,
@@ -106,7 +110,7 @@ impl Default for Params {
             gamma: 0.2,
             hypotheses: None,
             local_hypotheses: 8,
-            compound_candidates: 4,
+            compound_candidates: 6,
             remove_plane: true,
             max_range: None,
             viewpoint: None,
@@ -169,6 +173,9 @@ impl Report {
     }
 }
 
+/// Anchor candidates of a compound below this coverage are not continued.
+const MIN_ANCHOR_COVERAGE: f64 = 0.35;
+
 fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
@@ -214,7 +221,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         let scene: Vec<Point3<f64>> = removal.kept.iter().map(|&i| points[i]).collect();
         (removal.plane, noise, scene)
     } else {
-        (None, 0.002, points)
+        (None, 0.002, points.clone())
     };
     let plane_ms = ms(t_plane);
     let mut report = Report {
@@ -281,11 +288,13 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             candidates.push(finish(model, parts, Vec::new(), noise, &params.acceptance));
         }
     } else {
-        // Continue from the best distinct anchor candidates.
+        // Continue from the best distinct anchor candidates that could be the part at all (a
+        // part seen on less than a third of its visible side is too uncertain to build on).
         let mut picked: Vec<usize> = Vec::new();
         for &k in &order {
             let c = anchors[k].placed.pose.translation.vector;
-            if picked.iter().all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.min_size()) {
+            let distinct = picked.iter().all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.max_size());
+            if distinct && anchor_scores[k].coverage >= MIN_ANCHOR_COVERAGE {
                 picked.push(k);
             }
             if picked.len() >= params.compound_candidates.max(1) {
@@ -348,6 +357,15 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                     })
                     .collect();
                 let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
+                // The rigid fit moves parts that were not searched (a part never found is placed
+                // by the model): none may go through the support plane.
+                let possible = d.parts.iter().zip(&model.parts).all(|(r, p)| {
+                    r.placed.is_none_or(|q| search::PlaneCheck::new(&p.shape, noise).allows(&space, &q))
+                });
+                if !possible {
+                    d.found = false;
+                    d.confidence = d.confidence.min(0.1);
+                }
                 d.pose = pose;
                 d.connection_errors = errors.clone();
                 d
@@ -370,6 +388,35 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             }
         }
         verify_ms += ms(t);
+    }
+    // Free-space check of the candidates the acceptance test passed: a part where the sensor saw
+    // through it is not there. Only the candidates that may be reported are checked (it is the
+    // most expensive test per candidate, and most candidates fail cheaper ones first).
+    let all_grid = Grid::new(&points, 0.01);
+    let limit = if params.all { usize::MAX } else { 1 };
+    let mut accepted = 0;
+    for d in candidates.iter_mut() {
+        if accepted >= limit {
+            break;
+        }
+        if !d.found {
+            continue;
+        }
+        for (k, part) in d.parts.iter().enumerate() {
+            let Some(placed) = part.placed else { continue };
+            let vis = verify::visibility(&points, &all_grid, &placed, params.viewpoint, report.plane.as_ref(), &samples[k]);
+            if std::env::var_os("SQSCAN_DEBUG").is_some() {
+                eprintln!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
+            }
+            let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
+            if margin < 0.0 {
+                d.found = false;
+            }
+            d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
+        }
+        if d.found {
+            accepted += 1;
+        }
     }
     report.detections = if params.all {
         // Every accepted instance that does not overlap a better one.
@@ -427,11 +474,12 @@ fn search_part(
     seed: u64,
 ) -> Vec<Hypothesis> {
     let check = search::PlaneCheck::new(shape, space.noise);
+    let regions = spatial_regions(space.sub, seeds, m);
     let fits: Vec<fit::Fit> = (0..m)
         .into_par_iter()
         .filter_map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
-            search::ransac(space, shape, seeds, settings, &check, &mut rng)
+            search::ransac(space, shape, &regions[h % regions.len()], settings, &check, &mut rng)
         })
         .collect();
     search::distinct(fits)
@@ -441,6 +489,38 @@ fn search_part(
             check.allows(space, &h.placed).then_some(h)
         })
         .collect()
+}
+
+/// Split the seed points into `m` spatially compact regions of equal size (consecutive runs in
+/// Morton order of 1 cm voxels), one for each hypothesis.
+///
+/// The paper draws every hypothesis' trials from the whole scene and keeps each one's best fit,
+/// so the hypotheses crowd onto the few objects that fit best and a lookalike can hide the
+/// object from all m of them. Its m is chosen "to cover the whole scene": giving each hypothesis
+/// its own part of the scene does exactly that.
+fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec<usize>> {
+    if seeds.is_empty() || m <= 1 {
+        return vec![seeds.to_vec()];
+    }
+    let voxel = 0.01;
+    let spread = |v: u64| {
+        // Interleave the low 21 bits with two zero bits between each.
+        let mut x = v & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        x = (x | x << 2) & 0x1249_2492_4924_9249;
+        x
+    };
+    let key = |p: &Point3<f64>| {
+        let c = [0, 1, 2].map(|k| ((p[k] / voxel).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u64);
+        spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
+    };
+    let mut order: Vec<(u64, usize)> = seeds.iter().map(|&i| (key(&points[i]), i)).collect();
+    order.sort_unstable();
+    let m = m.min(order.len());
+    (0..m).map(|h| order[h * order.len() / m..(h + 1) * order.len() / m].iter().map(|&(_, i)| i).collect()).collect()
 }
 
 /// Which anchor candidate a combination grew from, its parts, and its connection errors.
