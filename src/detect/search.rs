@@ -239,7 +239,12 @@ pub fn sample_radius(shape: &Superquadric) -> f64 {
 }
 
 /// The low-level search of one hypothesis: `settings.trials` RANSAC trials seeded from `seeds`
-/// (indices into `space.sub`); returns the best (smallest M) possible fit, unrefined.
+/// (indices into `space.sub`); returns the best possible fit, unrefined.
+///
+/// The paper keeps the trial with the smallest M over its 30 points. That is an in-sample
+/// measure: a small patch of anything is fitted well, so it favours whatever object fits its
+/// patches best, not the object. Here a trial is judged by its consensus, as in classic RANSAC:
+/// the subsampled points within the inlier band of the fitted surface, ties broken by M.
 pub fn ransac(
     space: &SearchSpace<'_>,
     shape: &Superquadric,
@@ -252,7 +257,8 @@ pub fn ransac(
         return None;
     }
     let radius = sample_radius(shape);
-    let mut best: Option<Fit> = None;
+    let band = refine_band(shape, space.noise);
+    let mut best: Option<(usize, Fit)> = None;
     let mut near = Vec::new();
     let mut sample = Vec::with_capacity(settings.sample_points);
     for _ in 0..settings.trials {
@@ -275,12 +281,25 @@ pub fn ransac(
             if !check.allows(space, &f.placed) {
                 continue;
             }
-            if best.as_ref().is_none_or(|b| f.m < b.m) {
-                best = Some(f);
+            let support = consensus(space, &f.placed, band);
+            if best.as_ref().is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m)) {
+                best = Some((support, f));
             }
         }
     }
-    best
+    best.map(|(_, f)| f)
+}
+
+/// Subsampled points within `band` of the placed surface.
+fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
+    let centre = Point3::from(placed.pose.translation.vector);
+    let mut n = 0;
+    space.sub_grid.for_each_within(space.sub, &centre, placed.shape.bounding_radius() + band, |i| {
+        if placed.surface_distance(&space.sub[i]).abs() < band {
+            n += 1;
+        }
+    });
+    n
 }
 
 /// Drop fits that repeat a better one (the same place within a fifth of the smallest size and
