@@ -33,60 +33,48 @@ pub fn measure_of_fit(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> f6
 /// is unobservable and would make the normal matrix singular). Stops early when the cost
 /// improves by less than `1e-6` relative.
 pub fn fit_pose(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iterations: usize, five_dof: bool) -> Fit {
+    fit_pose_tol(start, points, max_iterations, five_dof, 1e-6)
+}
+
+/// [`fit_pose`] stopping when a step improves the cost by less than `rel_tol` relative.
+pub fn fit_pose_tol(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iterations: usize, five_dof: bool, rel_tol: f64) -> Fit {
     let mut placed = *start;
-    let mut cost = cost_of(&placed, points);
+    // Every candidate is evaluated with its normal equations: an accepted step (the usual case
+    // once the damping has settled) then needs no second pass over the points.
+    let (mut cost, mut h, mut g) = normal_equations(&placed, points, five_dof);
     let mut lambda = 1e-3;
     let mut iterations = 0;
     let dof = if five_dof { 5 } else { 6 };
-    'outer: while iterations < max_iterations {
-        let mut h = Matrix6::<f64>::zeros();
-        let mut g = Vector6::<f64>::zeros();
-        for p in points {
-            let (r, j) = placed.residual_pose_jacobian(p);
-            let j = Vector6::from_column_slice(&j);
-            // Only the upper triangle is needed; nalgebra's rank-one update is as fast as that.
-            h.ger(1.0, &j, &j, 1.0);
-            g += j * r;
+    while iterations < max_iterations {
+        iterations += 1;
+        let mut a = h;
+        for k in 0..dof {
+            // Marquardt's scaling, with a floor so a zero column cannot make a zero pivot.
+            a[(k, k)] += lambda * h[(k, k)].max(1e-12);
         }
-        if five_dof {
-            for k in 0..6 {
-                h[(5, k)] = 0.0;
-                h[(k, 5)] = 0.0;
-            }
-            h[(5, 5)] = 1.0;
-            g[5] = 0.0;
-        }
-        loop {
-            iterations += 1;
-            let mut a = h;
-            for k in 0..dof {
-                // Marquardt's scaling, with a floor so a zero column cannot make a zero pivot.
-                a[(k, k)] += lambda * h[(k, k)].max(1e-12);
-            }
-            let Some(chol) = a.cholesky() else {
-                lambda *= 10.0;
-                if lambda > 1e8 || iterations >= max_iterations {
-                    break 'outer;
-                }
-                continue;
-            };
-            let delta = chol.solve(&(-g));
-            let step: [f64; 6] = delta.into();
-            let candidate = placed.perturbed(&step);
-            let new_cost = cost_of(&candidate, points);
-            if new_cost < cost {
-                let relative = (cost - new_cost) / cost.max(1e-300);
-                placed = candidate;
-                cost = new_cost;
-                lambda = (lambda * 0.1).max(1e-9);
-                if relative < 1e-6 {
-                    break 'outer;
-                }
+        let Some(chol) = a.cholesky() else {
+            lambda *= 10.0;
+            if lambda > 1e8 {
                 break;
             }
+            continue;
+        };
+        let delta = chol.solve(&(-g));
+        let step: [f64; 6] = delta.into();
+        let candidate = placed.perturbed(&step);
+        let (new_cost, new_h, new_g) = normal_equations(&candidate, points, five_dof);
+        if new_cost < cost {
+            let relative = (cost - new_cost) / cost.max(1e-300);
+            placed = candidate;
+            (cost, h, g) = (new_cost, new_h, new_g);
+            lambda = (lambda * 0.1).max(1e-9);
+            if relative < rel_tol {
+                break;
+            }
+        } else {
             lambda *= 10.0;
-            if lambda > 1e8 || iterations >= max_iterations {
-                break 'outer;
+            if lambda > 1e8 {
+                break;
             }
         }
     }
@@ -94,9 +82,28 @@ pub fn fit_pose(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iteratio
     Fit { placed, m, iterations }
 }
 
-#[inline]
-fn cost_of(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> f64 {
-    points.iter().map(|p| placed.residual(p).powi(2)).sum()
+/// The cost `sum r^2`, the Gauss-Newton matrix `J^T J` and the gradient `J^T r` at a pose, in
+/// one pass over the points. For a 5-DoF fit the spin row and column are replaced by identity.
+fn normal_equations(placed: &PlacedSuperquadric, points: &[Point3<f64>], five_dof: bool) -> (f64, Matrix6<f64>, Vector6<f64>) {
+    let mut h = Matrix6::<f64>::zeros();
+    let mut g = Vector6::<f64>::zeros();
+    let mut cost = 0.0;
+    for p in points {
+        let (r, j) = placed.residual_pose_jacobian(p);
+        let j = Vector6::from_column_slice(&j);
+        h.ger(1.0, &j, &j, 1.0);
+        g += j * r;
+        cost += r * r;
+    }
+    if five_dof {
+        for k in 0..6 {
+            h[(5, k)] = 0.0;
+            h[(k, 5)] = 0.0;
+        }
+        h[(5, 5)] = 1.0;
+        g[5] = 0.0;
+    }
+    (cost, h, g)
 }
 
 #[cfg(test)]

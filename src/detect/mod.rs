@@ -475,7 +475,7 @@ fn search_part(
 ) -> Vec<Hypothesis> {
     let check = search::PlaneCheck::new(shape, space.noise);
     let regions = spatial_regions(space.sub, seeds, m);
-    let fits: Vec<fit::Fit> = (0..m)
+    let fits: Vec<(usize, fit::Fit)> = (0..m)
         .into_par_iter()
         .filter_map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));

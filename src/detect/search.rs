@@ -8,7 +8,7 @@
 //! centroid, so a fit needs a few iterations instead of twenty; all starts get a short fit and
 //! only the best continues.
 
-use super::fit::{Fit, fit_pose, measure_of_fit};
+use super::fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 use super::grid::Grid;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, SymmetricEigen, UnitQuaternion, Vector3};
@@ -19,6 +19,8 @@ use rand_chacha::ChaCha8Rng;
 const SCREEN_ITERATIONS: usize = 4;
 /// A trial needs at least this many points around its seed to say anything about the pose.
 const MIN_SAMPLE: usize = 8;
+/// LM iterations of a refinement round at the final band: the pose is close by then.
+const FINE_ITERATIONS: usize = 10;
 /// Refinement rounds on the full-resolution points at most.
 const REFINE_ROUNDS: usize = 6;
 /// Refinement fits use at most this many of the points near the surface, evenly spread: six
@@ -60,7 +62,9 @@ impl PlaneCheck {
     pub fn new(shape: &Superquadric, noise: f64) -> PlaneCheck {
         // The model approximates the object: allow a tenth of the smallest size of overlap beyond
         // the noise before calling a pose impossible.
-        PlaneCheck { samples: shape.sample_surface(shape.min_size() / 4.0), tolerance: 3.0 * noise + 0.1 * shape.min_size() }
+        // Samples half the smallest size apart find the lowest point to well within the
+        // tolerance (the sagitta between samples is a small fraction of the spacing).
+        PlaneCheck { samples: shape.sample_surface(shape.min_size() / 2.0), tolerance: 3.0 * noise + 0.1 * shape.min_size() }
     }
 
     /// How far (m) the placed shape reaches through the plane (negative: it stays above).
@@ -147,18 +151,22 @@ pub fn initial_poses(shape: &Superquadric, sample: &[Point3<f64>], viewpoint: Op
     out
 }
 
-/// Fit the best of several starts: every start gets a short fit, the best continues.
+/// Fit the best of several starts: every start gets a short fit on half the sample, the best
+/// continues on all of it. A trial's pose only has to be good enough for the refinement to take
+/// over, so its fit stops at a 0.1 % improvement.
 pub fn fit_from_starts(shape: &Superquadric, starts: &[Isometry3<f64>], sample: &[Point3<f64>], iterations: usize) -> Option<Fit> {
     let five = shape.is_revolution();
+    let half: Vec<Point3<f64>> = sample.iter().step_by(2).copied().collect();
+    let screen_points = if half.len() >= MIN_SAMPLE { &half[..] } else { sample };
     let screened = starts
         .iter()
-        .map(|s| fit_pose(&PlacedSuperquadric::new(*shape, *s), sample, SCREEN_ITERATIONS.min(iterations), five))
+        .map(|s| fit_pose_tol(&PlacedSuperquadric::new(*shape, *s), screen_points, SCREEN_ITERATIONS.min(iterations), five, 1e-3))
         .min_by(|a, b| a.m.total_cmp(&b.m))?;
     let rest = iterations.saturating_sub(screened.iterations);
     if rest == 0 {
         return Some(screened);
     }
-    Some(fit_pose(&screened.placed, sample, rest, five))
+    Some(fit_pose_tol(&screened.placed, sample, rest, five, 1e-3))
 }
 
 /// Points of `space.points` near the surface of `placed` (within the inlier band) and within the
@@ -218,8 +226,8 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothes
             break;
         }
         best = Hypothesis { placed, m: before };
-        let f = fit_pose(&placed, &inliers, iterations, shape.is_revolution());
-        if f.m >= before * 0.999 {
+        let f = fit_pose(&placed, &inliers, iterations.min(FINE_ITERATIONS), shape.is_revolution());
+        if f.m >= before * 0.99 {
             break;
         }
         placed = f.placed;
@@ -252,7 +260,7 @@ pub fn ransac(
     settings: &SearchSettings,
     check: &PlaneCheck,
     rng: &mut ChaCha8Rng,
-) -> Option<Fit> {
+) -> Option<(usize, Fit)> {
     if seeds.is_empty() {
         return None;
     }
@@ -287,7 +295,7 @@ pub fn ransac(
             }
         }
     }
-    best.map(|(_, f)| f)
+    best
 }
 
 /// Subsampled points within `band` of the placed surface.
@@ -302,18 +310,20 @@ fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) ->
     n
 }
 
-/// Drop fits that repeat a better one (the same place within a fifth of the smallest size and
-/// the same axis within 15 degrees): many hypotheses land on the same object, and refining and
-/// verifying each copy costs time and changes nothing.
-pub fn distinct(mut fits: Vec<Fit>) -> Vec<Fit> {
-    fits.sort_by(|a, b| a.m.total_cmp(&b.m));
+/// Drop fits that repeat a better one (the same place within half the sample radius and the
+/// same axis within 30 degrees): many hypotheses land on the same object, refinement brings
+/// such near copies to the same pose, and refining and verifying each copy costs time and
+/// changes nothing.
+pub fn distinct(mut fits: Vec<(usize, Fit)>) -> Vec<Fit> {
+    // Best consensus first, then smallest M.
+    fits.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.m.total_cmp(&b.1.m)));
     let mut kept: Vec<Fit> = Vec::with_capacity(fits.len());
-    for f in fits {
+    for (_, f) in fits {
         let shape = &f.placed.shape;
         let z = f.placed.pose.rotation * Vector3::z();
         let repeat = kept.iter().any(|k| {
             let dz = axis_angle_deg(&z, &(k.placed.pose.rotation * Vector3::z()), shape.is_tapered());
-            (k.placed.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.2 * shape.min_size() && dz < 15.0
+            (k.placed.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape) && dz < 30.0
         });
         if !repeat {
             kept.push(f);

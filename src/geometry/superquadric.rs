@@ -195,8 +195,11 @@ impl Superquadric {
         let v = ry.powi(n2);
         let s = u + v;
         let m = self.e2 / self.e1;
-        let a = match int_exponent(m) {
-            Some(k) => s.powi(k),
+        // e2/e1 is often a whole or a half number (1/0.4 = 2.5): s^(k/2) = s^(k div 2) sqrt(s)
+        // costs a fraction of a general power.
+        let a = match int_exponent(2.0 * m) {
+            Some(k) if k % 2 == 0 => s.powi(k / 2),
+            Some(k) => s.powi(k / 2) * s.sqrt(),
             None => s.powf(m),
         };
         let b = rz.powi(n1);
