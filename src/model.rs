@@ -42,6 +42,8 @@ struct PartFile {
     ky: f64,
     m: Option<u32>,
     #[serde(default)]
+    open: bool,
+    #[serde(default)]
     pose: PoseSpec,
 }
 
@@ -64,6 +66,27 @@ pub struct Part {
     /// Hypotheses to search for this part (paper's m); `None` lets the detector derive it from
     /// the ratio of part size to scene extent.
     pub hypotheses: Option<u32>,
+    /// An open container (a mug, a bowl): its top (+z) is an opening, not a surface. A sensor
+    /// looking in sees the inside, which a solid model would count as interior points, and sees
+    /// nothing where a lid would be.
+    pub open: bool,
+}
+
+/// The lid of an open part: where the outward normal in the part frame has a z component above
+/// this. The superquadric's top cap; its side wall stays a surface.
+pub const LID_NORMAL_Z: f64 = 0.7;
+
+impl Part {
+    /// Whether a local surface normal (any length) lies on the lid of an open part.
+    pub fn on_lid(&self, local_normal: &Vector3<f64>) -> bool {
+        self.open && is_lid(local_normal)
+    }
+}
+
+/// Whether a local surface normal (any length) points into the lid region.
+pub fn is_lid(local_normal: &Vector3<f64>) -> bool {
+    let n = local_normal.norm();
+    n > 0.0 && local_normal.z / n > LID_NORMAL_Z
 }
 
 /// The relation of two parts (paper eq. 6, 7).
@@ -152,7 +175,7 @@ impl Model {
                 }
             }
             let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
-            parts.push(Part { name: p.name, shape, pose_in_object, hypotheses: p.m });
+            parts.push(Part { name: p.name, shape, pose_in_object, hypotheses: p.m, open: p.open });
         }
         let mut connections = Vec::new();
         for (i, c) in file.connection.into_iter().enumerate() {

@@ -83,7 +83,8 @@ pub fn stream_seed(seed: u64, index: u64) -> u64 {
 
 struct Caster<'a> {
     scene: &'a Scene,
-    parts: Vec<(u32, PlacedSuperquadric, Point3<f64>, f64)>,
+    /// Label, placement, bounding sphere centre and radius, and whether the part is open.
+    parts: Vec<(u32, PlacedSuperquadric, Point3<f64>, f64, bool)>,
 }
 
 impl<'a> Caster<'a> {
@@ -91,9 +92,9 @@ impl<'a> Caster<'a> {
         let parts = scene
             .labelled_parts()
             .into_iter()
-            .map(|(l, p)| {
+            .map(|(l, p, open)| {
                 let c = Point3::from(p.pose.translation.vector);
-                (l, p, c, p.shape.bounding_radius() * 1.001)
+                (l, p, c, p.shape.bounding_radius() * 1.001, open)
             })
             .collect();
         Caster { scene, parts }
@@ -126,7 +127,7 @@ impl<'a> Caster<'a> {
             }
         }
         for &i in candidates {
-            let (label, part, centre, radius) = &self.parts[i];
+            let (label, part, centre, radius, open) = &self.parts[i];
             // Skip parts whose bounding sphere the ray misses or meets only beyond the best hit.
             let oc = centre - origin;
             let along = oc.dot(dir);
@@ -138,6 +139,12 @@ impl<'a> Caster<'a> {
                 if s < limit {
                     let local = part.to_local(&(origin + dir * s));
                     let g = part.shape.residual_grad(&local).grad;
+                    // An open container has no lid: the ray goes in, and what it meets inside
+                    // (the inner wall, seen by the camera only through the same opening) is
+                    // left out of this model; the outer wall is what it returns.
+                    if *open && crate::model::is_lid(&g) {
+                        continue;
+                    }
                     let n = (part.pose.rotation * g).try_normalize(1e-300).unwrap_or(-dir);
                     best = Some((s, *label, n));
                     limit = s;
@@ -165,7 +172,7 @@ impl<'a> Caster<'a> {
                 }
             }
         }
-        for (_, part, centre, radius) in &self.parts {
+        for (_, part, centre, radius, _) in &self.parts {
             let oc = centre - start;
             let along = oc.dot(&dir).clamp(0.0, t_max);
             if (centre - (start + dir * along)).norm_squared() > radius * radius {
@@ -205,7 +212,7 @@ fn render_with(caster: &Caster<'_>, sensor_in_base: &Isometry3<f64>, rng: &mut C
         .parts
         .iter()
         .enumerate()
-        .filter(|(_, (_, _, c, r))| (c - origin).dot(&plane_normal).abs() <= *r)
+        .filter(|(_, (_, _, c, r, _))| (c - origin).dot(&plane_normal).abs() <= *r)
         .map(|(i, _)| i)
         .collect();
     let cos_max = sensor.max_incidence.cos();

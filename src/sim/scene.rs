@@ -273,16 +273,17 @@ impl Scene {
     /// Every superquadric in the scene in the base frame, with its point label
     /// (`20 + 10 k + part` for part `part` of object `k`, continuing for free parts), following
     /// the mOSD convention that `label / 10 - 2` is the object index.
-    pub fn labelled_parts(&self) -> Vec<(u32, PlacedSuperquadric)> {
+    /// Whether each part is open (see [`crate::model::Part::open`]) comes third.
+    pub fn labelled_parts(&self) -> Vec<(u32, PlacedSuperquadric, bool)> {
         let mut out = Vec::new();
         for (k, o) in self.objects.iter().enumerate() {
             for (j, p) in o.model.placed_parts(&o.pose).into_iter().enumerate() {
-                out.push((20 + 10 * k as u32 + j as u32, p));
+                out.push((20 + 10 * k as u32 + j as u32, p, o.model.parts[j].open));
             }
         }
         let base = 20 + 10 * self.objects.len() as u32;
         for (j, p) in self.free_parts.iter().enumerate() {
-            out.push((base + 10 * j as u32, p.placed));
+            out.push((base + 10 * j as u32, p.placed, false));
         }
         out
     }
