@@ -12,7 +12,12 @@
 
 pub mod error;
 pub mod flir;
+pub mod link;
+pub mod mock;
 pub mod powercube;
 pub mod profile;
+pub mod ptu;
 
 pub use error::Error;
+pub use link::{Link, SerialLink, open_serial};
+pub use ptu::{AxisConfig, AxisState, Goal, Limits, PanTilt, PositionSample, PtuState};
