@@ -2,6 +2,8 @@
 //! they land, the offline detector, evaluator and the daemon's client).
 
 mod files;
+mod mock;
+mod ptu;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -26,6 +28,10 @@ enum Command {
     ShowModel(files::ShowModelArgs),
     /// Print a point cloud file's point count, finite points, organization and bounding box
     Info(files::InfoArgs),
+    /// Run mock devices on pseudo-terminals (use their paths like hardware)
+    Mock(mock::MockArgs),
+    /// Bring-up tool for a pan-tilt unit: status, home, move, sweep
+    Ptu(ptu::PtuArgs),
 }
 
 fn main() -> ExitCode {
@@ -35,6 +41,8 @@ fn main() -> ExitCode {
         Command::Simulate(a) => files::simulate(a, &models_dir),
         Command::ShowModel(a) => files::show_model(a, &models_dir),
         Command::Info(a) => files::info(a),
+        Command::Mock(a) => mock::run(a),
+        Command::Ptu(a) => ptu::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
