@@ -139,15 +139,15 @@ impl MockPort {
                     let junk: Vec<u8> = (0..len).map(|_| xorshift(&mut rng) as u8).collect();
                     self.master.write_all(&junk).await?;
                 }
-                if Faults::hits(faults.drop_every, replies) {
-                    continue;
+                // A dropped reply still counts towards the unplug.
+                if !Faults::hits(faults.drop_every, replies) {
+                    let wire = if Faults::hits(faults.corrupt_every, replies) {
+                        bad
+                    } else {
+                        reply
+                    };
+                    self.master.write_all(&wire).await?;
                 }
-                let wire = if Faults::hits(faults.corrupt_every, replies) {
-                    bad
-                } else {
-                    reply
-                };
-                self.master.write_all(&wire).await?;
                 if faults.disconnect_after.is_some_and(|n| replies >= n) {
                     return Ok(ServeEnd::Unplugged { replies });
                 }
