@@ -43,6 +43,13 @@ pub enum Error {
     #[error("device disconnected")]
     Disconnected,
 
+    /// The port could not be opened (missing, busy, no permission).
+    #[error("cannot open {}: {source}", path.display())]
+    Open {
+        path: std::path::PathBuf,
+        source: std::io::Error,
+    },
+
     #[error("I/O error: {0}")]
     Io(#[from] std::io::Error),
 

@@ -1,18 +1,27 @@
-//! Device codecs for sqscan: bytes, joints and profiles, nothing of superquadrics.
+//! Device drivers for sqscan: bytes, joints and profiles, nothing of superquadrics.
 //!
-//! Every module here is a pure codec: bytes in, typed frames out, and back. No IO and no async;
-//! the device layer that owns serial ports, timeouts and mock devices sits on top. Decoders are
-//! incremental (push bytes as they arrive, pop items) and never panic on any input.
+//! Two layers. The codecs are pure: bytes in, typed frames out, and back, no IO and no async;
+//! decoders are incremental (push bytes as they arrive, pop items) and never panic on any input.
+//! On top, the async device layer owns links, timeouts, retries and mock devices.
 //!
-//! - [`powercube`]: AMTEC/Schunk PowerCube modules over RS-232 (the pan-tilt unit).
-//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol.
-//! - [`profile`]: our own binary frame for laser profile streams.
+//! - [`powercube`]: AMTEC/Schunk PowerCube modules over RS-232 (the pan-tilt unit): codec and
+//!   the async [`powercube::PowerCubePtu`].
+//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol (codec).
+//! - [`profile`]: our own binary frame for laser profile streams (codec).
+//! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
+//! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.
+//! - [`mock`]: mock devices written from the device's side, served on pseudo-terminals.
 
 #![forbid(unsafe_code)]
 
 pub mod error;
 pub mod flir;
+pub mod link;
+pub mod mock;
 pub mod powercube;
 pub mod profile;
+pub mod ptu;
 
 pub use error::Error;
+pub use link::{Link, SerialLink, open_serial};
+pub use ptu::{AxisConfig, AxisState, Goal, Limits, PanTilt, PositionSample, PtuState};

@@ -5,12 +5,14 @@
 //! - [`state`]: the CUBESTATE and short-state flag words.
 
 pub mod command;
+pub mod device;
 pub mod frame;
 pub mod state;
 
 pub use command::{
     Command, CommandError, Motion, MotionTarget, Param, Reply, Request, Value, ValueKind,
 };
+pub use device::{Joint, LinkStats, PowerCubeConfig, PowerCubePtu};
 pub use frame::{
     ChecksumForm, DecoderStats, Direction, Frame, FrameDecoder, FrameError, ModuleId, Payload,
     encode_reply, encode_request, player_bcc, schunk_bcc,

@@ -1,9 +1,12 @@
-//! `sqscan`: the command-line tool of sqscan: simulator, model viewer, cloud inspector (and, as
-//! they land, the offline detector, evaluator and the daemon's client).
+//! `sqscan`: the command-line tool of sqscan: simulator, model viewer, cloud inspector, offline
+//! detector and evaluator, mock devices and device bring-up (and, as it lands, the daemon's
+//! client).
 
 mod detect;
 mod eval;
 mod files;
+mod mock;
+mod ptu;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -32,6 +35,10 @@ enum Command {
     Detect(detect::DetectArgs),
     /// Measure detection rate, false "found" rate, time and pose error on simulated sweeps
     Eval(eval::EvalArgs),
+    /// Run mock devices on pseudo-terminals (use their paths like hardware)
+    Mock(mock::MockArgs),
+    /// Bring-up tool for a pan-tilt unit: status, home, move, sweep
+    Ptu(ptu::PtuArgs),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +50,8 @@ fn main() -> ExitCode {
         Command::Info(a) => files::info(a),
         Command::Detect(a) => detect::detect(a, &models_dir),
         Command::Eval(a) => eval::eval(a, &models_dir),
+        Command::Mock(a) => mock::run(a),
+        Command::Ptu(a) => ptu::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,0 +1,147 @@
+//! `sqscan mock ...`: mock devices on pseudo-terminals, used exactly like hardware.
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand, ValueEnum};
+use sqscan_drivers::mock::{Faults, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+#[derive(Args)]
+pub struct MockArgs {
+    #[command(subcommand)]
+    device: MockDevice,
+}
+
+#[derive(Subcommand)]
+enum MockDevice {
+    /// Run a mock pan-tilt unit on a pty until interrupted
+    Ptu(MockPtuArgs),
+}
+
+/// PTU protocols with a mock device.
+#[derive(Clone, Copy, ValueEnum)]
+pub enum MockProtocol {
+    /// AMTEC/Schunk PowerCube modules (pan 12, tilt 11), RS-232 telegrams
+    Powercube,
+}
+
+#[derive(Args)]
+pub struct MockPtuArgs {
+    #[arg(long, value_enum)]
+    protocol: MockProtocol,
+    /// Keep a symlink to the pty here (replaced if it is a symlink)
+    #[arg(long, value_name = "PATH")]
+    link: Option<PathBuf>,
+    #[command(flatten)]
+    faults: FaultArgs,
+}
+
+/// Fault injection; counters are over replies sent, 0 disables.
+#[derive(Args)]
+pub struct FaultArgs {
+    /// Send 1-16 random bytes before every Nth reply
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    garbage_every: u64,
+    /// Drop every Nth reply
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    drop_every: u64,
+    /// Send every Nth reply with a bad checksum
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    corrupt_every: u64,
+    /// Delay every reply by this many milliseconds
+    #[arg(long, value_name = "MS", default_value_t = 0)]
+    delay_ms: u64,
+    /// Close the pty (unplug) after N replies
+    #[arg(long, value_name = "N")]
+    disconnect_after: Option<u64>,
+    /// After an unplug, plug a fresh device in (new pty, same link) after this many milliseconds
+    #[arg(long, value_name = "MS", requires = "disconnect_after")]
+    replug_after_ms: Option<u64>,
+    /// Seed of the garbage bytes
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+impl FaultArgs {
+    fn faults(&self) -> Faults {
+        Faults {
+            garbage_every: self.garbage_every,
+            drop_every: self.drop_every,
+            corrupt_every: self.corrupt_every,
+            delay: Duration::from_millis(self.delay_ms),
+            disconnect_after: self.disconnect_after,
+            seed: self.seed,
+        }
+    }
+}
+
+pub fn run(a: MockArgs) -> Result<()> {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    match a.device {
+        MockDevice::Ptu(p) => rt.block_on(mock_ptu(p)),
+    }
+}
+
+async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
+    let MockProtocol::Powercube = a.protocol;
+    let faults = a.faults.faults();
+    let result = tokio::select! {
+        r = serve_powercube(a.link.as_deref(), &faults, a.faults.replug_after_ms) => r,
+        r = shutdown_signal() => r,
+    };
+    if let Some(link) = &a.link {
+        // The link points at a pty that is gone now: leave no dangling device behind.
+        let _ = std::fs::remove_file(link);
+    }
+    result
+}
+
+/// One mock unit after another: a new one is plugged in after each unplug if asked to.
+async fn serve_powercube(
+    link: Option<&Path>,
+    faults: &Faults,
+    replug_after_ms: Option<u64>,
+) -> Result<()> {
+    let cfg = MockPowerCubeConfig::default();
+    loop {
+        let port = MockPort::create(link).context("cannot create a pty")?;
+        println!(
+            "mock PowerCube: pan module {}, tilt module {} on {}{}",
+            cfg.pan.id.get(),
+            cfg.tilt.id.get(),
+            port.path().display(),
+            link.map(|l| format!(" (link {})", l.display()))
+                .unwrap_or_default()
+        );
+        let device = Arc::new(Mutex::new(MockPowerCube::new(cfg.clone())));
+        match port
+            .serve(device, faults.clone())
+            .await
+            .context("mock PTU line failed")?
+        {
+            ServeEnd::Unplugged { replies } => {
+                println!("unplugged after {replies} replies");
+                let Some(ms) = replug_after_ms else {
+                    return Ok(());
+                };
+                tokio::time::sleep(Duration::from_millis(ms)).await;
+            }
+        }
+    }
+}
+
+/// Ctrl-C or SIGTERM (as from systemd or `kill`).
+async fn shutdown_signal() -> Result<()> {
+    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot listen for SIGTERM")?;
+    tokio::select! {
+        r = tokio::signal::ctrl_c() => r.context("cannot listen for Ctrl-C")?,
+        _ = term.recv() => {}
+    }
+    Ok(())
+}

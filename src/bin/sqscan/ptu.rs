@@ -1,0 +1,201 @@
+//! `sqscan ptu ...`: bring-up tool for a pan-tilt unit: status, home, move, sweep.
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, Subcommand, ValueEnum};
+use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
+use sqscan_drivers::{AxisConfig, AxisState, Goal, PanTilt, PositionSample};
+use std::path::PathBuf;
+use std::time::Duration;
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum PtuProtocol {
+    /// AMTEC/Schunk PowerCube modules over RS-232
+    Powercube,
+}
+
+#[derive(Args)]
+pub struct PtuArgs {
+    /// Serial port (or a mock's pty link)
+    #[arg(long, value_name = "PATH")]
+    device: PathBuf,
+    #[arg(long, value_enum)]
+    protocol: PtuProtocol,
+    /// Line speed [default: 38400]
+    #[arg(long)]
+    baud: Option<u32>,
+    /// PowerCube module id of the pan joint
+    #[arg(long, default_value_t = 12)]
+    pan_module: u8,
+    /// PowerCube module id of the tilt joint
+    #[arg(long, default_value_t = 11)]
+    tilt_module: u8,
+    /// Pan axis sign (+1 or -1): joint = sign * device + offset
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pan_sign: f64,
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "RAD"
+    )]
+    pan_offset: f64,
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    tilt_sign: f64,
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "RAD"
+    )]
+    tilt_offset: f64,
+    /// Give up on a move after this many seconds
+    #[arg(long, default_value_t = 60.0, value_name = "S")]
+    timeout: f64,
+    #[command(subcommand)]
+    action: Action,
+}
+
+#[derive(Subcommand)]
+enum Action {
+    /// Print both joints' angles, state words and limits
+    Status,
+    /// Reset, home and wait for both joints to report HOME_OK
+    Home,
+    /// Move to an absolute pose (an axis not given stays where it is) and wait until reached
+    Move {
+        #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
+        pan: Option<f64>,
+        #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
+        tilt: Option<f64>,
+        #[arg(long, default_value_t = 0.5, value_name = "RAD_S")]
+        speed: f64,
+    },
+    /// Tilt from one angle to another at a constant speed, sampling the position on the way
+    Sweep {
+        #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
+        from: f64,
+        #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
+        to: f64,
+        #[arg(long, value_name = "RAD_S")]
+        speed: f64,
+    },
+}
+
+pub fn run(a: PtuArgs) -> Result<()> {
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    rt.block_on(async {
+        match a.protocol {
+            PtuProtocol::Powercube => {
+                let module = |n: u8, what: &str| {
+                    ModuleId::new(n).with_context(|| format!("--{what}-module {n}: give 1 to 31"))
+                };
+                let cfg = PowerCubeConfig {
+                    pan_module: module(a.pan_module, "pan")?,
+                    tilt_module: module(a.tilt_module, "tilt")?,
+                    baud: a.baud.unwrap_or(38400),
+                    pan: AxisConfig::new(a.pan_sign, a.pan_offset)
+                        .context("--pan-sign/--pan-offset")?,
+                    tilt: AxisConfig::new(a.tilt_sign, a.tilt_offset)
+                        .context("--tilt-sign/--tilt-offset")?,
+                    ..PowerCubeConfig::default()
+                };
+                let mut ptu = PowerCubePtu::open(&a.device, cfg)
+                    .await
+                    .with_context(|| format!("no PowerCube unit on {}", a.device.display()))?;
+                act(&mut ptu, &a.action, Duration::from_secs_f64(a.timeout)).await
+            }
+        }
+    })
+}
+
+async fn act(ptu: &mut impl PanTilt, action: &Action, timeout: Duration) -> Result<()> {
+    match *action {
+        Action::Status => {}
+        Action::Home => {
+            ptu.home().await.context("homing failed")?;
+        }
+        Action::Move { pan, tilt, speed } => {
+            if pan.is_none() && tilt.is_none() {
+                bail!("move: give --pan and/or --tilt");
+            }
+            let now = ptu.position().await?;
+            let goal = Goal {
+                pan_rad: pan.unwrap_or(now.pan_rad),
+                tilt_rad: tilt.unwrap_or(now.tilt_rad),
+                speed_rad_s: speed,
+            };
+            ptu.move_and_track(goal, None, timeout)
+                .await
+                .context("move failed")?;
+        }
+        Action::Sweep { from, to, speed } => {
+            let now = ptu.position().await?;
+            let start = Goal {
+                pan_rad: now.pan_rad,
+                tilt_rad: from,
+                speed_rad_s: speed.max(0.5),
+            };
+            ptu.move_and_track(start, None, timeout)
+                .await
+                .context("move to the sweep start failed")?;
+            let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+            let goal = Goal {
+                tilt_rad: to,
+                speed_rad_s: speed,
+                ..start
+            };
+            ptu.move_and_track(goal, Some(&tx), timeout)
+                .await
+                .context("sweep failed")?;
+            drop(tx);
+            let mut samples: Vec<PositionSample> = Vec::new();
+            while let Some(s) = rx.recv().await {
+                samples.push(s);
+            }
+            print_sweep(&samples);
+        }
+    }
+    let state = ptu.state().await.context("cannot read the state")?;
+    let limits = ptu.limits();
+    println!(
+        "pan  {}  limits [{:.4}, {:.4}]",
+        axis_line(&state.pan),
+        limits.pan_rad.0,
+        limits.pan_rad.1
+    );
+    println!(
+        "tilt {}  limits [{:.4}, {:.4}]",
+        axis_line(&state.tilt),
+        limits.tilt_rad.0,
+        limits.tilt_rad.1
+    );
+    Ok(())
+}
+
+fn axis_line(s: &AxisState) -> String {
+    format!("{:+.4} rad  {}", s.position_rad, s.detail)
+}
+
+fn print_sweep(samples: &[PositionSample]) {
+    let (Some(first), Some(last)) = (samples.first(), samples.last()) else {
+        println!("sweep: no position samples");
+        return;
+    };
+    let secs = (last.t - first.t).as_secs_f64();
+    let max_speed = samples
+        .windows(2)
+        .map(|w| (w[1].tilt_rad - w[0].tilt_rad).abs() / (w[1].t - w[0].t).as_secs_f64().max(1e-9))
+        .fold(0.0, f64::max);
+    println!(
+        "sweep: {} samples over {:.3} s ({:.1} Hz), tilt {:+.4} -> {:+.4} rad, peak speed {:.3} rad/s",
+        samples.len(),
+        secs,
+        (samples.len().saturating_sub(1)) as f64 / secs.max(1e-9),
+        first.tilt_rad,
+        last.tilt_rad,
+        max_speed
+    );
+}
