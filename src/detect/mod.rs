@@ -248,7 +248,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let space =
         SearchSpace { points: &scene, grid: &grid, sub: &sub, sub_grid: &sub_grid, viewpoint: params.viewpoint, noise, plane };
     let spacing = median_spacing(&scene, &Grid::new(&scene, 0.02));
-    let samples: Vec<SurfaceSamples> = model.parts.iter().map(|p| SurfaceSamples::new(&p.shape, spacing)).collect();
+    let samples: Vec<SurfaceSamples> = model.parts.iter().map(|p| SurfaceSamples::new(&p.shape, spacing, p.open)).collect();
     let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
 
     // The first (anchor) part: the largest, searched over the whole scene.
@@ -262,7 +262,8 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         .unwrap_or_else(|| auto_hypotheses(&anchor_shape, &scene))
         .max(1);
     let all_seeds: Vec<usize> = (0..sub.len()).collect();
-    let anchors = search_part(&space, &anchor_shape, &all_seeds, m, &settings, stream_seed(params.seed, anchor as u64));
+    let anchors =
+        search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, stream_seed(params.seed, anchor as u64));
     let mut search_ms = ms(t_search);
     let t_verify = Instant::now();
     let anchor_scores: Vec<Scores> =
@@ -471,6 +472,7 @@ fn search_part(
     seeds: &[usize],
     m: usize,
     settings: &SearchSettings,
+    open: bool,
     seed: u64,
 ) -> Vec<Hypothesis> {
     let check = search::PlaneCheck::new(shape, space.noise);
@@ -485,10 +487,30 @@ fn search_part(
     search::distinct(fits)
         .par_iter()
         .filter_map(|f| {
-            let h = search::refine(space, f, settings.fit_iterations);
+            let mut h = search::refine(space, f, settings.fit_iterations);
+            if open && !open_side_up(&mut h.placed, space.plane.as_ref()) {
+                return None;
+            }
             check.allows(space, &h.placed).then_some(h)
         })
         .collect()
+}
+
+/// An open container stands on its base: its opening (+z) must face away from the support
+/// plane. An untapered part fits the same either way up, so it is turned over; a tapered one
+/// the wrong way up is no container standing on the table. (A container upside down looks like
+/// a closed one, a mug like a canister, and is not reported as the container.)
+fn open_side_up(placed: &mut PlacedSuperquadric, plane: Option<&Plane>) -> bool {
+    let Some(plane) = plane else { return true };
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(&plane.normal) >= 0.0 {
+        return true;
+    }
+    if placed.shape.is_tapered() {
+        return false;
+    }
+    placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    true
 }
 
 /// Split the seed points into `m` spatially compact regions of equal size (consecutive runs in
@@ -588,7 +610,7 @@ fn compound_combinations(
             });
             let m = params.local_hypotheses.max(1);
             let stream = stream_seed(params.seed, 1000 + (step * 100 + pi) as u64);
-            let hyps = search_part(space, &shape, &seeds, m, &settings, stream);
+            let hyps = search_part(space, &shape, &seeds, m, &settings, model.parts[part].open, stream);
             if hyps.is_empty() {
                 next.push((*origin, combo.clone()));
                 continue;

@@ -30,7 +30,7 @@ pub struct Scores {
     pub m: f64,
     /// The paper's surface points S (eq. 5).
     pub s: usize,
-    /// The paper's interior points I (eq. 4).
+    /// The paper's interior points I (eq. 4); for an open container, the points on its lid.
     pub i: usize,
     /// Share of the expected visible surface that holds measured points, 0..1.
     pub coverage: f64,
@@ -38,7 +38,8 @@ pub struct Scores {
     pub rms: f64,
     /// Points within the Euclidean surface band.
     pub surface_points: usize,
-    /// Points inside the surface by more than the band: what a single view cannot see.
+    /// Points inside the surface by more than the band: what a single view cannot see (for an
+    /// open container: the points on its lid).
     pub inside_points: usize,
     /// Points just outside the band (within 0.3 of the sample radius) that continue the explained
     /// surface: a larger object of the same shape around a too-small fit leaves its surface here.
@@ -62,6 +63,7 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
     let mut ss = 0.0;
     let mut inside_points = 0usize;
+    let mut lid = 0usize;
     let mut outside_near: Vec<Point3<f64>> = Vec::new();
     let shell = band + 0.3 * super::search::sample_radius(shape);
     space.grid.for_each_within(space.points, &centre, radius.max(shape.bounding_radius() + shell), |k| {
@@ -76,11 +78,18 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
             }
         }
         let d = placed.surface_distance(p);
-        if d.abs() < band {
+        if samples.open && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
+            // On the lid of an open container, where there is nothing to see: a closed lookalike
+            // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
+            lid += 1;
+        } else if d.abs() < band {
             near_surface.push(*p);
             ss += d * d;
         } else if d < 0.0 {
-            inside_points += 1;
+            // Inside an open container is its inner wall, seen through the opening.
+            if !samples.open {
+                inside_points += 1;
+            }
         } else if d < shell {
             outside_near.push(*p);
         }
@@ -105,6 +114,8 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 { (ss / surface_points as f64).sqrt() } else { f64::INFINITY };
     let coverage = coverage(placed, &near_surface, space.viewpoint, samples);
+    // For an open part the paper's I (points that should not be there) are the lid points.
+    let (i, inside_points) = if samples.open { (lid, lid) } else { (i, inside_points) };
     Scores { m, s, i, coverage, rms, surface_points, inside_points, shell_points }
 }
 
@@ -114,18 +125,22 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
 pub struct SurfaceSamples {
     spacing: f64,
     data_spacing: f64,
+    /// The part is an open container: its lid is an opening (see `model::Part::open`).
+    open: bool,
     local: Vec<(Vector3<f64>, Vector3<f64>)>,
 }
 
 impl SurfaceSamples {
-    pub fn new(shape: &crate::geometry::Superquadric, data_spacing: f64) -> SurfaceSamples {
+    pub fn new(shape: &crate::geometry::Superquadric, data_spacing: f64, open: bool) -> SurfaceSamples {
         let spacing = (2.0 * data_spacing).max(shape.min_size() / 6.0);
+        // An open part's lid is no surface: nothing is expected there.
         let local = shape
             .sample_surface(spacing)
             .into_iter()
             .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
+            .filter(|(_, n)| !(open && crate::model::is_lid(n)))
             .collect();
-        SurfaceSamples { spacing, data_spacing, local }
+        SurfaceSamples { spacing, data_spacing, open, local }
     }
 }
 
