@@ -216,8 +216,11 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     };
     let t_plane = Instant::now();
     let (plane, noise, scene) = if params.remove_plane {
-        let removal = remove_dominant_plane(&points, false);
+        let removal = remove_dominant_plane(&points, false, params.viewpoint);
         let noise = if removal.plane.is_some() { (removal.band / 3.0).max(0.0005) } else { 0.002 };
+        if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            eprintln!("plane {:?} band {:.4} inliers {} kept {}", removal.plane.map(|p| p.coefficients()), removal.band, removal.inliers, removal.kept.len());
+        }
         let scene: Vec<Point3<f64>> = removal.kept.iter().map(|&i| points[i]).collect();
         (removal.plane, noise, scene)
     } else {

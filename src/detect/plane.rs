@@ -47,8 +47,9 @@ pub struct PlaneRemoval {
     pub plane: Option<Plane>,
     /// Points on the plane within `band` (m) of it.
     pub inliers: usize,
-    /// The half-width of the band removed (m): three robust standard deviations of the
-    /// inliers' distances.
+    /// The half-width of the band removed (m) at the median range (it grows with the square of
+    /// the range when a viewpoint is known): three robust standard deviations of the inliers'
+    /// distances.
     pub band: f64,
     /// Indices of the points kept (off the plane, and above it when `keep_below` is false).
     pub kept: Vec<usize>,
@@ -81,7 +82,7 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
 
 /// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
-pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool) -> PlaneRemoval {
+pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
     let all: Vec<usize> = (0..points.len()).collect();
     let none = PlaneRemoval { plane: None, inliers: 0, band: 0.0, kept: all };
     if points.len() < SEEDS {
@@ -118,58 +119,92 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool) -> PlaneR
     let area = ((umax - umin) * (vmax - vmin)).max(1e-9);
     let radius = (PATCH_POINTS as f64 * area / points.len() as f64 / std::f64::consts::PI).sqrt() * 1.5;
     let grid = Grid::new(points, radius);
-    let hypotheses: Vec<(usize, Plane)> = seeds
+    // Each seed's patch plane, with the patch's RMS distance to it (its noise).
+    let hypotheses: Vec<(usize, Plane, f64)> = seeds
         .iter()
         .filter_map(|&s| {
             let near = grid.within(points, &points[s], radius);
-            fit_plane(points, near.iter().copied()).map(|(p, _)| (s, p))
+            fit_plane(points, near.iter().copied()).map(|(p, ms)| (s, p, ms.sqrt()))
         })
         .collect();
     if hypotheses.is_empty() {
         return none;
     }
     let mut all_d: Vec<f64> = Vec::with_capacity(hypotheses.len() * seeds.len());
-    for (_, h) in &hypotheses {
+    for (_, h, _) in &hypotheses {
         all_d.extend(seeds.iter().map(|&s| h.signed_distance(&points[s]).abs()));
     }
     let threshold = median(&mut all_d);
-    let (_, best) = hypotheses
+    // The paper's vote over the seeds ranks the hypotheses; on a cluttered table most seeds lie
+    // on objects and the vote alone can crown a box top, so the ten best are compared by how
+    // many of all the points (every 8th) lie within a centimetre of them.
+    let mut voted: Vec<(usize, Plane, f64)> = hypotheses
         .iter()
-        .map(|(s, h)| {
+        .map(|(s, h, rms)| {
             let support = seeds.iter().filter(|&&t| t != *s && h.signed_distance(&points[t]).abs() < threshold).count();
-            (support, *h)
+            (support, *h, *rms)
         })
-        .max_by_key(|(support, _)| *support)
+        .collect();
+    voted.sort_by(|a, b| b.0.cmp(&a.0));
+    let (best, patch_rms) = voted
+        .iter()
+        .take(10)
+        .map(|(_, h, rms)| {
+            let consensus = points.iter().step_by(8).filter(|p| h.signed_distance(p).abs() < 0.01).count();
+            (consensus, *h, *rms)
+        })
+        .max_by_key(|(c, _, _)| *c)
+        .map(|(_, h, rms)| (h, rms))
         .expect("hypotheses is not empty");
+    // The band never grows past a few patch noises: on a cluttered table the objects' bottoms
+    // next to the plane would otherwise keep widening it and tilt the fit.
+    let cap = (6.0 * patch_rms).clamp(0.006, 0.02);
     // Refine on all points: least squares on the points near the plane, with a band from their
-    // robust spread, three times.
+    // robust spread, until the band settles. A wide first band can hold a second, parallel
+    // surface (the far end of a table a step lower); each round sheds part of it.
+    // Triangulating sensors (laser profilers, structured light) get noisier with the square of
+    // the range, so distances to the plane are measured in units of the noise at each point's
+    // range: `scale_i = (r_i / r_ref)^2`, `r_ref` the median range. Without a viewpoint every
+    // scale is 1.
+    let scale: Vec<f64> = match viewpoint {
+        Some(v) => {
+            let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
+            let r_ref = median(&mut r.clone()).max(1e-3);
+            r.iter_mut().for_each(|x| *x = (*x / r_ref).powi(2).max(0.05));
+            r
+        }
+        None => vec![1.0; points.len()],
+    };
+    let norm_dist = |plane: &Plane, i: usize| plane.signed_distance(&points[i]) / scale[i];
     let mut plane = best;
-    let mut band = threshold.max(0.005);
-    for _ in 0..3 {
-        let near = (0..points.len()).filter(|&i| plane.signed_distance(&points[i]).abs() < band);
+    // Start narrow: a least-squares fit over a wide band mixes in the bottoms of the objects
+    // standing on the plane and tilts it (a cluttered table: a 1 degree tilt, a band of 8 cm).
+    let mut band = threshold.clamp(0.003, cap);
+    for _ in 0..12 {
+        let previous = band;
+        let near = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band);
         let Some((p, _)) = fit_plane(points, near) else { return none };
         plane = if p.normal.dot(&plane.normal) < 0.0 { p.flipped() } else { p };
-        let mut dist: Vec<f64> = points
-            .iter()
-            .map(|q| plane.signed_distance(q).abs())
-            .filter(|&d| d < band)
-            .collect();
+        let mut dist: Vec<f64> = (0..points.len()).map(|i| norm_dist(&plane, i).abs()).filter(|&d| d < band).collect();
         // 1.4826 MAD estimates sigma; three sigma hold 99.7 % of the plane's noise.
-        band = (3.0 * 1.4826 * median(&mut dist)).max(0.002);
+        band = (3.0 * 1.4826 * median(&mut dist)).clamp(0.002, cap);
+        if (band - previous).abs() < 0.05 * previous {
+            break;
+        }
     }
-    let inliers = points.iter().filter(|q| plane.signed_distance(q).abs() < band).count();
+    let inliers = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band).count();
     if inliers * 2 <= points.len() {
         return PlaneRemoval { plane: None, inliers, band, kept: (0..points.len()).collect() };
     }
     // Orient the normal towards the objects: the side with more off-plane points.
-    let above = points.iter().filter(|q| plane.signed_distance(q) >= band).count();
-    let below = points.iter().filter(|q| plane.signed_distance(q) <= -band).count();
+    let above = (0..points.len()).filter(|&i| norm_dist(&plane, i) >= band).count();
+    let below = (0..points.len()).filter(|&i| norm_dist(&plane, i) <= -band).count();
     if below > above {
         plane = plane.flipped();
     }
     let kept = (0..points.len())
         .filter(|&i| {
-            let d = plane.signed_distance(&points[i]);
+            let d = norm_dist(&plane, i);
             d >= band || (keep_below && d <= -band)
         })
         .collect();
