@@ -252,6 +252,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         SearchSpace { points: &scene, grid: &grid, sub: &sub, sub_grid: &sub_grid, viewpoint: params.viewpoint, noise, plane };
     let spacing = median_spacing(&scene, &Grid::new(&scene, 0.02));
     let samples: Vec<SurfaceSamples> = model.parts.iter().map(|p| SurfaceSamples::new(&p.shape, spacing, p.open)).collect();
+    let checks: Vec<search::PlaneCheck> = model.parts.iter().map(|p| search::PlaneCheck::new(&p.shape, noise)).collect();
     let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
 
     // The first (anchor) part: the largest, searched over the whole scene.
@@ -266,7 +267,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         .max(1);
     let all_seeds: Vec<usize> = (0..sub.len()).collect();
     let anchors =
-        search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, stream_seed(params.seed, anchor as u64));
+        search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, &checks[anchor], stream_seed(params.seed, anchor as u64));
     let mut search_ms = ms(t_search);
     let t_verify = Instant::now();
     let anchor_scores: Vec<Scores> =
@@ -306,7 +307,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             }
         }
         let t = Instant::now();
-        let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, &samples);
+        let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, &samples, &checks);
         search_ms += ms(t);
         // Rank the combinations over the connection errors and every part's M, S, I.
         let t = Instant::now();
@@ -363,9 +364,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                 let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
                 // The rigid fit moves parts that were not searched (a part never found is placed
                 // by the model): none may go through the support plane.
-                let possible = d.parts.iter().zip(&model.parts).all(|(r, p)| {
-                    r.placed.is_none_or(|q| search::PlaneCheck::new(&p.shape, noise).allows(&space, &q))
-                });
+                let possible = d.parts.iter().zip(&checks).all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
                 if !possible {
                     d.found = false;
                     d.confidence = d.confidence.min(0.1);
@@ -469,6 +468,7 @@ fn paper_criteria(scores: &[Scores]) -> Vec<(Vec<f64>, bool)> {
 }
 
 /// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.
+#[allow(clippy::too_many_arguments)]
 fn search_part(
     space: &SearchSpace<'_>,
     shape: &Superquadric,
@@ -476,15 +476,15 @@ fn search_part(
     m: usize,
     settings: &SearchSettings,
     open: bool,
+    check: &search::PlaneCheck,
     seed: u64,
 ) -> Vec<Hypothesis> {
-    let check = search::PlaneCheck::new(shape, space.noise);
     let regions = spatial_regions(space.sub, seeds, m);
     let fits: Vec<(usize, fit::Fit)> = (0..m)
         .into_par_iter()
         .filter_map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
-            search::ransac(space, shape, &regions[h % regions.len()], settings, &check, &mut rng)
+            search::ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
         })
         .collect();
     search::distinct(fits)
@@ -563,6 +563,7 @@ fn compound_combinations(
     anchor_scores: &[Scores],
     params: &Params,
     samples: &[SurfaceSamples],
+    checks: &[search::PlaneCheck],
 ) -> Vec<Combination> {
     // Visit parts breadth-first from the anchor along the connections.
     let mut visit: Vec<(usize, usize, usize)> = Vec::new(); // (part, parent part, connection)
@@ -579,7 +580,13 @@ fn compound_combinations(
             }
         }
     }
-    let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
+    // The shell around a candidate is small: half the trials find the part there as surely as
+    // all of them find it in the whole scene.
+    let settings = SearchSettings {
+        trials: params.trials.div_ceil(2).max(3),
+        sample_points: params.sample_points,
+        fit_iterations: params.fit_iterations,
+    };
     let empty = |name: &str| PartResult { name: name.to_owned(), placed: None, scores: Scores { m: f64::INFINITY, ..Default::default() } };
     // Partial combinations: a placement (or none) per part.
     let mut partial: Vec<(usize, Vec<PartResult>)> = picked
@@ -613,7 +620,7 @@ fn compound_combinations(
             });
             let m = params.local_hypotheses.max(1);
             let stream = stream_seed(params.seed, 1000 + (step * 100 + pi) as u64);
-            let hyps = search_part(space, &shape, &seeds, m, &settings, model.parts[part].open, stream);
+            let hyps = search_part(space, &shape, &seeds, m, &settings, model.parts[part].open, &checks[part], stream);
             if hyps.is_empty() {
                 next.push((*origin, combo.clone()));
                 continue;
