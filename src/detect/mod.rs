@@ -173,6 +173,8 @@ impl Report {
     }
 }
 
+/// Rounds of search at most (see `detect`).
+const SEARCH_ROUNDS: u64 = 2;
 /// Anchor candidates of a compound below this coverage are not continued.
 const MIN_ANCHOR_COVERAGE: f64 = 0.35;
 
@@ -266,159 +268,173 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         .unwrap_or_else(|| auto_hypotheses(&anchor_shape, &scene))
         .max(1);
     let all_seeds: Vec<usize> = (0..sub.len()).collect();
-    let anchors =
-        search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, &checks[anchor], stream_seed(params.seed, anchor as u64));
-    let mut search_ms = ms(t_search);
-    let t_verify = Instant::now();
-    let anchor_scores: Vec<Scores> =
-        anchors.par_iter().map(|h| score(&space, &h.placed, h.m, params.gamma, &samples[anchor])).collect();
-    let anchor_rank = rank_sums(&paper_criteria(&anchor_scores));
-    let mut verify_ms = ms(t_verify);
-
-    let mut order: Vec<usize> = (0..anchors.len()).collect();
-    order.sort_by_key(|&k| (anchor_rank[k], ordered(anchors[k].m)));
-    if std::env::var_os("SQSCAN_DEBUG").is_some() {
-        for &k in &order {
-            let t = anchors[k].placed.pose.translation.vector;
-            let z = anchors[k].placed.pose.rotation * Vector3::z();
-            let s = &anchor_scores[k];
-            eprintln!("rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
-                anchor_rank[k], t.x, t.y, t.z, z.x, z.y, z.z, s.m, s.s, s.i, s.coverage, s.rms, s.surface_points, s.inside_points, s.shell_points);
-        }
-    }
+    let all_grid = Grid::new(&points, 0.01);
+    let (mut search_ms, mut verify_ms) = (0.0, 0.0);
+    let mut t_search = t_search;
     let mut candidates: Vec<Detection> = Vec::new();
-    if !model.is_compound() {
-        for &k in &order {
-            let parts = vec![PartResult { name: model.parts[0].name.clone(), placed: Some(anchors[k].placed), scores: anchor_scores[k] }];
-            candidates.push(finish(model, parts, Vec::new(), noise, &params.acceptance));
+    // A second round with fresh seeds when the first finds nothing acceptable: "not here" costs
+    // twice the time, but a found object costs no more, and a search that missed the object in
+    // one round rarely misses it in two.
+    for round in 0..SEARCH_ROUNDS {
+        if round > 0 {
+            t_search = Instant::now();
         }
-    } else {
-        // Continue from the best distinct anchor candidates that could be the part at all (a
-        // part seen on less than a third of its visible side is too uncertain to build on).
-        let mut picked: Vec<usize> = Vec::new();
-        for &k in &order {
-            let c = anchors[k].placed.pose.translation.vector;
-            let distinct = picked.iter().all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.max_size());
-            if distinct && anchor_scores[k].coverage >= MIN_ANCHOR_COVERAGE {
-                picked.push(k);
+        let anchors =
+            search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, &checks[anchor], stream_seed(params.seed, anchor as u64 + 1000 * round));
+        search_ms += ms(t_search);
+        let t_verify = Instant::now();
+        let anchor_scores: Vec<Scores> =
+            anchors.par_iter().map(|h| score(&space, &h.placed, h.m, params.gamma, &samples[anchor])).collect();
+        let anchor_rank = rank_sums(&paper_criteria(&anchor_scores));
+        verify_ms += ms(t_verify);
+
+        let mut order: Vec<usize> = (0..anchors.len()).collect();
+        order.sort_by_key(|&k| (anchor_rank[k], ordered(anchors[k].m)));
+        if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            for &k in &order {
+                let t = anchors[k].placed.pose.translation.vector;
+                let z = anchors[k].placed.pose.rotation * Vector3::z();
+                let s = &anchor_scores[k];
+                eprintln!("rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
+                    anchor_rank[k], t.x, t.y, t.z, z.x, z.y, z.z, s.m, s.s, s.i, s.coverage, s.rms, s.surface_points, s.inside_points, s.shell_points);
             }
-            if picked.len() >= params.compound_candidates.max(1) {
+        }
+        let first_new = candidates.len();
+        if !model.is_compound() {
+            for &k in &order {
+                let parts = vec![PartResult { name: model.parts[0].name.clone(), placed: Some(anchors[k].placed), scores: anchor_scores[k] }];
+                candidates.push(finish(model, parts, Vec::new(), noise, &params.acceptance));
+            }
+        } else {
+            // Continue from the best distinct anchor candidates that could be the part at all (a
+            // part seen on less than a third of its visible side is too uncertain to build on).
+            let mut picked: Vec<usize> = Vec::new();
+            for &k in &order {
+                let c = anchors[k].placed.pose.translation.vector;
+                let distinct = picked.iter().all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.max_size());
+                if distinct && anchor_scores[k].coverage >= MIN_ANCHOR_COVERAGE {
+                    picked.push(k);
+                }
+                if picked.len() >= params.compound_candidates.max(1) {
+                    break;
+                }
+            }
+            let t = Instant::now();
+            let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, round, &samples, &checks);
+            search_ms += ms(t);
+            // Rank the combinations over the connection errors and every part's M, S, I.
+            let t = Instant::now();
+            let mut criteria: Vec<(Vec<f64>, bool)> = Vec::new();
+            for c in 0..model.connections.len() {
+                criteria.push((combos.iter().map(|x| x.2[c].0).collect(), true));
+                criteria.push((combos.iter().map(|x| x.2[c].1).collect(), true));
+            }
+            for p in 0..model.parts.len() {
+                let sc: Vec<Scores> = combos.iter().map(|x| x.1[p].scores).collect();
+                criteria.extend(paper_criteria(&sc));
+            }
+            let sums = rank_sums(&criteria);
+            let mut idx: Vec<usize> = (0..combos.len()).collect();
+            idx.sort_by_key(|&k| sums[k]);
+            if std::env::var_os("SQSCAN_DEBUG").is_some() {
+                for &k in idx.iter().take(12) {
+                    let (_, parts, errs) = &combos[k];
+                    let desc: Vec<String> = parts.iter().map(|p| match p.placed {
+                        Some(q) => { let t = q.pose.translation.vector; format!("{} ({:.3} {:.3} {:.3}) M {:.3} S {} cov {:.2} in {} surf {}", p.name, t.x, t.y, t.z, p.scores.m, p.scores.s, p.scores.coverage, p.scores.inside_points, p.scores.surface_points) }
+                        None => format!("{} -", p.name) }).collect();
+                    eprintln!("combo sum {} A {:.1} deg D {:.3} | {}", sums[k], errs[0].0.to_degrees(), errs[0].1, desc.join(" | "));
+                }
+            }
+            // The best-ranked combination of every anchor candidate is refined as one rigid object
+            // and scored again.
+            let mut best_of_anchor: Vec<usize> = Vec::new();
+            for &k in &idx {
+                if best_of_anchor.iter().all(|&j| combos[j].0 != combos[k].0) {
+                    best_of_anchor.push(k);
+                }
+            }
+            let refined: Vec<Detection> = best_of_anchor
+                .par_iter()
+                .map(|&k| {
+                    let (_, parts, errors) = &combos[k];
+                    let start = object_pose(model, parts);
+                    let smallest = model.parts.iter().map(|p| p.shape).min_by(|a, b| volume(a).total_cmp(&volume(b))).expect("parts");
+                    let coarse = 0.3 * search::sample_radius(&smallest);
+                    let fine = search::refine_band(&smallest, noise);
+                    let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
+                    let placed = model.placed_parts(&pose);
+                    let parts: Vec<PartResult> = model
+                        .parts
+                        .iter()
+                        .zip(placed)
+                        .zip(&samples)
+                        .map(|((p, q), samples)| {
+                            let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
+                            let m = fit::measure_of_fit(&q, &inliers);
+                            PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, samples) }
+                        })
+                        .collect();
+                    let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
+                    // The rigid fit moves parts that were not searched (a part never found is placed
+                    // by the model): none may go through the support plane.
+                    let possible = d.parts.iter().zip(&checks).all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
+                    if !possible {
+                        d.found = false;
+                        d.confidence = d.confidence.min(0.1);
+                    }
+                    d.pose = pose;
+                    d.connection_errors = errors.clone();
+                    d
+                })
+                .collect();
+            let n_refined = refined.len();
+            if std::env::var_os("SQSCAN_DEBUG").is_some() {
+                for d in &refined {
+                    let t = d.pose.translation.vector;
+                    eprintln!("refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}", d.found, d.confidence, t.x, t.y, t.z,
+                        d.parts.iter().map(|p| format!("{} cov {:.2} surf {} in {} rms {:.4}", p.name, p.scores.coverage, p.scores.surface_points, p.scores.inside_points, p.scores.rms)).collect::<Vec<_>>().join(" | "));
+                }
+            }
+            candidates.extend(refined);
+            let _ = n_refined;
+            let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
+            for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
+                if let Some((_, parts, errors)) = combos[k].take() {
+                    candidates.push(finish(model, parts, errors, noise, &params.acceptance));
+                }
+            }
+            verify_ms += ms(t);
+        }
+        // Free-space check of the candidates the acceptance test passed: a part where the sensor saw
+        // through it is not there. Only the candidates that may be reported are checked (it is the
+        // most expensive test per candidate, and most candidates fail cheaper ones first).
+        let limit = if params.all { usize::MAX } else { 1 };
+        let mut accepted = candidates[..first_new].iter().filter(|d| d.found).count();
+        for d in candidates[first_new..].iter_mut() {
+            if accepted >= limit {
                 break;
             }
-        }
-        let t = Instant::now();
-        let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, &samples, &checks);
-        search_ms += ms(t);
-        // Rank the combinations over the connection errors and every part's M, S, I.
-        let t = Instant::now();
-        let mut criteria: Vec<(Vec<f64>, bool)> = Vec::new();
-        for c in 0..model.connections.len() {
-            criteria.push((combos.iter().map(|x| x.2[c].0).collect(), true));
-            criteria.push((combos.iter().map(|x| x.2[c].1).collect(), true));
-        }
-        for p in 0..model.parts.len() {
-            let sc: Vec<Scores> = combos.iter().map(|x| x.1[p].scores).collect();
-            criteria.extend(paper_criteria(&sc));
-        }
-        let sums = rank_sums(&criteria);
-        let mut idx: Vec<usize> = (0..combos.len()).collect();
-        idx.sort_by_key(|&k| sums[k]);
-        if std::env::var_os("SQSCAN_DEBUG").is_some() {
-            for &k in idx.iter().take(12) {
-                let (_, parts, errs) = &combos[k];
-                let desc: Vec<String> = parts.iter().map(|p| match p.placed {
-                    Some(q) => { let t = q.pose.translation.vector; format!("{} ({:.3} {:.3} {:.3}) M {:.3} S {} cov {:.2} in {} surf {}", p.name, t.x, t.y, t.z, p.scores.m, p.scores.s, p.scores.coverage, p.scores.inside_points, p.scores.surface_points) }
-                    None => format!("{} -", p.name) }).collect();
-                eprintln!("combo sum {} A {:.1} deg D {:.3} | {}", sums[k], errs[0].0.to_degrees(), errs[0].1, desc.join(" | "));
+            if !d.found {
+                continue;
             }
-        }
-        // The best-ranked combination of every anchor candidate is refined as one rigid object
-        // and scored again.
-        let mut best_of_anchor: Vec<usize> = Vec::new();
-        for &k in &idx {
-            if best_of_anchor.iter().all(|&j| combos[j].0 != combos[k].0) {
-                best_of_anchor.push(k);
-            }
-        }
-        let refined: Vec<Detection> = best_of_anchor
-            .par_iter()
-            .map(|&k| {
-                let (_, parts, errors) = &combos[k];
-                let start = object_pose(model, parts);
-                let smallest = model.parts.iter().map(|p| p.shape).min_by(|a, b| volume(a).total_cmp(&volume(b))).expect("parts");
-                let coarse = 0.3 * search::sample_radius(&smallest);
-                let fine = search::refine_band(&smallest, noise);
-                let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
-                let placed = model.placed_parts(&pose);
-                let parts: Vec<PartResult> = model
-                    .parts
-                    .iter()
-                    .zip(placed)
-                    .zip(&samples)
-                    .map(|((p, q), samples)| {
-                        let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
-                        let m = fit::measure_of_fit(&q, &inliers);
-                        PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, samples) }
-                    })
-                    .collect();
-                let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
-                // The rigid fit moves parts that were not searched (a part never found is placed
-                // by the model): none may go through the support plane.
-                let possible = d.parts.iter().zip(&checks).all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
-                if !possible {
-                    d.found = false;
-                    d.confidence = d.confidence.min(0.1);
+            for (k, part) in d.parts.iter().enumerate() {
+                let Some(placed) = part.placed else { continue };
+                let vis = verify::visibility(&points, &all_grid, &placed, params.viewpoint, report.plane.as_ref(), &samples[k]);
+                if std::env::var_os("SQSCAN_DEBUG").is_some() {
+                    eprintln!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
                 }
-                d.pose = pose;
-                d.connection_errors = errors.clone();
-                d
-            })
-            .collect();
-        let n_refined = refined.len();
-        if std::env::var_os("SQSCAN_DEBUG").is_some() {
-            for d in &refined {
-                let t = d.pose.translation.vector;
-                eprintln!("refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}", d.found, d.confidence, t.x, t.y, t.z,
-                    d.parts.iter().map(|p| format!("{} cov {:.2} surf {} in {} rms {:.4}", p.name, p.scores.coverage, p.scores.surface_points, p.scores.inside_points, p.scores.rms)).collect::<Vec<_>>().join(" | "));
+                let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
+                if margin < 0.0 {
+                    d.found = false;
+                }
+                d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
+            }
+            if d.found {
+                accepted += 1;
             }
         }
-        candidates.extend(refined);
-        let _ = n_refined;
-        let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
-        for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
-            if let Some((_, parts, errors)) = combos[k].take() {
-                candidates.push(finish(model, parts, errors, noise, &params.acceptance));
-            }
-        }
-        verify_ms += ms(t);
-    }
-    // Free-space check of the candidates the acceptance test passed: a part where the sensor saw
-    // through it is not there. Only the candidates that may be reported are checked (it is the
-    // most expensive test per candidate, and most candidates fail cheaper ones first).
-    let all_grid = Grid::new(&points, 0.01);
-    let limit = if params.all { usize::MAX } else { 1 };
-    let mut accepted = 0;
-    for d in candidates.iter_mut() {
-        if accepted >= limit {
+        if accepted > 0 {
             break;
-        }
-        if !d.found {
-            continue;
-        }
-        for (k, part) in d.parts.iter().enumerate() {
-            let Some(placed) = part.placed else { continue };
-            let vis = verify::visibility(&points, &all_grid, &placed, params.viewpoint, report.plane.as_ref(), &samples[k]);
-            if std::env::var_os("SQSCAN_DEBUG").is_some() {
-                eprintln!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
-            }
-            let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
-            if margin < 0.0 {
-                d.found = false;
-            }
-            d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
-        }
-        if d.found {
-            accepted += 1;
         }
     }
     report.detections = if params.all {
@@ -562,6 +578,7 @@ fn compound_combinations(
     anchors: &[Hypothesis],
     anchor_scores: &[Scores],
     params: &Params,
+    round: u64,
     samples: &[SurfaceSamples],
     checks: &[search::PlaneCheck],
 ) -> Vec<Combination> {
@@ -619,7 +636,7 @@ fn compound_combinations(
                 }
             });
             let m = params.local_hypotheses.max(1);
-            let stream = stream_seed(params.seed, 1000 + (step * 100 + pi) as u64);
+            let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
             let hyps = search_part(space, &shape, &seeds, m, &settings, model.parts[part].open, &checks[part], stream);
             if hyps.is_empty() {
                 next.push((*origin, combo.clone()));
