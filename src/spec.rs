@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
 pub enum SpecError {
-    #[error("{}: {source}", path.display())]
+    /// The cause follows in the error chain (`{:#}` prints it).
+    #[error("cannot read {}", path.display())]
     Io { path: PathBuf, source: std::io::Error },
     /// TOML syntax or a field of the wrong type or an unknown field; the message of the TOML
     /// parser carries the line, the column and the key.
@@ -16,6 +17,17 @@ pub enum SpecError {
 }
 
 impl SpecError {
+    /// The message with its causes, for embedding in another message.
+    pub fn with_causes(&self) -> String {
+        let mut out = self.to_string();
+        let mut cause = std::error::Error::source(self);
+        while let Some(c) = cause {
+            out += &format!(": {c}");
+            cause = c.source();
+        }
+        out
+    }
+
     pub fn invalid(path: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
         SpecError::Invalid { path: path.to_owned(), field: field.into(), message: message.into() }
     }

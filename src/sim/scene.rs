@@ -239,7 +239,7 @@ impl Scene {
             } else {
                 model_path
             };
-            let model = Model::from_file(&model_path).map_err(|e| bad(field("model"), e.to_string()))?;
+            let model = Model::from_file(&model_path).map_err(|e| bad(field("model"), e.with_causes()))?;
             let mut pose = o.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
             if o.on_table {
                 let lowest = model
