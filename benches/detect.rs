@@ -24,9 +24,8 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("{scene}/{model}"), |b| {
             b.iter(|| {
                 seed += 1;
-                let r = detect(&sweep.cloud.points, &m, &Params { seed, viewpoint, ..Params::default() });
-                assert!(r.best_found().is_some(), "{model} not found in {scene}");
-                r
+                // Only the time is measured here; how often it is right is `sqscan eval`'s job.
+                detect(&sweep.cloud.points, &m, &Params { seed, viewpoint, ..Params::default() })
             })
         });
     }
