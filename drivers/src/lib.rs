@@ -6,7 +6,8 @@
 //!
 //! - [`powercube`]: AMTEC/Schunk PowerCube modules over RS-232 (the pan-tilt unit): codec and
 //!   the async [`powercube::PowerCubePtu`].
-//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol (codec).
+//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol: codec and the async
+//!   [`flir::FlirPtu`].
 //! - [`profile`]: our own binary frame for laser profile streams (codec).
 //! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
 //! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.

@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use sqscan_drivers::mock::{Faults, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd};
+use sqscan_drivers::mock::{
+    Faults, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
+};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -24,6 +26,8 @@ enum MockDevice {
 pub enum MockProtocol {
     /// AMTEC/Schunk PowerCube modules (pan 12, tilt 11), RS-232 telegrams
     Powercube,
+    /// FLIR / Directed Perception PTU-D46, ASCII commands
+    Flir,
 }
 
 #[derive(Args)]
@@ -88,10 +92,9 @@ pub fn run(a: MockArgs) -> Result<()> {
 }
 
 async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
-    let MockProtocol::Powercube = a.protocol;
     let faults = a.faults.faults();
     let result = tokio::select! {
-        r = serve_powercube(a.link.as_deref(), &faults, a.faults.replug_after_ms) => r,
+        r = serve_ptu(a.protocol, a.link.as_deref(), &faults, a.faults.replug_after_ms) => r,
         r = shutdown_signal() => r,
     };
     if let Some(link) = &a.link {
@@ -101,29 +104,36 @@ async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
     result
 }
 
+/// A fresh mock unit of `protocol`, and the line announcing it.
+fn new_unit(protocol: MockProtocol) -> (Arc<Mutex<dyn sqscan_drivers::mock::MockDevice>>, String) {
+    match protocol {
+        MockProtocol::Powercube => {
+            let cfg = MockPowerCubeConfig::default();
+            let text = format!("mock PowerCube: pan module {}, tilt module {}", cfg.pan.id.get(), cfg.tilt.id.get());
+            (Arc::new(Mutex::new(MockPowerCube::new(cfg))), text)
+        }
+        MockProtocol::Flir => {
+            let cfg = MockFlirConfig::default();
+            let text = format!(
+                "mock PTU-D46: pan [{}, {}] steps at {} arcsec/step, tilt [{}, {}] steps at {} arcsec/step",
+                cfg.pan.min_steps, cfg.pan.max_steps, cfg.pan.resolution_arcsec, cfg.tilt.min_steps, cfg.tilt.max_steps, cfg.tilt.resolution_arcsec
+            );
+            (Arc::new(Mutex::new(MockFlirPtu::new(cfg))), text)
+        }
+    }
+}
+
 /// One mock unit after another: a new one is plugged in after each unplug if asked to.
-async fn serve_powercube(
-    link: Option<&Path>,
-    faults: &Faults,
-    replug_after_ms: Option<u64>,
-) -> Result<()> {
-    let cfg = MockPowerCubeConfig::default();
+async fn serve_ptu(protocol: MockProtocol, link: Option<&Path>, faults: &Faults, replug_after_ms: Option<u64>) -> Result<()> {
     loop {
         let port = MockPort::create(link).context("cannot create a pty")?;
+        let (device, text) = new_unit(protocol);
         println!(
-            "mock PowerCube: pan module {}, tilt module {} on {}{}",
-            cfg.pan.id.get(),
-            cfg.tilt.id.get(),
+            "{text} on {}{}",
             port.path().display(),
-            link.map(|l| format!(" (link {})", l.display()))
-                .unwrap_or_default()
+            link.map(|l| format!(" (link {})", l.display())).unwrap_or_default()
         );
-        let device = Arc::new(Mutex::new(MockPowerCube::new(cfg.clone())));
-        match port
-            .serve(device, faults.clone())
-            .await
-            .context("mock PTU line failed")?
-        {
+        match port.serve(device, faults.clone()).await.context("mock PTU line failed")? {
             ServeEnd::Unplugged { replies } => {
                 println!("unplugged after {replies} replies");
                 let Some(ms) = replug_after_ms else {
