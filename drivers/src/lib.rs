@@ -10,6 +10,7 @@
 //!   [`flir::FlirPtu`].
 //! - [`profile`]: our own binary frame for laser profile streams (codec).
 //! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
+//! - [`sensor`]: the profile sensor device ([`sensor::ProfileSensor`]) and its START/STOP lines.
 //! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.
 //! - [`mock`]: mock devices written from the device's side, served on pseudo-terminals.
 
@@ -22,6 +23,7 @@ pub mod mock;
 pub mod powercube;
 pub mod profile;
 pub mod ptu;
+pub mod sensor;
 
 pub use error::Error;
 pub use link::{Link, SerialLink, open_serial};

@@ -10,6 +10,7 @@
 
 pub mod flir;
 pub mod powercube;
+pub mod sensor;
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -21,6 +22,7 @@ use tokio_serial::{SerialPort, SerialStream};
 
 pub use flir::{MockFlirAxisConfig, MockFlirConfig, MockFlirPtu};
 pub use powercube::{MockModule, MockModuleConfig, MockPowerCube, MockPowerCubeConfig};
+pub use sensor::ProfileSource;
 
 /// The device side of a protocol.
 pub trait MockDevice: Send {
