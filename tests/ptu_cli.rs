@@ -117,3 +117,47 @@ fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
     drop(mock);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
+    let dir = std::env::temp_dir().join(format!("sqscan-cli-rig-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
+    let mut mock = Reaper(
+        Command::new(SQSCAN)
+            .args(["mock", "rig", "--protocol", "powercube", "--rate", "100", "--scene"])
+            .arg(&scene)
+            .arg("--ptu-link")
+            .arg(&ptu_link)
+            .arg("--sensor-link")
+            .arg(&sensor_link)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    );
+    // Two lines once both ptys and links exist (loading the scene's models takes a while).
+    let mut lines = BufReader::new(mock.0.stdout.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    let second = lines.next().unwrap().unwrap();
+    assert!(first.contains("PowerCube PTU on /dev/pts/"), "{first}");
+    assert!(second.contains("sensor (256 columns, 100 Hz)"), "{second}");
+
+    let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
+    assert!(ok, "{err}");
+    let out = Command::new(SQSCAN).args(["sensor", "--device"]).arg(&sensor_link).args(["grab", "20"]).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");
+    // At tilt 0.6 nearly the whole fan sees the table or the objects on it.
+    let min_returns: usize = text
+        .split("with a return: min ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a returns line");
+    assert!(min_returns > 200, "{text}");
+
+    drop(mock);
+    let _ = std::fs::remove_dir_all(&dir);
+}

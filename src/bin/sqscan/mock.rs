@@ -19,6 +19,49 @@ pub struct MockArgs {
 enum MockDevice {
     /// Run a mock pan-tilt unit on a pty until interrupted
     Ptu(MockPtuArgs),
+    /// Run the mock scanning rig until interrupted: a mock PTU on one pty and a mock profile
+    /// sensor on another that sees the scene from the PTU's current angles
+    Rig(MockRigArgs),
+}
+
+#[derive(Args)]
+pub struct MockRigArgs {
+    /// Scene file whose table, objects and rig the sensor sees
+    #[arg(long, value_name = "SCENE")]
+    scene: PathBuf,
+    #[arg(long, value_enum)]
+    protocol: MockProtocol,
+    /// Keep a symlink to the PTU's pty here
+    #[arg(long, value_name = "PATH")]
+    ptu_link: Option<PathBuf>,
+    /// Keep a symlink to the sensor's pty here
+    #[arg(long, value_name = "PATH")]
+    sensor_link: Option<PathBuf>,
+    /// Profiles a second while acquiring
+    #[arg(long, value_name = "HZ", default_value_t = 50.0)]
+    rate: f64,
+    /// PTU fault injection; --seed also seeds the sensor noise
+    #[command(flatten)]
+    faults: FaultArgs,
+    #[command(flatten)]
+    sensor_faults: SensorFaultArgs,
+}
+
+/// Sensor fault injection; counters are over frames, 0 disables.
+#[derive(Args)]
+pub struct SensorFaultArgs {
+    /// Send 1-16 random bytes before every Nth frame
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_garbage_every: u64,
+    /// Drop every Nth frame (its sequence number is used up)
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_drop_every: u64,
+    /// Send every Nth frame with a bad CRC
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_corrupt_every: u64,
+    /// Close the sensor's pty (unplug) after N frames
+    #[arg(long, value_name = "N")]
+    sensor_disconnect_after: Option<u64>,
 }
 
 /// PTU protocols with a mock device.
@@ -62,7 +105,7 @@ pub struct FaultArgs {
     /// After an unplug, plug a fresh device in (new pty, same link) after this many milliseconds
     #[arg(long, value_name = "MS", requires = "disconnect_after")]
     replug_after_ms: Option<u64>,
-    /// Seed of the garbage bytes
+    /// Seed of the garbage bytes (and, for the rig, of the sensor noise)
     #[arg(long, default_value_t = 1)]
     seed: u64,
 }
@@ -80,7 +123,7 @@ impl FaultArgs {
     }
 }
 
-pub fn run(a: MockArgs) -> Result<()> {
+pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -88,6 +131,56 @@ pub fn run(a: MockArgs) -> Result<()> {
         .context("cannot start the async runtime")?;
     match a.device {
         MockDevice::Ptu(p) => rt.block_on(mock_ptu(p)),
+        MockDevice::Rig(r) => rt.block_on(mock_rig(r, models_dir)),
+    }
+}
+
+async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
+    use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+    let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
+    let cfg = RigConfig {
+        protocol: match a.protocol {
+            MockProtocol::Powercube => RigProtocol::PowerCube,
+            MockProtocol::Flir => RigProtocol::Flir,
+        },
+        rate_hz: a.rate,
+        seed: a.faults.seed,
+        ptu_faults: a.faults.faults(),
+        sensor_faults: Faults {
+            garbage_every: a.sensor_faults.sensor_garbage_every,
+            drop_every: a.sensor_faults.sensor_drop_every,
+            corrupt_every: a.sensor_faults.sensor_corrupt_every,
+            delay: Duration::ZERO,
+            disconnect_after: a.sensor_faults.sensor_disconnect_after,
+            seed: a.faults.seed,
+        },
+    };
+    let columns = scene.rig.sensor.columns;
+    let rig = RigMock::start(std::sync::Arc::new(scene), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
+        .context("cannot start the mock rig")?;
+    let shown = |path: &Path, link: &Option<PathBuf>| {
+        format!("{}{}", path.display(), link.as_ref().map(|l| format!(" (link {})", l.display())).unwrap_or_default())
+    };
+    println!("mock rig: {} PTU on {}", a.protocol.name(), shown(&rig.ptu_path, &a.ptu_link));
+    println!("mock rig: sensor ({columns} columns, {} Hz) on {}", a.rate, shown(&rig.sensor_path, &a.sensor_link));
+    let RigMock { ptu_task, sensor_task, .. } = rig;
+    let result = tokio::select! {
+        r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
+        r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),
+        r = shutdown_signal() => r,
+    };
+    for link in [&a.ptu_link, &a.sensor_link].into_iter().flatten() {
+        let _ = std::fs::remove_file(link);
+    }
+    result
+}
+
+impl MockProtocol {
+    fn name(self) -> &'static str {
+        match self {
+            MockProtocol::Powercube => "PowerCube",
+            MockProtocol::Flir => "PTU-D46",
+        }
     }
 }
 
