@@ -242,7 +242,7 @@ pub fn sensor_homography(s: &SensorModel) -> Matrix3<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{Scene, render_profile, stream_seed};
+    use crate::sim::{Scene, render_profile, simulate, stream_seed};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use std::path::PathBuf;
@@ -285,21 +285,24 @@ mod tests {
         let scene = fig3();
         let rig = &scene.rig;
         let cal = Calibration::from_file(&root().join("calibration/sim_rig.toml")).unwrap();
+        let seed = 3;
+        let sweep = simulate(&scene, seed);
         let mut compared = 0;
-        for (i, tilt) in [0.49, 0.6, 0.7, 0.84].into_iter().enumerate() {
+        for i in [0, 40, 75, 110, rig.profiles - 1] {
+            // The raw rows `simulate` built profile i's points from.
+            let tilt = sweep.tilt_rad[i];
             let pose = rig.sensor_in_base(rig.pan, tilt);
-            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(3, i as u64));
+            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, i as u64));
             let raw = render_profile(&scene, &pose, &mut rng);
             for (col, &value) in raw.rows.iter().enumerate() {
-                let got = cal.point_in_base(col, value, rig.pan, tilt);
-                let Some(row) = rig.sensor.decode_row(value) else {
-                    assert!(got.is_none());
+                let want = sweep.cloud.points[i * sweep.columns + col];
+                let Some(got) = cal.point_in_base(col, value, sweep.pan_rad, tilt) else {
+                    assert!(want[0].is_nan(), "profile {i} col {col}: a point without a return");
                     continue;
                 };
-                // What `sim::simulate` puts in its cloud for this column.
-                let want = pose.transform_point(&Point3::from(rig.sensor.point_in_sensor(col, row)));
-                let got = got.expect("a return calibrates to a point");
-                assert!((got - want).norm() < 1e-6, "col {col}: {got} vs {want}");
+                // The cloud stores f32: ~1e-7 m of rounding at these distances.
+                let want = Point3::new(f64::from(want[0]), f64::from(want[1]), f64::from(want[2]));
+                assert!((got - want).norm() < 1e-6, "profile {i} col {col}: {got} vs {want}");
                 compared += 1;
             }
         }

@@ -25,7 +25,7 @@ use tokio::sync::mpsc;
 use tokio::time::timeout;
 
 use crate::Error;
-use crate::link::{Link, SerialLink, classify_io, open_serial};
+use crate::link::{Link, SerialLink, classify_io, deadline_after, open_serial};
 use crate::profile::{
     Profile, ProfileDecoder, ProfileDecoderStats, SeqCounts, SeqEvent, SequenceTracker,
 };
@@ -144,7 +144,7 @@ impl<S: Link> ProfileSensor<S> {
     /// skipped and counted. Errors: [`Error::Timeout`] (no profile in time),
     /// [`Error::Disconnected`], [`Error::Io`].
     pub async fn next_profile(&mut self, wait: Duration) -> Result<ReceivedProfile, Error> {
-        let deadline = Instant::now() + wait;
+        let deadline = deadline_after(wait);
         let mut received = Instant::now();
         let mut buf = vec![0u8; 8192];
         loop {

@@ -24,7 +24,7 @@ use tokio::time::{MissedTickBehavior, timeout, timeout_at};
 
 use super::{Axis, AxisQuery, Number, PtuCommand, PtuError, PtuReply, ReplyParser, Resolution};
 use crate::Error;
-use crate::link::{Link, SerialLink, classify_io, open_serial};
+use crate::link::{Link, SerialLink, classify_io, deadline_after, open_serial};
 use crate::ptu::{AxisConfig, AxisState, Goal, Limits, PanTilt, PositionSample, PtuState};
 
 /// Configuration of a PTU-D46. Defaults: 9600 baud (the factory setting), no axis remapping.
@@ -355,7 +355,7 @@ impl<S: Link> FlirPtu<S> {
         want_value: bool,
         wait: Duration,
     ) -> Result<Option<Number>, Error> {
-        let deadline = tokio::time::Instant::now() + wait;
+        let deadline = tokio::time::Instant::from_std(deadline_after(wait));
         let mut buf = [0u8; 256];
         loop {
             if let Some(r) = self.take_reply(want_value) {
@@ -482,13 +482,14 @@ impl<S: Link> PanTilt for FlirPtu<S> {
         samples: Option<&UnboundedSender<PositionSample>>,
         timeout: Duration,
     ) -> Result<PositionSample, Error> {
-        let deadline = Instant::now() + timeout;
+        let deadline = deadline_after(timeout);
         let mut tick = tokio::time::interval(self.cfg.sample_period);
         tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
-        let still_for = Duration::from_secs_f64(
+        let still_for = Duration::try_from_secs_f64(
             2.0 / self.goal.map_or(1.0, |g| g.min_speed.max(1) as f64)
                 + 4.0 * self.cfg.sample_period.as_secs_f64(),
-        );
+        )
+        .unwrap_or(Duration::MAX);
         let mut last: Option<((i64, i64), Instant)> = None;
         loop {
             tick.tick().await;

@@ -116,7 +116,7 @@ impl MockPort {
     /// then the rest is lost, as on an overrun serial line, instead of stalling the sensor
     /// (which must keep reading its commands). The host's decoder drops the broken frame.
     async fn send(&mut self, bytes: &[u8], period: Duration) -> io::Result<()> {
-        let patience = (period * 4).max(Duration::from_millis(50));
+        let patience = period.saturating_mul(4).max(Duration::from_millis(50));
         match tokio::time::timeout(patience, self.master.write_all(bytes)).await {
             Ok(r) => r,
             Err(_full) => Ok(()),
