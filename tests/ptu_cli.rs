@@ -108,9 +108,10 @@ fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
     assert!(ok, "{err}");
     assert!(out.contains("pan  +0.5000 rad  557 steps"), "{out}");
     let (ok, out, err) = ptu_with(&link, "flir", &["sweep", "--from", "-0.15", "--to", "0.1", "--speed", "0.2"]);
-    assert!(ok && out.contains("sweep: ") && out.contains("tilt +0.1001 rad"), "{out}{err}");
-    let (ok, _, err) = ptu_with(&link, "flir", &["move", "--tilt", "0.3"]);
-    assert!(!ok && err.contains("tilt (rad) = 0.3 outside"), "{err}");
+    // 0.1 rad is 111.4 steps of 0.0514 deg: the unit ends on step 111.
+    assert!(ok && out.contains("sweep: ") && out.contains("tilt +0.0996 rad  111 steps"), "{out}{err}");
+    let (ok, _, err) = ptu_with(&link, "flir", &["move", "--tilt", "0.6"]);
+    assert!(!ok && err.contains("tilt (rad) = 0.6 outside"), "{err}");
     let (ok, out, err) = ptu_with(&link, "flir", &["home"]);
     assert!(ok && out.contains("pan  +0.0000 rad  0 steps"), "{out}{err}");
 

@@ -65,7 +65,7 @@ async fn start_up_reads_the_unit_and_reset_homes_it() {
     }
     let pan = ptu.axis(Axis::Pan);
     assert_eq!((pan.min_steps, pan.max_steps), (-3090, 3090));
-    assert_eq!(ptu.axis(Axis::Tilt).resolution.arcsec_per_step(), 46.2857);
+    assert_eq!(ptu.axis(Axis::Tilt).resolution.arcsec_per_step(), 185.1428);
     let limits = ptu.limits();
     assert!(
         (limits.pan_rad.1.to_degrees() - 158.914).abs() < 1e-3,
@@ -211,8 +211,7 @@ async fn garbage_before_every_reply_is_skipped() {
     let goal = Goal {
         pan_rad: -0.2,
         tilt_rad: 0.1,
-        // The tilt axis' upper speed bound is 2902 steps/s = 0.65 rad/s.
-        speed_rad_s: 0.6,
+        speed_rad_s: 1.0,
     };
     let end = ptu.move_and_track(goal, None, MOVE_TIMEOUT).await.unwrap();
     assert!((end.pan_rad + 0.2).abs() < 1e-3 && (end.tilt_rad - 0.1).abs() < 1e-3);

@@ -44,7 +44,9 @@ pub struct MockFlirAxisConfig {
     pub initial_steps: i64,
 }
 
-/// The mock unit's configuration: the manual's example limits and a D46-17's resolutions.
+/// The mock unit's configuration: a PTU-D46-17 as in the manual's examples, 185.1428 arcsec
+/// (0.0514 deg) a step on both axes, pan limits ±3090 steps (±159 deg), tilt -907..604 steps
+/// (-47..+31 deg).
 #[derive(Clone, Debug, PartialEq)]
 pub struct MockFlirConfig {
     pub pan: MockFlirAxisConfig,
@@ -64,7 +66,7 @@ impl Default for MockFlirConfig {
                 initial_steps: 0,
             },
             tilt: MockFlirAxisConfig {
-                resolution_arcsec: 46.2857,
+                resolution_arcsec: 185.1428,
                 min_steps: -907,
                 max_steps: 604,
                 upper_speed: 2902,
