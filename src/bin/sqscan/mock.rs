@@ -161,7 +161,7 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     let shown = |path: &Path, link: &Option<PathBuf>| {
         format!("{}{}", path.display(), link.as_ref().map(|l| format!(" (link {})", l.display())).unwrap_or_default())
     };
-    println!("mock rig: {} PTU on {}", a.protocol.name(), shown(&rig.ptu_path, &a.ptu_link));
+    println!("mock rig: {} on {}", a.protocol.name(), shown(&rig.ptu_path, &a.ptu_link));
     println!("mock rig: sensor ({columns} columns, {} Hz) on {}", a.rate, shown(&rig.sensor_path, &a.sensor_link));
     let RigMock { ptu_task, sensor_task, .. } = rig;
     let result = tokio::select! {
@@ -178,8 +178,8 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
 impl MockProtocol {
     fn name(self) -> &'static str {
         match self {
-            MockProtocol::Powercube => "PowerCube",
-            MockProtocol::Flir => "PTU-D46",
+            MockProtocol::Powercube => "PowerCube PTU",
+            MockProtocol::Flir => "PTU-D46 PTU",
         }
     }
 }
