@@ -65,6 +65,65 @@ pub struct CalibrationFile {
     pub ptu: PoseSpec,
     pub pan: AxisFile,
     pub tilt: AxisFile,
+    /// Optional measured table that replaces the homography (e.g. for a lens it does not fit).
+    pub lookup: Option<LookupFile>,
+}
+
+/// A per-column lookup table: for each column, the laser-plane point at each sample row;
+/// rows between samples are interpolated linearly, rows outside them map to no point.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LookupFile {
+    /// Sample rows (px), strictly increasing, at least two.
+    pub rows_px: Vec<f64>,
+    /// `x[col][k]`: laser-plane x (m) of column `col` at `rows_px[k]`.
+    pub x: Vec<Vec<f64>>,
+    /// `y[col][k]`: laser-plane y (m) likewise.
+    pub y: Vec<Vec<f64>>,
+}
+
+/// A validated lookup table (see [`LookupFile`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Lookup {
+    rows_px: Vec<f64>,
+    x: Vec<Vec<f64>>,
+    y: Vec<Vec<f64>>,
+}
+
+impl Lookup {
+    fn validate(raw: LookupFile, columns: usize, path: &Path) -> Result<Lookup, SpecError> {
+        let invalid = |field: &str, msg: String| SpecError::invalid(path, format!("lookup.{field}"), msg);
+        let r = &raw.rows_px;
+        if r.len() < 2 || r.iter().any(|v| !v.is_finite()) || r.windows(2).any(|w| w[1] <= w[0]) {
+            return Err(invalid("rows_px", "give at least two finite rows, strictly increasing".into()));
+        }
+        for (name, table) in [("x", &raw.x), ("y", &raw.y)] {
+            if table.len() != columns {
+                return Err(invalid(name, format!("{} columns, the sensor has {columns}", table.len())));
+            }
+            if let Some(col) = table.iter().position(|c| c.len() != r.len() || c.iter().any(|v| !v.is_finite())) {
+                return Err(invalid(name, format!("column {col}: give {} finite values, one a sample row", r.len())));
+            }
+        }
+        Ok(Lookup { rows_px: raw.rows_px, x: raw.x, y: raw.y })
+    }
+
+    /// The interpolated laser-plane point; `None` outside the sampled rows.
+    fn point(&self, col: usize, row_px: f64) -> Option<(f64, f64)> {
+        let (first, last) = (*self.rows_px.first()?, *self.rows_px.last()?);
+        if !(first..=last).contains(&row_px) {
+            return None;
+        }
+        // The last sample row not above `row_px`, and the next one.
+        let k = self.rows_px.partition_point(|&r| r <= row_px).saturating_sub(1).min(self.rows_px.len() - 2);
+        let (r0, r1) = (self.rows_px[k], self.rows_px[k + 1]);
+        let f = (row_px - r0) / (r1 - r0);
+        let lerp = |t: &[Vec<f64>]| -> Option<f64> {
+            let c = t.get(col)?;
+            Some(c[k] + f * (c[k + 1] - c[k]))
+        };
+        Some((lerp(&self.x)?, lerp(&self.y)?))
+    }
 }
 
 /// A validated calibration.
@@ -78,6 +137,8 @@ pub struct Calibration {
     pub ptu_in_base: Isometry3<f64>,
     pan: AxisConfig,
     tilt: AxisConfig,
+    /// When given, used instead of the homography.
+    pub lookup: Option<Lookup>,
 }
 
 /// `|det H|` relative to the cube of its largest entry below this is a singular homography.
@@ -126,6 +187,7 @@ impl Calibration {
             ptu_in_base: pose("ptu", &raw.ptu)?,
             pan: axis("pan", raw.pan)?,
             tilt: axis("tilt", raw.tilt)?,
+            lookup: raw.lookup.map(|l| Lookup::validate(l, raw.columns, path)).transpose()?,
         })
     }
 
@@ -141,6 +203,7 @@ impl Calibration {
             ptu_in_base: rig.ptu_in_base,
             pan: AxisConfig::default(),
             tilt: AxisConfig::default(),
+            lookup: None,
         }
     }
 
@@ -155,11 +218,14 @@ impl Calibration {
     }
 
     /// The point in the laser plane frame `(x, y)` that column `col` at sub-pixel row `row_px`
-    /// sees; `None` for a column beyond the sensor or a point on or behind the homography's
-    /// horizon (`w <= 0`: no physical return maps there).
+    /// sees; `None` for a column beyond the sensor, a point on or behind the homography's
+    /// horizon (`w <= 0`: no physical return maps there), or a row outside the lookup table.
     pub fn point_in_plane(&self, col: usize, row_px: f64) -> Option<(f64, f64)> {
         if col >= self.columns || !row_px.is_finite() {
             return None;
+        }
+        if let Some(lookup) = &self.lookup {
+            return lookup.point(col, row_px);
         }
         let p = self.homography * Vector3::new(col as f64 + 0.5, row_px, 1.0);
         if p.z.is_nan() || p.z <= 0.0 {
@@ -196,6 +262,7 @@ impl Calibration {
     }
 
     /// The calibration as a file, shortest round-trip floats (the golden file's generator).
+    /// A lookup table is not written: this serves derived (homography) calibrations.
     pub fn to_toml(&self, description: &str) -> String {
         let mut s = String::new();
         let pose = |iso: &Isometry3<f64>| {
@@ -330,6 +397,42 @@ mod tests {
         assert_eq!(field(&|r| r.pan.sign = 2.0), "pan");
         let text = std::fs::read_to_string(&path).unwrap().replacen("fraction_bits", "fraction_bitz", 1);
         assert!(matches!(Calibration::from_toml_str(&text, &path), Err(SpecError::Syntax { .. })));
+    }
+
+    #[test]
+    fn a_lookup_table_sampled_from_the_homography_reproduces_it() {
+        let path = root().join("calibration/sim_rig.toml");
+        let mut raw: CalibrationFile = read_toml(&path).unwrap();
+        let exact = Calibration::validate(raw.clone(), &path).unwrap();
+        let rows_px: Vec<f64> = (0..=64).map(|k| 4.0 + 2.0 * f64::from(k)).collect();
+        let sample = |i: usize| -> Vec<Vec<f64>> {
+            (0..raw.columns)
+                .map(|c| rows_px.iter().map(|&r| { let p = exact.point_in_plane(c, r).unwrap(); [p.0, p.1][i] }).collect())
+                .collect()
+        };
+        raw.lookup = Some(LookupFile { rows_px: rows_px.clone(), x: sample(0), y: sample(1) });
+        let cal = Calibration::validate(raw.clone(), &path).unwrap();
+        // On a sample row: the table's value; between: within the interpolation error (< 1 mm).
+        assert_eq!(cal.point_in_plane(17, 20.0), exact.point_in_plane(17, 20.0));
+        let (a, b) = (cal.point_in_plane(200, 31.3).unwrap(), exact.point_in_plane(200, 31.3).unwrap());
+        assert!((a.0 - b.0).abs() < 1e-3 && (a.1 - b.1).abs() < 1e-3, "{a:?} vs {b:?}");
+        assert_eq!(cal.point_in_plane(3, 2.0), None);
+        assert_eq!(cal.point_in_plane(3, 200.0), None);
+        assert!(cal.point_in_plane(3, 132.0).is_some());
+
+        let field = |edit: &dyn Fn(&mut LookupFile)| {
+            let mut bad = raw.clone();
+            if let Some(l) = bad.lookup.as_mut() {
+                edit(l);
+            }
+            match Calibration::validate(bad, &path) {
+                Err(SpecError::Invalid { field, .. }) => field,
+                other => panic!("not a validation error: {other:?}"),
+            }
+        };
+        assert_eq!(field(&|l| l.rows_px.swap(0, 1)), "lookup.rows_px");
+        assert_eq!(field(&|l| { l.x.pop(); }), "lookup.x");
+        assert_eq!(field(&|l| l.y[5][2] = f64::NAN), "lookup.y");
     }
 
     #[test]
