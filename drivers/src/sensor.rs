@@ -87,6 +87,22 @@ impl ProfileSensor<SerialLink> {
     }
 }
 
+impl ProfileSensor<tokio::net::TcpStream> {
+    /// Connects to a sensor (or a serial-to-network bridge) that serves the same byte stream
+    /// over TCP. Errors name the address.
+    pub async fn connect_tcp(addr: &str, cfg: SensorConfig) -> Result<Self, Error> {
+        let stream = tokio::net::TcpStream::connect(addr)
+            .await
+            .map_err(|source| Error::Open {
+                path: addr.into(),
+                source,
+            })?;
+        // Commands are tiny and rare: send them at once.
+        stream.set_nodelay(true).map_err(Error::Io)?;
+        Ok(Self::new(stream, cfg))
+    }
+}
+
 impl<S: Link> ProfileSensor<S> {
     /// A sensor on `link` (a serial port, a pty, a TCP stream). Sends nothing.
     pub fn new(link: S, cfg: SensorConfig) -> Self {
@@ -293,5 +309,41 @@ mod tests {
             sensor.next_profile(wait).await,
             Err(Error::Disconnected)
         ));
+    }
+
+    #[tokio::test]
+    async fn over_tcp() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = listener.local_addr().unwrap().to_string();
+        let server = tokio::spawn(async move {
+            let (mut s, _) = listener.accept().await.unwrap();
+            let mut cmd = [0u8; 6];
+            s.read_exact(&mut cmd).await.unwrap();
+            assert_eq!(&cmd, START);
+            for seq in 0..3 {
+                s.write_all(&encode_profile(&profile(seq)).unwrap())
+                    .await
+                    .unwrap();
+            }
+        });
+        let mut sensor = ProfileSensor::connect_tcp(&addr, SensorConfig::default())
+            .await
+            .unwrap();
+        sensor.start().await.unwrap();
+        for seq in 0..3 {
+            let r = sensor.next_profile(Duration::from_secs(10)).await.unwrap();
+            assert_eq!(r.profile.seq, seq);
+        }
+        server.await.unwrap();
+        // The server closed the connection: an unplugged sensor.
+        assert!(matches!(
+            sensor.next_profile(Duration::from_secs(10)).await,
+            Err(Error::Disconnected)
+        ));
+        let e = ProfileSensor::connect_tcp("127.0.0.1:1", SensorConfig::default())
+            .await
+            .err()
+            .expect("nobody listens on port 1");
+        assert!(e.to_string().contains("127.0.0.1:1"), "{e}");
     }
 }

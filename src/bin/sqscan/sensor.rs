@@ -8,7 +8,7 @@ use std::time::Duration;
 
 #[derive(Args)]
 pub struct SensorArgs {
-    /// Serial port (or a mock's pty link)
+    /// Serial port (or a mock's pty link), or tcp://HOST:PORT for a networked sensor
     #[arg(long, value_name = "PATH")]
     device: PathBuf,
     /// Line speed
@@ -37,22 +37,32 @@ pub fn run(a: SensorArgs) -> Result<()> {
         bail!("grab: give a count of at least 1");
     }
     let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("cannot start the async runtime")?;
+    let cfg = SensorConfig { baud: a.baud, ..SensorConfig::default() };
+    let device = a.device.to_string_lossy().into_owned();
     rt.block_on(async {
-        let cfg = SensorConfig { baud: a.baud, ..SensorConfig::default() };
-        let mut sensor = ProfileSensor::open(&a.device, cfg).with_context(|| format!("cannot open the sensor on {}", a.device.display()))?;
-        sensor.start().await.context("cannot start acquisition")?;
-        let mut got: Vec<ReceivedProfile> = Vec::with_capacity(count);
-        while got.len() < count {
-            let r = sensor.next_profile(wait).await.with_context(|| format!("after {} profiles", got.len()))?;
-            got.push(r);
+        if let Some(addr) = device.strip_prefix("tcp://") {
+            let sensor = ProfileSensor::connect_tcp(addr, cfg).await.with_context(|| format!("cannot reach the sensor at {addr}"))?;
+            grab(sensor, count, wait).await
+        } else {
+            let sensor = ProfileSensor::open(&a.device, cfg).with_context(|| format!("cannot open the sensor on {device}"))?;
+            grab(sensor, count, wait).await
         }
-        // Stopping is a courtesy to the next user; the profiles are in already.
-        if let Err(e) = sensor.stop().await {
-            eprintln!("sqscan: warning: cannot stop acquisition: {e}");
-        }
-        print_stats(&got, &sensor);
-        Ok(())
     })
+}
+
+async fn grab<S: sqscan_drivers::Link>(mut sensor: ProfileSensor<S>, count: usize, wait: Duration) -> Result<()> {
+    sensor.start().await.context("cannot start acquisition")?;
+    let mut got: Vec<ReceivedProfile> = Vec::with_capacity(count.min(100_000));
+    while got.len() < count {
+        let r = sensor.next_profile(wait).await.with_context(|| format!("after {} profiles", got.len()))?;
+        got.push(r);
+    }
+    // Stopping is a courtesy to the next user; the profiles are in already.
+    if let Err(e) = sensor.stop().await {
+        eprintln!("sqscan: warning: cannot stop acquisition: {e}");
+    }
+    print_stats(&got, &sensor);
+    Ok(())
 }
 
 fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &ProfileSensor<S>) {
