@@ -124,8 +124,11 @@ impl FaultArgs {
 }
 
 pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
+    // The rig's sensor renders the scene on its task: a second worker keeps the PTU answering
+    // meanwhile.
+    let workers = if matches!(a.device, MockDevice::Rig(_)) { 2 } else { 1 };
     let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
+        .worker_threads(workers)
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
@@ -137,6 +140,9 @@ pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
 
 async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+    if a.faults.replug_after_ms.is_some() {
+        anyhow::bail!("--replug-after-ms: the rig ends when a device is unplugged (use `sqscan mock ptu` to replug)");
+    }
     let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
     let cfg = RigConfig {
         protocol: match a.protocol {
