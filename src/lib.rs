@@ -5,16 +5,20 @@
 //!   Jacobian, surface sampling, ray queries).
 //! - [`model`]: object models (one to three superquadric parts) loaded from `models/*.toml`.
 //! - [`cloud`]: point clouds, organized range images, PLY/PCD/text IO.
+//! - [`calibration`]: from a sensor column and raw row to a point in the base frame.
+//! - [`mock`]: the mock scanning rig (mock PTU + mock sensor seeing a simulated scene).
 //! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
 //!
 //! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
 //! choice comes from a seeded generator.
 
+pub mod calibration;
 pub mod cloud;
 pub mod detect;
 pub mod eval;
 pub mod geometry;
+pub mod mock;
 pub mod model;
 pub mod pose;
 pub mod sim;

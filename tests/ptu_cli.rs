@@ -18,10 +18,14 @@ impl Drop for Reaper {
 }
 
 fn ptu(link: &Path, args: &[&str]) -> (bool, String, String) {
+    ptu_with(link, "powercube", args)
+}
+
+fn ptu_with(link: &Path, protocol: &str, args: &[&str]) -> (bool, String, String) {
     let out = Command::new(SQSCAN)
         .args(["ptu", "--device"])
         .arg(link)
-        .args(["--protocol", "powercube"])
+        .args(["--protocol", protocol])
         .args(args)
         .output()
         .expect("sqscan runs");
@@ -77,6 +81,83 @@ fn mock_ptu_binary_moves_to_the_requested_tilt() {
     // Out of limits: refused with a one-line error, nothing moves.
     let (ok, _, err) = ptu(&link, &["move", "--tilt", "3"]);
     assert!(!ok && err.contains("tilt (rad) = 3 outside"), "{err}");
+
+    drop(mock);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
+    let dir = std::env::temp_dir().join(format!("sqscan-cli-flir-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let link = dir.join("ptu");
+    let mut mock = Reaper(
+        Command::new(SQSCAN)
+            .args(["mock", "ptu", "--protocol", "flir", "--link"])
+            .arg(&link)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    );
+    let stdout = mock.0.stdout.take().unwrap();
+    let mut first = String::new();
+    BufReader::new(stdout).read_line(&mut first).unwrap();
+    assert!(first.contains("PTU-D46") && first.contains("/dev/pts/"), "{first}");
+
+    let (ok, out, err) = ptu_with(&link, "flir", &["move", "--pan", "0.5", "--tilt", "-0.1"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("pan  +0.5000 rad  557 steps"), "{out}");
+    let (ok, out, err) = ptu_with(&link, "flir", &["sweep", "--from", "-0.15", "--to", "0.1", "--speed", "0.2"]);
+    // 0.1 rad is 111.4 steps of 0.0514 deg: the unit ends on step 111.
+    assert!(ok && out.contains("sweep: ") && out.contains("tilt +0.0996 rad  111 steps"), "{out}{err}");
+    let (ok, _, err) = ptu_with(&link, "flir", &["move", "--tilt", "0.6"]);
+    assert!(!ok && err.contains("tilt (rad) = 0.6 outside"), "{err}");
+    let (ok, out, err) = ptu_with(&link, "flir", &["home"]);
+    assert!(ok && out.contains("pan  +0.0000 rad  0 steps"), "{out}{err}");
+
+    drop(mock);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
+    let dir = std::env::temp_dir().join(format!("sqscan-cli-rig-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
+    let mut mock = Reaper(
+        Command::new(SQSCAN)
+            .args(["mock", "rig", "--protocol", "powercube", "--rate", "100", "--scene"])
+            .arg(&scene)
+            .arg("--ptu-link")
+            .arg(&ptu_link)
+            .arg("--sensor-link")
+            .arg(&sensor_link)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    );
+    // Two lines once both ptys and links exist (loading the scene's models takes a while).
+    let mut lines = BufReader::new(mock.0.stdout.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    let second = lines.next().unwrap().unwrap();
+    assert!(first.contains("PowerCube PTU on /dev/pts/"), "{first}");
+    assert!(second.contains("sensor (256 columns, 100 Hz)"), "{second}");
+
+    let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
+    assert!(ok, "{err}");
+    let out = Command::new(SQSCAN).args(["sensor", "--device"]).arg(&sensor_link).args(["grab", "20"]).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");
+    // At tilt 0.6 nearly the whole fan sees the table or the objects on it.
+    let min_returns: usize = text
+        .split("with a return: min ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a returns line");
+    assert!(min_returns > 200, "{text}");
 
     drop(mock);
     let _ = std::fs::remove_dir_all(&dir);

@@ -6,9 +6,11 @@
 //!
 //! - [`powercube`]: AMTEC/Schunk PowerCube modules over RS-232 (the pan-tilt unit): codec and
 //!   the async [`powercube::PowerCubePtu`].
-//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol (codec).
+//! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol: codec and the async
+//!   [`flir::FlirPtu`].
 //! - [`profile`]: our own binary frame for laser profile streams (codec).
 //! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
+//! - [`sensor`]: the profile sensor device ([`sensor::ProfileSensor`]) and its START/STOP lines.
 //! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.
 //! - [`mock`]: mock devices written from the device's side, served on pseudo-terminals.
 
@@ -21,6 +23,7 @@ pub mod mock;
 pub mod powercube;
 pub mod profile;
 pub mod ptu;
+pub mod sensor;
 
 pub use error::Error;
 pub use link::{Link, SerialLink, open_serial};

@@ -8,6 +8,7 @@ use std::io;
 use std::path::{Path, PathBuf};
 use std::pin::Pin;
 use std::task::{Context, Poll};
+use std::time::{Duration, Instant};
 
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio_serial::{SerialPortBuilderExt, SerialStream};
@@ -98,6 +99,15 @@ impl AsyncWrite for SerialLink {
     }
 }
 
+/// `now + wait`, saturating at a century for a `wait` too long to represent (an Instant
+/// addition would panic), so that any configured timeout is safe.
+pub fn deadline_after(wait: Duration) -> Instant {
+    let now = Instant::now();
+    now.checked_add(wait)
+        .or_else(|| now.checked_add(Duration::from_secs(100 * 365 * 86_400)))
+        .unwrap_or(now)
+}
+
 /// Maps an IO error on an open link: the ways an unplugged device shows itself become
 /// [`Error::Disconnected`], anything else stays [`Error::Io`].
 ///
@@ -140,6 +150,12 @@ mod tests {
             classify_io(io::ErrorKind::PermissionDenied.into()),
             Error::Io(_)
         ));
+    }
+
+    #[test]
+    fn deadlines_saturate() {
+        assert!(deadline_after(Duration::MAX) > Instant::now());
+        assert!(deadline_after(Duration::ZERO) <= Instant::now());
     }
 
     #[test]

@@ -4,11 +4,14 @@
 //! - [`reply`]: the incremental [`ReplyParser`] for `*`, `* <value>`, `! <message>`, `!P`/`!T`,
 //!   echo, verbose sentences and noise.
 //! - [`Resolution`]: steps <-> radians.
+//! - [`device`]: the async [`FlirPtu`] over any byte stream.
 
 pub mod command;
+pub mod device;
 pub mod reply;
 
 pub use command::{Axis, AxisQuery, PtuCommand};
+pub use device::{FlirAxisInfo, FlirConfig, FlirPtu, FlirStats};
 pub use reply::{Number, PtuError, PtuReply, ReplyParser};
 
 /// Arc-seconds in a radian.

@@ -8,7 +8,9 @@
 //! The mock knows nothing of scenes: the main crate's rig mock shares a device (behind a mutex)
 //! with a simulated profile sensor that asks it for [`MockDevice::joint_angles`].
 
+pub mod flir;
 pub mod powercube;
+pub mod sensor;
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -18,7 +20,9 @@ use std::time::{Duration, Instant};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio_serial::{SerialPort, SerialStream};
 
+pub use flir::{MockFlirAxisConfig, MockFlirConfig, MockFlirPtu};
 pub use powercube::{MockModule, MockModuleConfig, MockPowerCube, MockPowerCubeConfig};
+pub use sensor::ProfileSource;
 
 /// The device side of a protocol.
 pub trait MockDevice: Send {
@@ -31,7 +35,29 @@ pub trait MockDevice: Send {
 
     /// Device angles (pan, tilt) in rad at `now`.
     fn joint_angles(&mut self, now: Instant) -> (f64, f64);
+
+    /// The line noise to send for random `junk` bytes. A framed protocol with a checksum sends
+    /// them as they are; a line protocol without one cannot tell random bytes that spell a
+    /// reply from a reply, so its mock shapes the noise into what such a line can survive.
+    fn noise(&self, junk: Vec<u8>) -> Vec<u8> {
+        junk
+    }
+
+    /// Whether the device has answers that wait on time rather than on input (a PTU-D46's
+    /// `a `, "await completion"): [`MockPort::serve`] then calls [`poll`](Self::poll) every
+    /// [`POLL_PERIOD`] as well as on input.
+    fn wants_poll(&self) -> bool {
+        false
+    }
+
+    /// Answers that have become due by `now`.
+    fn poll(&mut self, _now: Instant) -> Vec<Vec<u8>> {
+        Vec::new()
+    }
 }
+
+/// How often [`MockPort::serve`] polls a device that [`MockDevice::wants_poll`].
+pub const POLL_PERIOD: Duration = Duration::from_millis(2);
 
 /// Faults injected between a mock device and its line. Every counter is over replies sent
 /// (1-based); 0 disables a fault.
@@ -118,14 +144,29 @@ impl MockPort {
         let mut replies = 0u64;
         let mut buf = [0u8; 1024];
         loop {
-            let n = self.master.read(&mut buf).await?;
-            if n == 0 {
+            let polling = device
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .wants_poll();
+            // `read` is cancel-safe: losing the race to the poll timer loses no bytes.
+            let input = if polling {
+                tokio::select! {
+                    r = self.master.read(&mut buf) => Some(r?),
+                    () = tokio::time::sleep(POLL_PERIOD) => None,
+                }
+            } else {
+                Some(self.master.read(&mut buf).await?)
+            };
+            if input == Some(0) {
                 return Err(io::ErrorKind::UnexpectedEof.into());
             }
-            let bytes = buf.get(..n).unwrap_or_default();
             let (out, corrupted) = {
                 let mut dev = device.lock().unwrap_or_else(|p| p.into_inner());
-                let out = dev.receive(bytes, Instant::now());
+                let now = Instant::now();
+                let out = match input {
+                    Some(n) => dev.receive(buf.get(..n).unwrap_or_default(), now),
+                    None => dev.poll(now),
+                };
                 let corrupted: Vec<Vec<u8>> = out.iter().map(|r| dev.corrupt(r)).collect();
                 (out, corrupted)
             };
@@ -137,6 +178,7 @@ impl MockPort {
                 if Faults::hits(faults.garbage_every, replies) {
                     let len = 1 + (xorshift(&mut rng) % 16) as usize;
                     let junk: Vec<u8> = (0..len).map(|_| xorshift(&mut rng) as u8).collect();
+                    let junk = device.lock().unwrap_or_else(|p| p.into_inner()).noise(junk);
                     self.master.write_all(&junk).await?;
                 }
                 // A dropped reply still counts towards the unplug.

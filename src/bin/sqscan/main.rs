@@ -7,6 +7,7 @@ mod eval;
 mod files;
 mod mock;
 mod ptu;
+mod sensor;
 
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
@@ -39,6 +40,8 @@ enum Command {
     Mock(mock::MockArgs),
     /// Bring-up tool for a pan-tilt unit: status, home, move, sweep
     Ptu(ptu::PtuArgs),
+    /// Bring-up tool for a profile sensor: grab profiles and print their statistics
+    Sensor(sensor::SensorArgs),
 }
 
 fn main() -> ExitCode {
@@ -50,8 +53,9 @@ fn main() -> ExitCode {
         Command::Info(a) => files::info(a),
         Command::Detect(a) => detect::detect(a, &models_dir),
         Command::Eval(a) => eval::eval(a, &models_dir),
-        Command::Mock(a) => mock::run(a),
+        Command::Mock(a) => mock::run(a, &models_dir),
         Command::Ptu(a) => ptu::run(a),
+        Command::Sensor(a) => sensor::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,7 +2,9 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand, ValueEnum};
-use sqscan_drivers::mock::{Faults, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd};
+use sqscan_drivers::mock::{
+    Faults, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
+};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -17,6 +19,49 @@ pub struct MockArgs {
 enum MockDevice {
     /// Run a mock pan-tilt unit on a pty until interrupted
     Ptu(MockPtuArgs),
+    /// Run the mock scanning rig until interrupted: a mock PTU on one pty and a mock profile
+    /// sensor on another that sees the scene from the PTU's current angles
+    Rig(MockRigArgs),
+}
+
+#[derive(Args)]
+pub struct MockRigArgs {
+    /// Scene file whose table, objects and rig the sensor sees
+    #[arg(long, value_name = "SCENE")]
+    scene: PathBuf,
+    #[arg(long, value_enum)]
+    protocol: MockProtocol,
+    /// Keep a symlink to the PTU's pty here
+    #[arg(long, value_name = "PATH")]
+    ptu_link: Option<PathBuf>,
+    /// Keep a symlink to the sensor's pty here
+    #[arg(long, value_name = "PATH")]
+    sensor_link: Option<PathBuf>,
+    /// Profiles a second while acquiring
+    #[arg(long, value_name = "HZ", default_value_t = 50.0)]
+    rate: f64,
+    /// PTU fault injection; --seed also seeds the sensor noise
+    #[command(flatten)]
+    faults: FaultArgs,
+    #[command(flatten)]
+    sensor_faults: SensorFaultArgs,
+}
+
+/// Sensor fault injection; counters are over frames, 0 disables.
+#[derive(Args)]
+pub struct SensorFaultArgs {
+    /// Send 1-16 random bytes before every Nth frame
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_garbage_every: u64,
+    /// Drop every Nth frame (its sequence number is used up)
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_drop_every: u64,
+    /// Send every Nth frame with a bad CRC
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    sensor_corrupt_every: u64,
+    /// Close the sensor's pty (unplug) after N frames
+    #[arg(long, value_name = "N")]
+    sensor_disconnect_after: Option<u64>,
 }
 
 /// PTU protocols with a mock device.
@@ -24,6 +69,8 @@ enum MockDevice {
 pub enum MockProtocol {
     /// AMTEC/Schunk PowerCube modules (pan 12, tilt 11), RS-232 telegrams
     Powercube,
+    /// FLIR / Directed Perception PTU-D46, ASCII commands
+    Flir,
 }
 
 #[derive(Args)]
@@ -58,7 +105,7 @@ pub struct FaultArgs {
     /// After an unplug, plug a fresh device in (new pty, same link) after this many milliseconds
     #[arg(long, value_name = "MS", requires = "disconnect_after")]
     replug_after_ms: Option<u64>,
-    /// Seed of the garbage bytes
+    /// Seed of the garbage bytes (and, for the rig, of the sensor noise)
     #[arg(long, default_value_t = 1)]
     seed: u64,
 }
@@ -76,22 +123,77 @@ impl FaultArgs {
     }
 }
 
-pub fn run(a: MockArgs) -> Result<()> {
+pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
+    // The rig's sensor renders the scene on its task: a second worker keeps the PTU answering
+    // meanwhile.
+    let workers = if matches!(a.device, MockDevice::Rig(_)) { 2 } else { 1 };
     let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
+        .worker_threads(workers)
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
     match a.device {
         MockDevice::Ptu(p) => rt.block_on(mock_ptu(p)),
+        MockDevice::Rig(r) => rt.block_on(mock_rig(r, models_dir)),
+    }
+}
+
+async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
+    use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+    if a.faults.replug_after_ms.is_some() {
+        anyhow::bail!("--replug-after-ms: the rig ends when a device is unplugged (use `sqscan mock ptu` to replug)");
+    }
+    let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
+    let cfg = RigConfig {
+        protocol: match a.protocol {
+            MockProtocol::Powercube => RigProtocol::PowerCube,
+            MockProtocol::Flir => RigProtocol::Flir,
+        },
+        rate_hz: a.rate,
+        seed: a.faults.seed,
+        ptu_faults: a.faults.faults(),
+        sensor_faults: Faults {
+            garbage_every: a.sensor_faults.sensor_garbage_every,
+            drop_every: a.sensor_faults.sensor_drop_every,
+            corrupt_every: a.sensor_faults.sensor_corrupt_every,
+            delay: Duration::ZERO,
+            disconnect_after: a.sensor_faults.sensor_disconnect_after,
+            seed: a.faults.seed,
+        },
+    };
+    let columns = scene.rig.sensor.columns;
+    let rig = RigMock::start(std::sync::Arc::new(scene), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
+        .context("cannot start the mock rig")?;
+    let shown = |path: &Path, link: &Option<PathBuf>| {
+        format!("{}{}", path.display(), link.as_ref().map(|l| format!(" (link {})", l.display())).unwrap_or_default())
+    };
+    println!("mock rig: {} on {}", a.protocol.name(), shown(&rig.ptu_path, &a.ptu_link));
+    println!("mock rig: sensor ({columns} columns, {} Hz) on {}", a.rate, shown(&rig.sensor_path, &a.sensor_link));
+    let RigMock { ptu_task, sensor_task, .. } = rig;
+    let result = tokio::select! {
+        r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
+        r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),
+        r = shutdown_signal() => r,
+    };
+    for link in [&a.ptu_link, &a.sensor_link].into_iter().flatten() {
+        let _ = std::fs::remove_file(link);
+    }
+    result
+}
+
+impl MockProtocol {
+    fn name(self) -> &'static str {
+        match self {
+            MockProtocol::Powercube => "PowerCube PTU",
+            MockProtocol::Flir => "PTU-D46 PTU",
+        }
     }
 }
 
 async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
-    let MockProtocol::Powercube = a.protocol;
     let faults = a.faults.faults();
     let result = tokio::select! {
-        r = serve_powercube(a.link.as_deref(), &faults, a.faults.replug_after_ms) => r,
+        r = serve_ptu(a.protocol, a.link.as_deref(), &faults, a.faults.replug_after_ms) => r,
         r = shutdown_signal() => r,
     };
     if let Some(link) = &a.link {
@@ -101,29 +203,36 @@ async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
     result
 }
 
+/// A fresh mock unit of `protocol`, and the line announcing it.
+fn new_unit(protocol: MockProtocol) -> (Arc<Mutex<dyn sqscan_drivers::mock::MockDevice>>, String) {
+    match protocol {
+        MockProtocol::Powercube => {
+            let cfg = MockPowerCubeConfig::default();
+            let text = format!("mock PowerCube: pan module {}, tilt module {}", cfg.pan.id.get(), cfg.tilt.id.get());
+            (Arc::new(Mutex::new(MockPowerCube::new(cfg))), text)
+        }
+        MockProtocol::Flir => {
+            let cfg = MockFlirConfig::default();
+            let text = format!(
+                "mock PTU-D46: pan [{}, {}] steps at {} arcsec/step, tilt [{}, {}] steps at {} arcsec/step",
+                cfg.pan.min_steps, cfg.pan.max_steps, cfg.pan.resolution_arcsec, cfg.tilt.min_steps, cfg.tilt.max_steps, cfg.tilt.resolution_arcsec
+            );
+            (Arc::new(Mutex::new(MockFlirPtu::new(cfg))), text)
+        }
+    }
+}
+
 /// One mock unit after another: a new one is plugged in after each unplug if asked to.
-async fn serve_powercube(
-    link: Option<&Path>,
-    faults: &Faults,
-    replug_after_ms: Option<u64>,
-) -> Result<()> {
-    let cfg = MockPowerCubeConfig::default();
+async fn serve_ptu(protocol: MockProtocol, link: Option<&Path>, faults: &Faults, replug_after_ms: Option<u64>) -> Result<()> {
     loop {
         let port = MockPort::create(link).context("cannot create a pty")?;
+        let (device, text) = new_unit(protocol);
         println!(
-            "mock PowerCube: pan module {}, tilt module {} on {}{}",
-            cfg.pan.id.get(),
-            cfg.tilt.id.get(),
+            "{text} on {}{}",
             port.path().display(),
-            link.map(|l| format!(" (link {})", l.display()))
-                .unwrap_or_default()
+            link.map(|l| format!(" (link {})", l.display())).unwrap_or_default()
         );
-        let device = Arc::new(Mutex::new(MockPowerCube::new(cfg.clone())));
-        match port
-            .serve(device, faults.clone())
-            .await
-            .context("mock PTU line failed")?
-        {
+        match port.serve(device, faults.clone()).await.context("mock PTU line failed")? {
             ServeEnd::Unplugged { replies } => {
                 println!("unplugged after {replies} replies");
                 let Some(ms) = replug_after_ms else {

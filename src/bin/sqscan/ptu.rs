@@ -2,6 +2,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand, ValueEnum};
+use sqscan_drivers::flir::{FlirConfig, FlirPtu};
 use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::{AxisConfig, AxisState, Goal, PanTilt, PositionSample};
 use std::path::PathBuf;
@@ -11,6 +12,8 @@ use std::time::Duration;
 pub enum PtuProtocol {
     /// AMTEC/Schunk PowerCube modules over RS-232
     Powercube,
+    /// FLIR / Directed Perception PTU-D46 (ASCII)
+    Flir,
 }
 
 #[derive(Args)]
@@ -20,7 +23,7 @@ pub struct PtuArgs {
     device: PathBuf,
     #[arg(long, value_enum)]
     protocol: PtuProtocol,
-    /// Line speed [default: 38400]
+    /// Line speed [default: 38400 for powercube, 9600 for flir]
     #[arg(long)]
     baud: Option<u32>,
     /// PowerCube module id of the pan joint
@@ -59,7 +62,7 @@ pub struct PtuArgs {
 enum Action {
     /// Print both joints' angles, state words and limits
     Status,
-    /// Reset, home and wait for both joints to report HOME_OK
+    /// Reset and home (PowerCube: wait for HOME_OK; PTU-D46: its recalibrating reset)
     Home,
     /// Move to an absolute pose (an axis not given stays where it is) and wait until reached
     Move {
@@ -86,8 +89,18 @@ pub fn run(a: PtuArgs) -> Result<()> {
         .enable_all()
         .build()
         .context("cannot start the async runtime")?;
+    let pan = AxisConfig::new(a.pan_sign, a.pan_offset).context("--pan-sign/--pan-offset")?;
+    let tilt = AxisConfig::new(a.tilt_sign, a.tilt_offset).context("--tilt-sign/--tilt-offset")?;
+    let timeout = Duration::try_from_secs_f64(a.timeout).context("--timeout: give a number of seconds >= 0")?;
     rt.block_on(async {
         match a.protocol {
+            PtuProtocol::Flir => {
+                let cfg = FlirConfig { baud: a.baud.unwrap_or(9600), pan, tilt, ..FlirConfig::default() };
+                let mut ptu = FlirPtu::open(&a.device, cfg)
+                    .await
+                    .with_context(|| format!("no PTU-D46 on {}", a.device.display()))?;
+                act(&mut ptu, &a.action, timeout).await
+            }
             PtuProtocol::Powercube => {
                 let module = |n: u8, what: &str| {
                     ModuleId::new(n).with_context(|| format!("--{what}-module {n}: give 1 to 31"))
@@ -96,16 +109,14 @@ pub fn run(a: PtuArgs) -> Result<()> {
                     pan_module: module(a.pan_module, "pan")?,
                     tilt_module: module(a.tilt_module, "tilt")?,
                     baud: a.baud.unwrap_or(38400),
-                    pan: AxisConfig::new(a.pan_sign, a.pan_offset)
-                        .context("--pan-sign/--pan-offset")?,
-                    tilt: AxisConfig::new(a.tilt_sign, a.tilt_offset)
-                        .context("--tilt-sign/--tilt-offset")?,
+                    pan,
+                    tilt,
                     ..PowerCubeConfig::default()
                 };
                 let mut ptu = PowerCubePtu::open(&a.device, cfg)
                     .await
                     .with_context(|| format!("no PowerCube unit on {}", a.device.display()))?;
-                act(&mut ptu, &a.action, Duration::from_secs_f64(a.timeout)).await
+                act(&mut ptu, &a.action, timeout).await
             }
         }
     })

@@ -1,0 +1,103 @@
+//! The mock scanning rig: one mock PTU and one mock profile sensor, each on its own pty, sharing
+//! one simulated world.
+//!
+//! The PTU is a `sqscan_drivers` mock (PowerCube or PTU-D46) served as usual; the sensor renders
+//! the scene with [`sim::render_profile`] at the PTU's angles *at the moment of exposure*
+//! ([`MockDevice::joint_angles`] on the same device, behind the same mutex), so a profile taken
+//! while the unit moves sees the world from where the unit is then. Profiles are stamped with the
+//! sensor's own clock (monotonic ns since the rig started) and sent as SQPF frames while the
+//! host has sent `START`.
+//!
+//! Device angles are taken as joint angles (axis sign +1, offset 0), which is what
+//! [`crate::calibration::Calibration::for_rig`] assumes.
+
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use sqscan_drivers::mock::{
+    Faults, MockDevice, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
+};
+use sqscan_drivers::profile::Profile;
+use tokio::task::JoinHandle;
+
+use crate::sim::{self, Scene};
+
+/// Which PTU the rig carries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RigProtocol {
+    PowerCube,
+    Flir,
+}
+
+/// How the rig runs.
+#[derive(Clone, Debug)]
+pub struct RigConfig {
+    pub protocol: RigProtocol,
+    /// Profiles a second while acquiring.
+    pub rate_hz: f64,
+    /// Seed of the sensor noise: profile `i` uses `sim::stream_seed(seed, i)`.
+    pub seed: u64,
+    pub ptu_faults: Faults,
+    pub sensor_faults: Faults,
+}
+
+impl Default for RigConfig {
+    fn default() -> Self {
+        Self { protocol: RigProtocol::PowerCube, rate_hz: 50.0, seed: 1, ptu_faults: Faults::default(), sensor_faults: Faults::default() }
+    }
+}
+
+/// A running rig. Dropping it leaves the tasks running; [`RigMock::shutdown`] unplugs both.
+pub struct RigMock {
+    pub ptu_path: PathBuf,
+    pub sensor_path: PathBuf,
+    /// The PTU's device side, e.g. to read where it really is.
+    pub ptu: Arc<Mutex<dyn MockDevice>>,
+    pub ptu_task: JoinHandle<io::Result<ServeEnd>>,
+    pub sensor_task: JoinHandle<io::Result<ServeEnd>>,
+}
+
+impl RigMock {
+    /// Starts the rig on the current tokio runtime: two ptys (with symlinks at the given links),
+    /// the PTU answering on one, the sensor streaming on the other once started.
+    pub fn start(scene: Arc<Scene>, cfg: &RigConfig, ptu_link: Option<&Path>, sensor_link: Option<&Path>) -> io::Result<RigMock> {
+        if !(cfg.rate_hz.is_finite() && cfg.rate_hz > 0.0 && cfg.rate_hz <= 10_000.0) {
+            return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("rate {} Hz: give (0, 10000]", cfg.rate_hz)));
+        }
+        let ptu: Arc<Mutex<dyn MockDevice>> = match cfg.protocol {
+            RigProtocol::PowerCube => Arc::new(Mutex::new(MockPowerCube::new(MockPowerCubeConfig::default()))),
+            RigProtocol::Flir => Arc::new(Mutex::new(MockFlirPtu::new(MockFlirConfig::default()))),
+        };
+        let ptu_port = MockPort::create(ptu_link)?;
+        let sensor_port = MockPort::create(sensor_link)?;
+        let (ptu_path, sensor_path) = (ptu_port.path().to_owned(), sensor_port.path().to_owned());
+        let ptu_task = tokio::spawn(ptu_port.serve(ptu.clone(), cfg.ptu_faults.clone()));
+        let source = scene_source(scene, ptu.clone(), cfg.seed);
+        let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
+        let sensor_task = tokio::spawn(sensor_port.stream(source, period, cfg.sensor_faults.clone()));
+        Ok(RigMock { ptu_path, sensor_path, ptu, ptu_task, sensor_task })
+    }
+
+    /// Unplugs both devices (their ptys close).
+    pub fn shutdown(self) {
+        self.ptu_task.abort();
+        self.sensor_task.abort();
+    }
+}
+
+/// The sensor's view: the scene rendered at the PTU's angles at `now`.
+fn scene_source(scene: Arc<Scene>, ptu: Arc<Mutex<dyn MockDevice>>, seed: u64) -> impl FnMut(Instant) -> Profile + Send {
+    let mut index = 0u64;
+    move |now| {
+        let (pan, tilt) = ptu.lock().unwrap_or_else(|p| p.into_inner()).joint_angles(now);
+        let pose = scene.rig.sensor_in_base(pan, tilt);
+        let mut rng = ChaCha8Rng::seed_from_u64(sim::stream_seed(seed, index));
+        index += 1;
+        let raw = sim::render_profile(&scene, &pose, &mut rng);
+        Profile { seq: 0, timestamp_ns: 0, fraction_bits: scene.rig.sensor.fraction_bits, rows: raw.rows, intensity: Some(raw.intensity) }
+    }
+}
