@@ -15,7 +15,12 @@ fn bench(c: &mut Criterion) {
     let models = root.join("models");
     let mut g = c.benchmark_group("detect");
     g.sample_size(20).measurement_time(Duration::from_secs(8));
-    for (scene, model) in [("fig3_table", "bowl"), ("fig3_table", "cup"), ("fig3_table", "cup_body"), ("fig4_tools", "mallet")] {
+    for (scene, model) in [
+        ("fig3_table", "bowl"),
+        ("fig3_table", "cup"),
+        ("fig3_table", "cup_body"),
+        ("fig4_tools", "mallet"),
+    ] {
         let s = Scene::from_file(&root.join(format!("scenes/{scene}.toml")), &models).expect("shipped scene");
         let m = Model::load(model, &models).expect("shipped model");
         let sweep = simulate(&s, 0);
@@ -25,7 +30,15 @@ fn bench(c: &mut Criterion) {
             b.iter(|| {
                 seed += 1;
                 // Only the time is measured here; how often it is right is `sqscan eval`'s job.
-                detect(&sweep.cloud.points, &m, &Params { seed, viewpoint, ..Params::default() })
+                detect(
+                    &sweep.cloud.points,
+                    &m,
+                    &Params {
+                        seed,
+                        viewpoint,
+                        ..Params::default()
+                    },
+                )
             })
         });
     }

@@ -95,17 +95,33 @@ impl Lookup {
         let invalid = |field: &str, msg: String| SpecError::invalid(path, format!("lookup.{field}"), msg);
         let r = &raw.rows_px;
         if r.len() < 2 || r.iter().any(|v| !v.is_finite()) || r.windows(2).any(|w| w[1] <= w[0]) {
-            return Err(invalid("rows_px", "give at least two finite rows, strictly increasing".into()));
+            return Err(invalid(
+                "rows_px",
+                "give at least two finite rows, strictly increasing".into(),
+            ));
         }
         for (name, table) in [("x", &raw.x), ("y", &raw.y)] {
             if table.len() != columns {
-                return Err(invalid(name, format!("{} columns, the sensor has {columns}", table.len())));
+                return Err(invalid(
+                    name,
+                    format!("{} columns, the sensor has {columns}", table.len()),
+                ));
             }
-            if let Some(col) = table.iter().position(|c| c.len() != r.len() || c.iter().any(|v| !v.is_finite())) {
-                return Err(invalid(name, format!("column {col}: give {} finite values, one a sample row", r.len())));
+            if let Some(col) = table
+                .iter()
+                .position(|c| c.len() != r.len() || c.iter().any(|v| !v.is_finite()))
+            {
+                return Err(invalid(
+                    name,
+                    format!("column {col}: give {} finite values, one a sample row", r.len()),
+                ));
             }
         }
-        Ok(Lookup { rows_px: raw.rows_px, x: raw.x, y: raw.y })
+        Ok(Lookup {
+            rows_px: raw.rows_px,
+            x: raw.x,
+            y: raw.y,
+        })
     }
 
     /// The interpolated laser-plane point; `None` outside the sampled rows.
@@ -115,7 +131,11 @@ impl Lookup {
             return None;
         }
         // The last sample row not above `row_px`, and the next one.
-        let k = self.rows_px.partition_point(|&r| r <= row_px).saturating_sub(1).min(self.rows_px.len() - 2);
+        let k = self
+            .rows_px
+            .partition_point(|&r| r <= row_px)
+            .saturating_sub(1)
+            .min(self.rows_px.len() - 2);
         let (r0, r1) = (self.rows_px[k], self.rows_px[k + 1]);
         let f = (row_px - r0) / (r1 - r0);
         let lerp = |t: &[Vec<f64>]| -> Option<f64> {
@@ -172,7 +192,10 @@ impl Calibration {
         }
         let scale = h.amax();
         if scale <= 0.0 || (h.determinant() / scale.powi(3)).abs() < SINGULAR {
-            return Err(invalid("homography", format!("singular (determinant {:e})", h.determinant())));
+            return Err(invalid(
+                "homography",
+                format!("singular (determinant {:e})", h.determinant()),
+            ));
         }
         let pose = |field: &str, spec: &PoseSpec| spec.to_isometry().map_err(|m| invalid(field, m));
         let axis = |field: &str, a: AxisFile| {
@@ -244,7 +267,11 @@ impl Calibration {
     /// `None` for no return (0) or a value that maps to no point.
     pub fn point_in_sensor(&self, col: usize, raw: u16) -> Option<Vector3<f64>> {
         let (x, y) = self.point_in_plane(col, self.row_px(raw)?)?;
-        Some(self.laser_plane_in_sensor.transform_point(&Point3::new(x, y, 0.0)).coords)
+        Some(
+            self.laser_plane_in_sensor
+                .transform_point(&Point3::new(x, y, 0.0))
+                .coords,
+        )
     }
 
     /// The sensor frame in the base frame at the given joint angles (rad).
@@ -283,7 +310,10 @@ impl Calibration {
         let _ = writeln!(s, "description = {:?}", description);
         let _ = writeln!(s, "columns = {}", self.columns);
         let _ = writeln!(s, "fraction_bits = {}", self.fraction_bits);
-        let _ = writeln!(s, "# [x, y, w] = H [col + 0.5, row_px, 1]; the point is (x/w, y/w) in the laser plane (m)");
+        let _ = writeln!(
+            s,
+            "# [x, y, w] = H [col + 0.5, row_px, 1]; the point is (x/w, y/w) in the laser plane (m)"
+        );
         let _ = writeln!(s, "homography = [");
         for r in 0..3 {
             let h = &self.homography;
@@ -343,8 +373,14 @@ mod tests {
             assert!((a.translation.vector - b.translation.vector).norm() < 1e-12);
             assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
         }
-        assert_eq!((file.columns, file.fraction_bits), (derived.columns, derived.fraction_bits));
-        assert_eq!((file.pan_axis(), file.tilt_axis()), (derived.pan_axis(), derived.tilt_axis()));
+        assert_eq!(
+            (file.columns, file.fraction_bits),
+            (derived.columns, derived.fraction_bits)
+        );
+        assert_eq!(
+            (file.pan_axis(), file.tilt_axis()),
+            (derived.pan_axis(), derived.tilt_axis())
+        );
     }
 
     #[test]
@@ -390,13 +426,21 @@ mod tests {
         };
         assert_eq!(field(&|r| r.columns = 0), "columns");
         assert_eq!(field(&|r| r.fraction_bits = 16), "fraction_bits");
-        assert_eq!(field(&|r| r.homography = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 0.0, 1.0]]), "homography");
+        assert_eq!(
+            field(&|r| r.homography = [[1.0, 2.0, 3.0], [2.0, 4.0, 6.0], [0.0, 0.0, 1.0]]),
+            "homography"
+        );
         assert_eq!(field(&|r| r.homography[0][0] = f64::NAN), "homography");
         assert_eq!(field(&|r| r.ptu.orientation = Some([0.0, 0.0, 0.0, 2.0])), "ptu");
         assert_eq!(field(&|r| r.sensor_mount.position[0] = f64::INFINITY), "sensor_mount");
         assert_eq!(field(&|r| r.pan.sign = 2.0), "pan");
-        let text = std::fs::read_to_string(&path).unwrap().replacen("fraction_bits", "fraction_bitz", 1);
-        assert!(matches!(Calibration::from_toml_str(&text, &path), Err(SpecError::Syntax { .. })));
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replacen("fraction_bits", "fraction_bitz", 1);
+        assert!(matches!(
+            Calibration::from_toml_str(&text, &path),
+            Err(SpecError::Syntax { .. })
+        ));
     }
 
     #[test]
@@ -407,14 +451,29 @@ mod tests {
         let rows_px: Vec<f64> = (0..=64).map(|k| 4.0 + 2.0 * f64::from(k)).collect();
         let sample = |i: usize| -> Vec<Vec<f64>> {
             (0..raw.columns)
-                .map(|c| rows_px.iter().map(|&r| { let p = exact.point_in_plane(c, r).unwrap(); [p.0, p.1][i] }).collect())
+                .map(|c| {
+                    rows_px
+                        .iter()
+                        .map(|&r| {
+                            let p = exact.point_in_plane(c, r).unwrap();
+                            [p.0, p.1][i]
+                        })
+                        .collect()
+                })
                 .collect()
         };
-        raw.lookup = Some(LookupFile { rows_px: rows_px.clone(), x: sample(0), y: sample(1) });
+        raw.lookup = Some(LookupFile {
+            rows_px: rows_px.clone(),
+            x: sample(0),
+            y: sample(1),
+        });
         let cal = Calibration::validate(raw.clone(), &path).unwrap();
         // On a sample row: the table's value; between: within the interpolation error (< 1 mm).
         assert_eq!(cal.point_in_plane(17, 20.0), exact.point_in_plane(17, 20.0));
-        let (a, b) = (cal.point_in_plane(200, 31.3).unwrap(), exact.point_in_plane(200, 31.3).unwrap());
+        let (a, b) = (
+            cal.point_in_plane(200, 31.3).unwrap(),
+            exact.point_in_plane(200, 31.3).unwrap(),
+        );
         assert!((a.0 - b.0).abs() < 1e-3 && (a.1 - b.1).abs() < 1e-3, "{a:?} vs {b:?}");
         assert_eq!(cal.point_in_plane(3, 2.0), None);
         assert_eq!(cal.point_in_plane(3, 200.0), None);
@@ -431,7 +490,12 @@ mod tests {
             }
         };
         assert_eq!(field(&|l| l.rows_px.swap(0, 1)), "lookup.rows_px");
-        assert_eq!(field(&|l| { l.x.pop(); }), "lookup.x");
+        assert_eq!(
+            field(&|l| {
+                l.x.pop();
+            }),
+            "lookup.x"
+        );
         assert_eq!(field(&|l| l.y[5][2] = f64::NAN), "lookup.y");
     }
 

@@ -36,9 +36,11 @@ fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
     let parts_moved = model.placed_parts(&moved);
     parts_moved.iter().all(|pm| {
         let tol = 1e-3 * pm.shape.min_size();
-        pm.sample_surface(pm.shape.min_size() / 3.0)
-            .iter()
-            .all(|p| parts.iter().any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(p).abs() < tol))
+        pm.sample_surface(pm.shape.min_size() / 3.0).iter().all(|p| {
+            parts
+                .iter()
+                .any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(p).abs() < tol)
+        })
     })
 }
 
@@ -107,7 +109,14 @@ pub struct Trial {
 }
 
 /// Run one trial: simulate with `noise_seed`, detect with `params` (whose seed is the search seed).
-pub fn trial(scene: &Scene, model: &Model, truth: Option<&Isometry3<f64>>, symmetry: &Symmetry, noise_seed: u64, params: &Params) -> Trial {
+pub fn trial(
+    scene: &Scene,
+    model: &Model,
+    truth: Option<&Isometry3<f64>>,
+    symmetry: &Symmetry,
+    noise_seed: u64,
+    params: &Params,
+) -> Trial {
     let sweep = sim::simulate(scene, noise_seed);
     let mut p = params.clone();
     if p.viewpoint.is_none() {
@@ -124,7 +133,14 @@ pub fn trial(scene: &Scene, model: &Model, truth: Option<&Isometry3<f64>>, symme
         _ => (f64::INFINITY, f64::INFINITY),
     };
     let correct = found && position_error < MAX_POSITION_ERROR_M && rotation_error < MAX_ROTATION_ERROR_RAD;
-    Trial { found, correct, position_error, rotation_error, time_ms: report.timing.total_ms, report }
+    Trial {
+        found,
+        correct,
+        position_error,
+        rotation_error,
+        time_ms: report.timing.total_ms,
+        report,
+    }
 }
 
 /// Median and 95th percentile of the finite values.

@@ -116,7 +116,11 @@ pub struct Model {
 pub fn axis_angle(za: &Vector3<f64>, zb: &Vector3<f64>, signed: bool) -> f64 {
     let c = (za.dot(zb) / (za.norm() * zb.norm())).clamp(-1.0, 1.0);
     let angle = c.acos();
-    if signed { angle } else { angle.min(std::f64::consts::PI - angle) }
+    if signed {
+        angle
+    } else {
+        angle.min(std::f64::consts::PI - angle)
+    }
 }
 
 impl Model {
@@ -141,13 +145,19 @@ impl Model {
         let bad = |field: String, msg: String| SpecError::invalid(path, field, msg);
         let name = match file.name {
             Some(n) => n,
-            None => path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default(),
+            None => path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default(),
         };
         if name.is_empty() || name.chars().any(|c| c.is_whitespace()) {
             return Err(bad("name".into(), format!("{name:?} must be a non-empty word")));
         }
         if file.part.is_empty() || file.part.len() > 3 {
-            return Err(bad("part".into(), format!("{} parts given; a model has 1 to 3", file.part.len())));
+            return Err(bad(
+                "part".into(),
+                format!("{} parts given; a model has 1 to 3", file.part.len()),
+            ));
         }
         let mut parts: Vec<Part> = Vec::with_capacity(file.part.len());
         for (i, p) in file.part.into_iter().enumerate() {
@@ -167,7 +177,10 @@ impl Model {
                 bad(field(f), e.to_string())
             })?;
             if shape.max_size() > 2.0 {
-                return Err(bad(field("a"), format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a)));
+                return Err(bad(
+                    field("a"),
+                    format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a),
+                ));
             }
             if let Some(m) = p.m {
                 if !(1..=1000).contains(&m) {
@@ -175,7 +188,13 @@ impl Model {
                 }
             }
             let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
-            parts.push(Part { name: p.name, shape, pose_in_object, hypotheses: p.m, open: p.open });
+            parts.push(Part {
+                name: p.name,
+                shape,
+                pose_in_object,
+                hypotheses: p.m,
+                open: p.open,
+            });
         }
         let mut connections = Vec::new();
         for (i, c) in file.connection.into_iter().enumerate() {
@@ -193,13 +212,21 @@ impl Model {
             let angle = match (c.angle_rad, c.angle_deg) {
                 (Some(r), None) => r,
                 (None, Some(d)) => d.to_radians(),
-                _ => return Err(bad(field("angle_rad"), "give exactly one of angle_rad, angle_deg".into())),
+                _ => {
+                    return Err(bad(
+                        field("angle_rad"),
+                        "give exactly one of angle_rad, angle_deg".into(),
+                    ));
+                }
             };
             if !(0.0..=std::f64::consts::PI + 1e-9).contains(&angle) {
                 return Err(bad(field("angle_rad"), format!("{angle} rad is outside [0, pi]")));
             }
             if !(c.distance.is_finite() && c.distance >= 0.0 && c.distance < 2.0) {
-                return Err(bad(field("distance"), format!("{} m is not a centre distance in metres", c.distance)));
+                return Err(bad(
+                    field("distance"),
+                    format!("{} m is not a centre distance in metres", c.distance),
+                ));
             }
             // The given connectivity must be the one the part poses have.
             let (pa, pb) = (&parts[idx[0]], &parts[idx[1]]);
@@ -207,7 +234,11 @@ impl Model {
             let za = pa.pose_in_object.rotation * Vector3::z();
             let zb = pb.pose_in_object.rotation * Vector3::z();
             let posed_angle = axis_angle(&za, &zb, signed);
-            let given_angle = if signed { angle } else { angle.min(std::f64::consts::PI - angle) };
+            let given_angle = if signed {
+                angle
+            } else {
+                angle.min(std::f64::consts::PI - angle)
+            };
             if (posed_angle - given_angle).abs() > ANGLE_TOLERANCE_RAD {
                 return Err(bad(
                     field("angle"),
@@ -218,26 +249,38 @@ impl Model {
                     ),
                 ));
             }
-            let posed_distance =
-                (pa.pose_in_object.translation.vector - pb.pose_in_object.translation.vector).norm();
+            let posed_distance = (pa.pose_in_object.translation.vector - pb.pose_in_object.translation.vector).norm();
             if (posed_distance - c.distance).abs() > DISTANCE_TOLERANCE_M {
                 return Err(bad(
                     field("distance"),
-                    format!("{} m, but the part poses put the centres {posed_distance:.4} m apart", c.distance),
+                    format!(
+                        "{} m, but the part poses put the centres {posed_distance:.4} m apart",
+                        c.distance
+                    ),
                 ));
             }
-            if connections.iter().any(|k: &Connection| {
-                (k.parts == idx) || (k.parts == [idx[1], idx[0]])
-            }) {
+            if connections
+                .iter()
+                .any(|k: &Connection| (k.parts == idx) || (k.parts == [idx[1], idx[0]]))
+            {
                 return Err(bad(field("parts"), "these parts are already connected".into()));
             }
-            connections.push(Connection { parts: idx, angle, distance: c.distance });
+            connections.push(Connection {
+                parts: idx,
+                angle,
+                distance: c.distance,
+            });
         }
         // The connections must tie all parts into one tree: the detector votes a compound over them.
         if connections.len() != parts.len() - 1 {
             return Err(bad(
                 "connection".into(),
-                format!("{} parts need {} connections, {} given", parts.len(), parts.len() - 1, connections.len()),
+                format!(
+                    "{} parts need {} connections, {} given",
+                    parts.len(),
+                    parts.len() - 1,
+                    connections.len()
+                ),
             ));
         }
         let mut reached = vec![false; parts.len()];
@@ -251,9 +294,18 @@ impl Model {
             }
         }
         if let Some(i) = reached.iter().position(|r| !r) {
-            return Err(bad("connection".into(), format!("part {:?} is not connected to the others", parts[i].name)));
+            return Err(bad(
+                "connection".into(),
+                format!("part {:?} is not connected to the others", parts[i].name),
+            ));
         }
-        Ok(Model { name, description: file.description, parts, connections, source: path.to_owned() })
+        Ok(Model {
+            name,
+            description: file.description,
+            parts,
+            connections,
+            source: path.to_owned(),
+        })
     }
 
     pub fn is_compound(&self) -> bool {
@@ -262,7 +314,10 @@ impl Model {
 
     /// The parts placed in a frame, given the object's pose in that frame.
     pub fn placed_parts(&self, object_pose: &Isometry3<f64>) -> Vec<PlacedSuperquadric> {
-        self.parts.iter().map(|p| PlacedSuperquadric::new(p.shape, object_pose * p.pose_in_object)).collect()
+        self.parts
+            .iter()
+            .map(|p| PlacedSuperquadric::new(p.shape, object_pose * p.pose_in_object))
+            .collect()
     }
 
     /// Radius of a sphere about the object origin that contains every part.
@@ -301,7 +356,10 @@ pub fn default_models_dir() -> PathBuf {
 /// Every model in a directory, sorted by name; files that fail to load are returned as errors
 /// beside the good ones so one broken file does not hide the rest.
 pub fn load_dir(dir: &Path) -> Result<Vec<Result<Model, SpecError>>, SpecError> {
-    let entries = std::fs::read_dir(dir).map_err(|source| SpecError::Io { path: dir.to_owned(), source })?;
+    let entries = std::fs::read_dir(dir).map_err(|source| SpecError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
     let mut paths: Vec<PathBuf> = entries
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.extension().is_some_and(|x| x == "toml"))

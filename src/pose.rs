@@ -22,7 +22,10 @@ impl From<&Isometry3<f64>> for PoseJson {
         let q = p.rotation.quaternion();
         // One of the two equivalent quaternions, chosen with w >= 0 so output is stable.
         let s = if q.w < 0.0 { -1.0 } else { 1.0 };
-        PoseJson { position: [t.x, t.y, t.z], orientation: [s * q.i, s * q.j, s * q.k, s * q.w] }
+        PoseJson {
+            position: [t.x, t.y, t.z],
+            orientation: [s * q.i, s * q.j, s * q.k, s * q.w],
+        }
     }
 }
 
@@ -70,7 +73,9 @@ pub fn quaternion_from_xyzw(q: [f64; 4]) -> Result<UnitQuaternion<f64>, String> 
     let quat = Quaternion::new(q[3], q[0], q[1], q[2]);
     let n = quat.norm();
     if !n.is_finite() || (n - 1.0).abs() > 1e-3 {
-        return Err(format!("orientation {q:?} is not a unit quaternion [x, y, z, w] (norm {n})"));
+        return Err(format!(
+            "orientation {q:?} is not a unit quaternion [x, y, z, w] (norm {n})"
+        ));
     }
     Ok(UnitQuaternion::from_quaternion(quat))
 }
@@ -93,7 +98,10 @@ mod tests {
 
     #[test]
     fn rpy_and_quaternion_agree() {
-        let a = PoseSpec { rpy_deg: Some([0.0, 0.0, 90.0]), ..Default::default() };
+        let a = PoseSpec {
+            rpy_deg: Some([0.0, 0.0, 90.0]),
+            ..Default::default()
+        };
         let b = PoseSpec {
             orientation: Some([0.0, 0.0, (0.5f64).sqrt(), (0.5f64).sqrt()]),
             ..Default::default()
@@ -109,9 +117,16 @@ mod tests {
 
     #[test]
     fn refuses_bad_orientations() {
-        let s = PoseSpec { orientation: Some([0.0, 0.0, 0.0, 2.0]), ..Default::default() };
+        let s = PoseSpec {
+            orientation: Some([0.0, 0.0, 0.0, 2.0]),
+            ..Default::default()
+        };
         assert!(s.to_isometry().unwrap_err().contains("unit quaternion"));
-        let s = PoseSpec { rpy: Some([0.0; 3]), rpy_deg: Some([0.0; 3]), ..Default::default() };
+        let s = PoseSpec {
+            rpy: Some([0.0; 3]),
+            rpy_deg: Some([0.0; 3]),
+            ..Default::default()
+        };
         assert!(s.to_isometry().unwrap_err().contains("only one"));
     }
 }

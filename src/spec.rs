@@ -13,7 +13,11 @@ pub enum SpecError {
     #[error("{}: {message}", path.display())]
     Syntax { path: PathBuf, message: String },
     #[error("{}: {field}: {message}", path.display())]
-    Invalid { path: PathBuf, field: String, message: String },
+    Invalid {
+        path: PathBuf,
+        field: String,
+        message: String,
+    },
 }
 
 impl SpecError {
@@ -29,14 +33,20 @@ impl SpecError {
     }
 
     pub fn invalid(path: &Path, field: impl Into<String>, message: impl Into<String>) -> Self {
-        SpecError::Invalid { path: path.to_owned(), field: field.into(), message: message.into() }
+        SpecError::Invalid {
+            path: path.to_owned(),
+            field: field.into(),
+            message: message.into(),
+        }
     }
 }
 
 /// Read and parse a TOML file into its serde form.
 pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SpecError> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|source| SpecError::Io { path: path.to_owned(), source })?;
+    let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
     parse_toml(&text, path)
 }
 

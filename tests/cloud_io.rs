@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use proptest::prelude::*;
 use sqscan::cloud::{
-    CloudError, Field, FieldData, PcdData, PlyFormat, PointCloud, lzf, read_cloud, read_pcd,
-    read_ply, read_text, write_cloud, write_pcd, write_ply, write_text,
+    CloudError, Field, FieldData, PcdData, PlyFormat, PointCloud, lzf, read_cloud, read_pcd, read_ply, read_text,
+    write_cloud, write_pcd, write_ply, write_text,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -34,30 +34,15 @@ fn sample_cloud(multi_count: bool) -> PointCloud {
     let idx = |i: usize| i as i64 * 37 - 200;
     c.fields = vec![
         Field::scalar("i8", FieldData::I8((0..n).map(|i| idx(i) as i8).collect())),
-        Field::scalar(
-            "u8",
-            FieldData::U8((0..n).map(|i| (i * 23) as u8).collect()),
-        ),
-        Field::scalar(
-            "i16",
-            FieldData::I16((0..n).map(|i| (idx(i) * 150) as i16).collect()),
-        ),
-        Field::scalar(
-            "u16",
-            FieldData::U16((0..n).map(|i| (i * 6000) as u16).collect()),
-        ),
+        Field::scalar("u8", FieldData::U8((0..n).map(|i| (i * 23) as u8).collect())),
+        Field::scalar("i16", FieldData::I16((0..n).map(|i| (idx(i) * 150) as i16).collect())),
+        Field::scalar("u16", FieldData::U16((0..n).map(|i| (i * 6000) as u16).collect())),
         Field::scalar(
             "label",
             FieldData::I32((0..n).map(|i| (idx(i) * 1_000_007) as i32).collect()),
         ),
-        Field::scalar(
-            "u32",
-            FieldData::U32((0..n).map(|i| u32::MAX - i as u32).collect()),
-        ),
-        Field::scalar(
-            "intensity",
-            FieldData::F32((0..n).map(|i| 0.1 * i as f32).collect()),
-        ),
+        Field::scalar("u32", FieldData::U32((0..n).map(|i| u32::MAX - i as u32).collect())),
+        Field::scalar("intensity", FieldData::F32((0..n).map(|i| 0.1 * i as f32).collect())),
         Field::scalar(
             "range",
             FieldData::F64((0..n).map(|i| 1.0 / (i as f64 + 3.0)).collect()),
@@ -92,30 +77,18 @@ enum Bits {
 /// `ascii`: NaN payloads are not kept in text, so every NaN is compared as the canonical NaN.
 fn bits(data: &FieldData, ascii: bool) -> Bits {
     let f = |x: f64| {
-        if ascii && x.is_nan() {
-            u64::MAX
-        } else {
-            x.to_bits()
-        }
+        if ascii && x.is_nan() { u64::MAX } else { x.to_bits() }
     };
     match data {
         FieldData::F32(v) => Bits::Floats(v.iter().map(|&x| f(x as f64)).collect()),
         FieldData::F64(v) => Bits::Floats(v.iter().map(|&x| f(x)).collect()),
-        other => Bits::Ints(
-            (0..other.len())
-                .map(|i| other.get_f64(i).unwrap() as i64)
-                .collect(),
-        ),
+        other => Bits::Ints((0..other.len()).map(|i| other.get_f64(i).unwrap() as i64).collect()),
     }
 }
 
 fn point_bits(c: &PointCloud, ascii: bool) -> Vec<[u32; 3]> {
     let f = |x: f32| {
-        if ascii && x.is_nan() {
-            u32::MAX
-        } else {
-            x.to_bits()
-        }
+        if ascii && x.is_nan() { u32::MAX } else { x.to_bits() }
     };
     c.points.iter().map(|p| p.map(f)).collect()
 }
@@ -220,20 +193,10 @@ fn empty_and_unorganized_clouds_round_trip() {
         PointCloud::from_points(vec![[1.0, 2.0, 3.0]; 70]),
     ] {
         for data in [PcdData::Ascii, PcdData::Binary, PcdData::BinaryCompressed] {
-            assert_same(
-                &c,
-                &read_pcd(&pcd_bytes(&c, data)[..]).unwrap(),
-                false,
-                true,
-            );
+            assert_same(&c, &read_pcd(&pcd_bytes(&c, data)[..]).unwrap(), false, true);
         }
         for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian] {
-            assert_same(
-                &c,
-                &read_ply(&ply_bytes(&c, format)[..]).unwrap(),
-                false,
-                true,
-            );
+            assert_same(&c, &read_ply(&ply_bytes(&c, format)[..]).unwrap(), false, true);
         }
         assert_same(&c, &read_text(&text_bytes(&c)[..]).unwrap(), false, true);
     }
@@ -258,12 +221,7 @@ fn path_api_chooses_format_by_extension_and_content() {
     // Sniffing: PLY and PCD content without a telling extension.
     std::fs::copy(dir.join("a.ply"), dir.join("ply_no_ext")).unwrap();
     std::fs::copy(dir.join("a.pcd"), dir.join("pcd.dat")).unwrap();
-    assert_same(
-        &c,
-        &read_cloud(&dir.join("ply_no_ext")).unwrap(),
-        false,
-        true,
-    );
+    assert_same(&c, &read_cloud(&dir.join("ply_no_ext")).unwrap(), false, true);
     assert_same(&c, &read_cloud(&dir.join("pcd.dat")).unwrap(), false, true);
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -272,13 +230,8 @@ fn path_api_chooses_format_by_extension_and_content() {
 fn invalid_clouds_are_not_written() {
     let mut c = sample_cloud(false);
     c.fields[0].data = FieldData::I8(vec![1, 2]);
-    let e = write_pcd(Vec::new(), &c, PcdData::Binary)
-        .unwrap_err()
-        .to_string();
-    assert_eq!(
-        e,
-        "invalid cloud: field `i8`: 2 values for 12 points x count 1"
-    );
+    let e = write_pcd(Vec::new(), &c, PcdData::Binary).unwrap_err().to_string();
+    assert_eq!(e, "invalid cloud: field `i8`: 2 values for 12 points x count 1");
     let mut c = sample_cloud(false);
     c.fields[1].name = "two words".into();
     assert!(write_ply(Vec::new(), &c, PlyFormat::Ascii).is_err());
@@ -466,14 +419,7 @@ fn real_files_have_the_documented_fields() {
     for &l in labels {
         *counts.entry(l).or_default() += 1;
     }
-    for (label, n) in [
-        (1, 141517),
-        (20, 15305),
-        (30, 9289),
-        (40, 1876),
-        (41, 3859),
-        (50, 2450),
-    ] {
+    for (label, n) in [(1, 141517), (20, 15305), (30, 9289), (40, 1876), (41, 3859), (50, 2450)] {
         assert_eq!(counts.get(&label), Some(&n), "learn33.pcd label {label}");
     }
     // Label 0 marks the NaN (cropped) pixels.
@@ -554,10 +500,7 @@ fn errors_name_file_line_and_field() {
     }
     let missing = dir.join("missing.pcd");
     let e = read_cloud(&missing).unwrap_err().to_string();
-    assert!(
-        e.starts_with(&format!("{}: I/O error", missing.display())),
-        "{e}"
-    );
+    assert!(e.starts_with(&format!("{}: I/O error", missing.display())), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -657,9 +600,7 @@ proptest! {
 #[test]
 fn valid_files_read_back() {
     for bytes in valid_files() {
-        let ok = read_pcd(&bytes[..]).is_ok()
-            || read_ply(&bytes[..]).is_ok()
-            || read_text(&bytes[..]).is_ok();
+        let ok = read_pcd(&bytes[..]).is_ok() || read_ply(&bytes[..]).is_ok() || read_text(&bytes[..]).is_ok();
         assert!(ok, "{}", String::from_utf8_lossy(&bytes[..40]));
     }
     // The big-endian file: faces skipped, one vertex.

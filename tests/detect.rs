@@ -29,7 +29,17 @@ fn assert_detected(scene_name: &str, model_name: &str, seeds: std::ops::Range<u6
     let (_, truth) = eval::truth_pose(&s, &m).expect("the scene holds the object");
     let symmetry = Symmetry::of(&m);
     for seed in seeds {
-        let t = eval::trial(&s, &m, Some(&truth), &symmetry, seed, &Params { seed, ..Params::default() });
+        let t = eval::trial(
+            &s,
+            &m,
+            Some(&truth),
+            &symmetry,
+            seed,
+            &Params {
+                seed,
+                ..Params::default()
+            },
+        );
         assert!(
             t.correct,
             "{model_name} in {scene_name}, seed {seed}: found {}, position error {:.4} m, rotation error {:.2} deg",
@@ -62,14 +72,29 @@ fn finds_the_mallet_among_lookalike_tools() {
 
 #[test]
 fn says_not_here_when_the_object_is_absent() {
-    for (scene_name, model_name, object) in
-        [("fig3_table.toml", "bowl", "ceramic_bowl"), ("fig3_table.toml", "cup", "cup"), ("fig4_tools.toml", "mallet", "mallet")]
-    {
+    for (scene_name, model_name, object) in [
+        ("fig3_table.toml", "bowl", "ceramic_bowl"),
+        ("fig3_table.toml", "cup", "cup"),
+        ("fig4_tools.toml", "mallet", "mallet"),
+    ] {
         let s = scene(scene_name).without_object(object);
         let m = model(model_name);
         for seed in 0..2 {
-            let t = eval::trial(&s, &m, None, &Symmetry::of(&m), seed, &Params { seed, ..Params::default() });
-            assert!(!t.found, "{model_name} reported found in {scene_name} without {object} (seed {seed})");
+            let t = eval::trial(
+                &s,
+                &m,
+                None,
+                &Symmetry::of(&m),
+                seed,
+                &Params {
+                    seed,
+                    ..Params::default()
+                },
+            );
+            assert!(
+                !t.found,
+                "{model_name} reported found in {scene_name} without {object} (seed {seed})"
+            );
             let conf = t.report.detections.first().map_or(0.0, |d| d.confidence);
             assert!(conf < 0.5, "confidence {conf} for an absent {model_name}");
         }
@@ -81,12 +106,20 @@ fn same_seed_same_answer() {
     let s = scene("fig3_table.toml");
     let sweep = simulate(&s, 4);
     let m = model("cup");
-    let params = Params { seed: 9, viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])), ..Params::default() };
+    let params = Params {
+        seed: 9,
+        viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])),
+        ..Params::default()
+    };
     let a = detect(&sweep.cloud.points, &m, &params);
     let b = detect(&sweep.cloud.points, &m, &params);
     let pose = |r: &sqscan::detect::Report| {
         let d = r.detections.first().expect("a candidate");
-        (d.pose.translation.vector.map(f64::to_bits), d.pose.rotation.coords.map(f64::to_bits), d.found)
+        (
+            d.pose.translation.vector.map(f64::to_bits),
+            d.pose.rotation.coords.map(f64::to_bits),
+            d.found,
+        )
     };
     assert_eq!(pose(&a), pose(&b));
 }
@@ -109,18 +142,33 @@ fn all_instances_are_reported_once_each() {
         ..Params::default()
     };
     let report = detect(&sweep.cloud.points, &m, &params);
-    let mut found: Vec<[f64; 2]> = report.detections.iter().map(|d| [d.pose.translation.x, d.pose.translation.y]).collect();
+    let mut found: Vec<[f64; 2]> = report
+        .detections
+        .iter()
+        .map(|d| [d.pose.translation.x, d.pose.translation.y])
+        .collect();
     found.sort_by(|a, b| a[1].total_cmp(&b[1]));
     assert_eq!(found.len(), 2, "instances {found:?}");
-    assert!((found[0][0] - 0.72).abs() < 0.01 && (found[0][1] + 0.16).abs() < 0.01, "{found:?}");
-    assert!((found[1][0] - 0.70).abs() < 0.01 && (found[1][1] - 0.30).abs() < 0.01, "{found:?}");
+    assert!(
+        (found[0][0] - 0.72).abs() < 0.01 && (found[0][1] + 0.16).abs() < 0.01,
+        "{found:?}"
+    );
+    assert!(
+        (found[1][0] - 0.70).abs() < 0.01 && (found[1][1] - 0.30).abs() < 0.01,
+        "{found:?}"
+    );
 }
 
 #[test]
 fn degenerate_clouds_give_an_answer_not_a_panic() {
     let m = model("cup");
     let p = Params::default();
-    for cloud in [vec![], vec![[f32::NAN; 3]; 1000], vec![[0.5f32, 0.1, 0.7]; 500], vec![[1e30f32, -1e30, 1e30]; 200]] {
+    for cloud in [
+        vec![],
+        vec![[f32::NAN; 3]; 1000],
+        vec![[0.5f32, 0.1, 0.7]; 500],
+        vec![[1e30f32, -1e30, 1e30]; 200],
+    ] {
         let r = detect(&cloud, &m, &p);
         assert!(r.best_found().is_none());
     }

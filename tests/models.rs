@@ -28,7 +28,9 @@ fn every_shipped_model_loads() {
 }
 
 fn refused(text: &str) -> String {
-    let err = Model::from_toml_str(text, Path::new("models/broken.toml")).unwrap_err().to_string();
+    let err = Model::from_toml_str(text, Path::new("models/broken.toml"))
+        .unwrap_err()
+        .to_string();
     assert!(err.starts_with("models/broken.toml: "), "{err}");
     err
 }
@@ -57,15 +59,27 @@ fn broken_models_are_refused_naming_file_field_and_fault() {
     let two = format!("{PART}{}", PART.replace("\"p\"", "\"q\""));
     let e = refused(&two);
     assert!(e.contains("2 parts need 1 connections"), "{e}");
-    let e = refused(&format!("{two}[[connection]]\nparts = [\"p\", \"r\"]\nangle_deg = 0\ndistance = 0\n"));
+    let e = refused(&format!(
+        "{two}[[connection]]\nparts = [\"p\", \"r\"]\nangle_deg = 0\ndistance = 0\n"
+    ));
     assert!(e.contains("connection[0].parts") && e.contains("\"r\""), "{e}");
-    let e = refused(&format!("{two}[[connection]]\nparts = [\"p\", \"q\"]\nangle_deg = 0\ndistance = 0.05\n"));
-    assert!(e.contains("connection[0].distance") && e.contains("0.0000 m apart"), "{e}");
-    let e = refused(&format!("{two}[[connection]]\nparts = [\"p\", \"q\"]\nangle_deg = 45\ndistance = 0\n"));
+    let e = refused(&format!(
+        "{two}[[connection]]\nparts = [\"p\", \"q\"]\nangle_deg = 0\ndistance = 0.05\n"
+    ));
+    assert!(
+        e.contains("connection[0].distance") && e.contains("0.0000 m apart"),
+        "{e}"
+    );
+    let e = refused(&format!(
+        "{two}[[connection]]\nparts = [\"p\", \"q\"]\nangle_deg = 45\ndistance = 0\n"
+    ));
     assert!(e.contains("connection[0].angle") && e.contains("45.00 deg"), "{e}");
     let e = refused(&format!("{two}[[connection]]\nparts = [\"p\", \"q\"]\ndistance = 0\n"));
     assert!(e.contains("exactly one of angle_rad, angle_deg"), "{e}");
-    let e = refused(&PART.replace("e2 = 1.0", "e2 = 1.0\npose = { position = [0, 0, 0], orientation = [0, 0, 0, 3] }"));
+    let e = refused(&PART.replace(
+        "e2 = 1.0",
+        "e2 = 1.0\npose = { position = [0, 0, 0], orientation = [0, 0, 0, 3] }",
+    ));
     assert!(e.contains("part[0] (p).pose") && e.contains("unit quaternion"), "{e}");
 }
 

@@ -65,14 +65,8 @@ fn mock_ptu_binary_moves_to_the_requested_tilt() {
 
     let (ok, out, err) = ptu(&link, &["move", "--tilt", "0.3"]);
     assert!(ok, "{err}");
-    let tilt = out
-        .lines()
-        .find(|l| l.starts_with("tilt"))
-        .expect("a tilt line");
-    assert!(
-        tilt.contains("+0.3000 rad") && tilt.contains("RAMP_END"),
-        "{out}"
-    );
+    let tilt = out.lines().find(|l| l.starts_with("tilt")).expect("a tilt line");
+    assert!(tilt.contains("+0.3000 rad") && tilt.contains("RAMP_END"), "{out}");
 
     // A second run finds the unit where the first left it (the port reopens for a new client).
     let (ok, out, err) = ptu(&link, &["status"]);
@@ -107,9 +101,16 @@ fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
     let (ok, out, err) = ptu_with(&link, "flir", &["move", "--pan", "0.5", "--tilt", "-0.1"]);
     assert!(ok, "{err}");
     assert!(out.contains("pan  +0.5000 rad  557 steps"), "{out}");
-    let (ok, out, err) = ptu_with(&link, "flir", &["sweep", "--from", "-0.15", "--to", "0.1", "--speed", "0.2"]);
+    let (ok, out, err) = ptu_with(
+        &link,
+        "flir",
+        &["sweep", "--from", "-0.15", "--to", "0.1", "--speed", "0.2"],
+    );
     // 0.1 rad is 111.4 steps of 0.0514 deg: the unit ends on step 111.
-    assert!(ok && out.contains("sweep: ") && out.contains("tilt +0.0996 rad  111 steps"), "{out}{err}");
+    assert!(
+        ok && out.contains("sweep: ") && out.contains("tilt +0.0996 rad  111 steps"),
+        "{out}{err}"
+    );
     let (ok, _, err) = ptu_with(&link, "flir", &["move", "--tilt", "0.6"]);
     assert!(!ok && err.contains("tilt (rad) = 0.6 outside"), "{err}");
     let (ok, out, err) = ptu_with(&link, "flir", &["home"]);
@@ -146,7 +147,12 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
 
     let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
     assert!(ok, "{err}");
-    let out = Command::new(SQSCAN).args(["sensor", "--device"]).arg(&sensor_link).args(["grab", "20"]).output().unwrap();
+    let out = Command::new(SQSCAN)
+        .args(["sensor", "--device"])
+        .arg(&sensor_link)
+        .args(["grab", "20"])
+        .output()
+        .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");

@@ -17,7 +17,11 @@ use std::path::PathBuf;
 
 fn data(name: &str) -> PathBuf {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    assert!(dir.is_dir(), "{} is missing: the real-data tests need ../shared/data/real beside the repository", dir.display());
+    assert!(
+        dir.is_dir(),
+        "{} is missing: the real-data tests need ../shared/data/real beside the repository",
+        dir.display()
+    );
     dir.join(name)
 }
 
@@ -52,16 +56,24 @@ fn model(name: &str) -> Model {
 fn lands_on(file: &str, model_name: &str, objects: &[u32]) {
     let cloud = read_cloud(&data(file)).unwrap();
     let targets = centroids(&cloud, objects);
-    let params = Params { viewpoint: Some(Point3::origin()), ..Params::default() };
+    let params = Params {
+        viewpoint: Some(Point3::origin()),
+        ..Params::default()
+    };
     let report = detect(&cloud.points, &model(model_name), &params);
-    let best = report.best_found().unwrap_or_else(|| panic!("{model_name} not found in {file}"));
+    let best = report
+        .best_found()
+        .unwrap_or_else(|| panic!("{model_name} not found in {file}"));
     let c = Point3::from(best.pose.translation.vector);
     let (obj, d) = targets
         .iter()
         .map(|(o, t)| (*o, (t - c).norm()))
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap();
-    assert!(d < 0.04, "{model_name} in {file}: detected at {c:?}, {d:.3} m from the nearest labelled target (object {obj})");
+    assert!(
+        d < 0.04,
+        "{model_name} in {file}: detected at {c:?}, {d:.3} m from the nearest labelled target (object {obj})"
+    );
 }
 
 #[test]
@@ -81,7 +93,11 @@ fn the_pcl_mug_scene_gives_the_tutorial_table_and_an_upright_mug_on_its_axis() {
     // along (0.2050, -0.7216, -0.6612), radius 0.0396 m. No ground truth: PCL's RANSAC cylinder
     // is the reference.
     let cloud = read_cloud(&data("table_scene_mug_stereo_textured.pcd")).unwrap();
-    let params = Params { viewpoint: Some(Point3::origin()), max_range: Some(1.5), ..Params::default() };
+    let params = Params {
+        viewpoint: Some(Point3::origin()),
+        max_range: Some(1.5),
+        ..Params::default()
+    };
     let report = detect(&cloud.points, &model("mug"), &params);
     let plane = report.plane.expect("the table");
     let pcl = Vector3::new(-0.0161854, 0.837724, 0.545855);
@@ -92,8 +108,15 @@ fn the_pcl_mug_scene_gives_the_tutorial_table_and_an_upright_mug_on_its_axis() {
     let p0 = Vector3::new(0.0452, 0.0925, 0.7902);
     let axis = Vector3::new(0.2050, -0.7216, -0.6612).normalize();
     let off_axis = ((c - p0) - axis * (c - p0).dot(&axis)).norm();
-    assert!(off_axis < 0.01, "detected centre {c:?} is {off_axis:.4} m off PCL's cylinder axis");
+    assert!(
+        off_axis < 0.01,
+        "detected centre {c:?} is {off_axis:.4} m off PCL's cylinder axis"
+    );
     // Our mug stands on the table: its axis is the table normal.
     let z = best.pose.rotation * Vector3::z();
-    assert!(z.dot(&plane.normal).abs() > 0.98, "mug axis {z:?} vs table normal {:?}", plane.normal);
+    assert!(
+        z.dot(&plane.normal).abs() > 0.98,
+        "mug axis {z:?} vs table normal {:?}",
+        plane.normal
+    );
 }

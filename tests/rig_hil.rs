@@ -29,11 +29,28 @@ async fn profiles_at_a_commanded_tilt_calibrate_onto_the_table() {
     scene.rig.sensor.dropout = 0.0;
     let table = scene.table.clone().expect("fig3 has a table");
     let cal = Calibration::for_rig(&scene.rig);
-    let rig = RigMock::start(Arc::new(scene), &RigConfig { protocol: RigProtocol::PowerCube, ..RigConfig::default() }, None, None).unwrap();
+    let rig = RigMock::start(
+        Arc::new(scene),
+        &RigConfig {
+            protocol: RigProtocol::PowerCube,
+            ..RigConfig::default()
+        },
+        None,
+        None,
+    )
+    .unwrap();
 
-    let ptu_cfg = PowerCubeConfig { reply_timeout: Duration::from_millis(500), retries: 3, ..PowerCubeConfig::default() };
+    let ptu_cfg = PowerCubeConfig {
+        reply_timeout: Duration::from_millis(500),
+        retries: 3,
+        ..PowerCubeConfig::default()
+    };
     let mut ptu = PowerCubePtu::open(&rig.ptu_path, ptu_cfg).await.unwrap();
-    let goal = Goal { pan_rad: 0.05, tilt_rad: 0.7, speed_rad_s: 1.0 };
+    let goal = Goal {
+        pan_rad: 0.05,
+        tilt_rad: 0.7,
+        speed_rad_s: 1.0,
+    };
     let at = ptu.move_and_track(goal, None, Duration::from_secs(30)).await.unwrap();
     assert!((at.tilt_rad - 0.7).abs() < 1e-3, "{at:?}");
 
@@ -44,13 +61,21 @@ async fn profiles_at_a_commanded_tilt_calibrate_onto_the_table() {
     for _ in 0..5 {
         let r = sensor.next_profile(Duration::from_secs(10)).await.unwrap();
         assert!(matches!(r.seq, SeqEvent::First | SeqEvent::InOrder), "{:?}", r.seq);
-        assert!(last_stamp.is_none_or(|t| r.profile.timestamp_ns > t), "sensor clock runs forward");
+        assert!(
+            last_stamp.is_none_or(|t| r.profile.timestamp_ns > t),
+            "sensor clock runs forward"
+        );
         last_stamp = Some(r.profile.timestamp_ns);
         assert_eq!(r.profile.columns(), cal.columns);
         for (col, &raw) in r.profile.rows.iter().enumerate() {
-            let Some(p) = cal.point_in_base(col, raw, at.pan_rad, at.tilt_rad) else { continue };
+            let Some(p) = cal.point_in_base(col, raw, at.pan_rad, at.tilt_rad) else {
+                continue;
+            };
             if table.contains_xy(p.x, p.y) {
-                assert!((p.z - table.height).abs() < 0.005, "col {col}: {p} is off the table plane");
+                assert!(
+                    (p.z - table.height).abs() < 0.005,
+                    "col {col}: {p} is off the table plane"
+                );
                 on_table += 1;
             }
         }

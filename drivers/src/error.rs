@@ -14,10 +14,7 @@ use crate::profile::ProfileError;
 pub enum Error {
     /// No (matching) answer in time.
     #[error("timed out after {after:?} waiting for {waiting_for}")]
-    Timeout {
-        waiting_for: &'static str,
-        after: Duration,
-    },
+    Timeout { waiting_for: &'static str, after: Duration },
 
     /// A PowerCube telegram was malformed or failed its checksum.
     #[error("PowerCube framing: {0}")]

@@ -52,12 +52,9 @@ pub fn open_serial(path: &Path, baud: u32) -> Result<SerialLink, Error> {
         path: path.to_owned(),
         source,
     };
-    let name = path.to_str().ok_or_else(|| {
-        open_error(io::Error::new(
-            io::ErrorKind::InvalidInput,
-            "path is not valid UTF-8",
-        ))
-    })?;
+    let name = path
+        .to_str()
+        .ok_or_else(|| open_error(io::Error::new(io::ErrorKind::InvalidInput, "path is not valid UTF-8")))?;
     let port = tokio_serial::new(name, baud)
         .data_bits(tokio_serial::DataBits::Eight)
         .parity(tokio_serial::Parity::None)
@@ -72,21 +69,13 @@ pub fn open_serial(path: &Path, baud: u32) -> Result<SerialLink, Error> {
 }
 
 impl AsyncRead for SerialLink {
-    fn poll_read(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &mut ReadBuf<'_>,
-    ) -> Poll<io::Result<()>> {
+    fn poll_read(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &mut ReadBuf<'_>) -> Poll<io::Result<()>> {
         Pin::new(&mut self.port).poll_read(cx, buf)
     }
 }
 
 impl AsyncWrite for SerialLink {
-    fn poll_write(
-        mut self: Pin<&mut Self>,
-        cx: &mut Context<'_>,
-        buf: &[u8],
-    ) -> Poll<io::Result<usize>> {
+    fn poll_write(mut self: Pin<&mut Self>, cx: &mut Context<'_>, buf: &[u8]) -> Poll<io::Result<usize>> {
         Pin::new(&mut self.port).poll_write(cx, buf)
     }
 
@@ -125,11 +114,7 @@ pub fn classify_io(e: io::Error) -> Error {
             | io::ErrorKind::UnexpectedEof
             | io::ErrorKind::NotConnected
     ) || matches!(e.raw_os_error(), Some(EIO | ENXIO | ENODEV));
-    if unplugged {
-        Error::Disconnected
-    } else {
-        Error::Io(e)
-    }
+    if unplugged { Error::Disconnected } else { Error::Io(e) }
 }
 
 #[cfg(test)]

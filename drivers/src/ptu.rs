@@ -223,13 +223,7 @@ mod tests {
         };
         let e = l.check(&goal).unwrap_err();
         assert!(e.to_string().contains("tilt"), "{e}");
-        assert!(
-            l.check(&Goal {
-                tilt_rad: 0.2,
-                ..goal
-            })
-            .is_ok()
-        );
+        assert!(l.check(&Goal { tilt_rad: 0.2, ..goal }).is_ok());
         assert!(
             l.check(&Goal {
                 tilt_rad: f64::NAN,

@@ -26,9 +26,7 @@ use tokio::time::timeout;
 
 use crate::Error;
 use crate::link::{Link, SerialLink, classify_io, deadline_after, open_serial};
-use crate::profile::{
-    Profile, ProfileDecoder, ProfileDecoderStats, SeqCounts, SeqEvent, SequenceTracker,
-};
+use crate::profile::{Profile, ProfileDecoder, ProfileDecoderStats, SeqCounts, SeqEvent, SequenceTracker};
 
 /// The command that starts acquisition.
 pub const START: &[u8] = b"START\n";
@@ -168,11 +166,7 @@ impl<S: Link> ProfileSensor<S> {
                 match item {
                     Ok(profile) => {
                         let seq = self.tracker.observe(profile.seq);
-                        return Ok(ReceivedProfile {
-                            profile,
-                            received,
-                            seq,
-                        });
+                        return Ok(ReceivedProfile { profile, received, seq });
                     }
                     Err(_) => self.frame_errors += 1,
                 }
@@ -207,11 +201,7 @@ impl<S: Link + 'static> ProfileSensor<S> {
     /// slow consumer holds the reader back rather than growing memory; the sensor's sequence
     /// numbers then show what the line dropped). The task ends after the first error, which it
     /// sends, or when the receiver is dropped. `wait` is the longest quiet period tolerated.
-    pub fn into_channel(
-        mut self,
-        capacity: usize,
-        wait: Duration,
-    ) -> mpsc::Receiver<Result<ReceivedProfile, Error>> {
+    pub fn into_channel(mut self, capacity: usize, wait: Duration) -> mpsc::Receiver<Result<ReceivedProfile, Error>> {
         let (tx, rx) = mpsc::channel(capacity.max(1));
         tokio::spawn(async move {
             loop {
@@ -305,10 +295,7 @@ mod tests {
         assert_eq!(sensor.idle_resyncs(), 1);
 
         drop(device);
-        assert!(matches!(
-            sensor.next_profile(wait).await,
-            Err(Error::Disconnected)
-        ));
+        assert!(matches!(sensor.next_profile(wait).await, Err(Error::Disconnected)));
     }
 
     #[tokio::test]
@@ -321,9 +308,7 @@ mod tests {
             s.read_exact(&mut cmd).await.unwrap();
             assert_eq!(&cmd, START);
             for seq in 0..3 {
-                s.write_all(&encode_profile(&profile(seq)).unwrap())
-                    .await
-                    .unwrap();
+                s.write_all(&encode_profile(&profile(seq)).unwrap()).await.unwrap();
             }
         });
         let mut sensor = ProfileSensor::connect_tcp(&addr, SensorConfig::default())

@@ -42,32 +42,21 @@ fn pc_decode(bytes: &[u8], sizes: &[usize]) -> Vec<Result<Frame, FrameError>> {
 }
 
 fn arb_frame() -> impl Strategy<Value = Frame> {
-    (
-        1u8..=31,
-        any::<bool>(),
-        proptest::collection::vec(any::<u8>(), 0..=8),
-    )
-        .prop_map(|(id, to_host, data)| {
-            let module = ModuleId::new(id).expect("1..=31");
-            let data = Payload::new(&data).expect("<= 8 bytes");
-            if to_host {
-                Frame::reply(module, data)
-            } else {
-                Frame::request(module, data)
-            }
-        })
+    (1u8..=31, any::<bool>(), proptest::collection::vec(any::<u8>(), 0..=8)).prop_map(|(id, to_host, data)| {
+        let module = ModuleId::new(id).expect("1..=31");
+        let data = Payload::new(&data).expect("<= 8 bytes");
+        if to_host {
+            Frame::reply(module, data)
+        } else {
+            Frame::request(module, data)
+        }
+    })
 }
 
 /// Bytes biased towards the PowerCube control characters, so the decoder's states get visited.
 fn pc_noise() -> impl Strategy<Value = Vec<u8>> {
     proptest::collection::vec(
-        prop_oneof![
-            any::<u8>(),
-            Just(0x02u8),
-            Just(0x03u8),
-            Just(0x10u8),
-            Just(0x82u8)
-        ],
+        prop_oneof![any::<u8>(), Just(0x02u8), Just(0x03u8), Just(0x10u8), Just(0x82u8)],
         0..200,
     )
 }
@@ -166,14 +155,8 @@ proptest! {
 }
 
 fn arb_profile() -> impl Strategy<Value = Profile> {
-    (
-        1usize..64,
-        any::<u32>(),
-        any::<u64>(),
-        0u8..=15,
-        any::<bool>(),
-    )
-        .prop_flat_map(|(n, seq, timestamp_ns, fraction_bits, with_intensity)| {
+    (1usize..64, any::<u32>(), any::<u64>(), 0u8..=15, any::<bool>()).prop_flat_map(
+        |(n, seq, timestamp_ns, fraction_bits, with_intensity)| {
             (
                 proptest::collection::vec(any::<u16>(), n),
                 proptest::collection::vec(any::<u8>(), n),
@@ -185,7 +168,8 @@ fn arb_profile() -> impl Strategy<Value = Profile> {
                     rows,
                     intensity: with_intensity.then_some(intensity),
                 })
-        })
+        },
+    )
 }
 
 fn profile_decode(bytes: &[u8], sizes: &[usize]) -> Vec<Result<Profile, ProfileError>> {

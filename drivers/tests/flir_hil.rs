@@ -58,19 +58,13 @@ async fn start_up_reads_the_unit_and_reset_homes_it() {
     let mut ptu = open(&mock.path).await;
     {
         let dev = mock.device.lock().unwrap();
-        assert!(
-            !dev.echo() && dev.terse(),
-            "start-up left echo or sentences on"
-        );
+        assert!(!dev.echo() && dev.terse(), "start-up left echo or sentences on");
     }
     let pan = ptu.axis(Axis::Pan);
     assert_eq!((pan.min_steps, pan.max_steps), (-3090, 3090));
     assert_eq!(ptu.axis(Axis::Tilt).resolution.arcsec_per_step(), 185.1428);
     let limits = ptu.limits();
-    assert!(
-        (limits.pan_rad.1.to_degrees() - 158.914).abs() < 1e-3,
-        "{limits:?}"
-    );
+    assert!((limits.pan_rad.1.to_degrees() - 158.914).abs() < 1e-3, "{limits:?}");
 
     let s = ptu.position().await.unwrap();
     assert!(s.pan_rad < -0.3 && s.tilt_rad > 0.06, "{s:?}");
@@ -92,10 +86,7 @@ async fn a_move_reaches_the_goal_and_samples_follow_it() {
         tilt_rad: -0.15,
         speed_rad_s: speed,
     };
-    let end = ptu
-        .move_and_track(goal, Some(&tx), MOVE_TIMEOUT)
-        .await
-        .unwrap();
+    let end = ptu.move_and_track(goal, Some(&tx), MOVE_TIMEOUT).await.unwrap();
     drop(tx);
     let mut samples: Vec<PositionSample> = Vec::new();
     while let Some(s) = rx.recv().await {
@@ -109,25 +100,16 @@ async fn a_move_reaches_the_goal_and_samples_follow_it() {
     assert_eq!(mock_steps(&mock).0, i64::from(expected));
     // 0.6 s of pan motion at 20 Hz; even a starved host gets a few samples in.
     assert!(samples.len() >= 4, "{} samples", samples.len());
-    let inside = samples
-        .iter()
-        .filter(|s| s.pan_rad > 0.02 && s.pan_rad < 0.28)
-        .count();
+    let inside = samples.iter().filter(|s| s.pan_rad > 0.02 && s.pan_rad < 0.28).count();
     assert!(inside >= 2, "only {inside} samples during the move");
     for w in samples.windows(2) {
         let (a, b) = (&w[0], &w[1]);
         assert!(b.t > a.t && b.pan_rad >= a.pan_rad, "{a:?} -> {b:?}");
         let dt = (b.t - a.t).as_secs_f64() + (a.span + b.span).as_secs_f64() / 2.0;
-        assert!(
-            b.pan_rad - a.pan_rad <= speed * dt + 2.0 * pan_step,
-            "{a:?} -> {b:?}"
-        );
+        assert!(b.pan_rad - a.pan_rad <= speed * dt + 2.0 * pan_step, "{a:?} -> {b:?}");
     }
     let state = ptu.state().await.unwrap();
-    assert!(
-        !state.pan.moving && state.pan.detail.contains("steps/s"),
-        "{state:?}"
-    );
+    assert!(!state.pan.moving && state.pan.detail.contains("steps/s"), "{state:?}");
     mock.task.abort();
 }
 
@@ -141,10 +123,7 @@ async fn out_of_range_is_refused_with_a_typed_error() {
         tilt_rad: 1.0,
         speed_rad_s: 0.5,
     };
-    assert!(matches!(
-        ptu.move_to(far).await,
-        Err(Error::OutOfRange { .. })
-    ));
+    assert!(matches!(ptu.move_to(far).await, Err(Error::OutOfRange { .. })));
     // The unit refuses a raw command beyond its limits with `!`, typed, and nothing moves.
     let err = ptu
         .command(&PtuCommand::SetPosition(Axis::Pan, 3200))
@@ -154,23 +133,12 @@ async fn out_of_range_is_refused_with_a_typed_error() {
         matches!(&err, Error::Ptu(PtuError::OutOfRange(m)) if m.contains("3090")),
         "{err}"
     );
-    let err = ptu
-        .command(&PtuCommand::Raw("zz".into()))
-        .await
-        .unwrap_err();
-    assert!(
-        matches!(err, Error::Ptu(PtuError::IllegalCommand(_))),
-        "{err}"
-    );
+    let err = ptu.command(&PtuCommand::Raw("zz".into())).await.unwrap_err();
+    assert!(matches!(err, Error::Ptu(PtuError::IllegalCommand(_))), "{err}");
     assert_eq!(mock_steps(&mock), (0, 0));
     assert_eq!(mock.device.lock().unwrap().refused, 2);
     // The link is still in step afterwards.
-    assert_eq!(
-        ptu.query_steps(Axis::Tilt, AxisQuery::MaxPosition)
-            .await
-            .unwrap(),
-        604
-    );
+    assert_eq!(ptu.query_steps(Axis::Tilt, AxisQuery::MaxPosition).await.unwrap(), 604);
     mock.task.abort();
 }
 
@@ -186,10 +154,7 @@ async fn lost_and_corrupted_replies_are_retried() {
     let mock = start_mock(cfg, faults, None);
     let mut ptu = open(&mock.path).await;
     for _ in 0..6 {
-        let tilt = ptu
-            .query_steps(Axis::Tilt, AxisQuery::Position)
-            .await
-            .unwrap();
+        let tilt = ptu.query_steps(Axis::Tilt, AxisQuery::Position).await.unwrap();
         assert_eq!(tilt, -200);
     }
     let stats = ptu.stats();
@@ -239,12 +204,7 @@ async fn an_unplugged_unit_is_reported_and_reconnects_when_back() {
     };
     let mock = start_mock(cfg, faults, Some(&link));
     ptu.reconnect().await.unwrap();
-    assert_eq!(
-        ptu.query_steps(Axis::Tilt, AxisQuery::Position)
-            .await
-            .unwrap(),
-        100
-    );
+    assert_eq!(ptu.query_steps(Axis::Tilt, AxisQuery::Position).await.unwrap(), 100);
     let deadline = Instant::now() + Duration::from_secs(30);
     let err = loop {
         match ptu.position().await {

@@ -69,15 +69,9 @@ async fn home_clears_a_halt_and_a_move_reaches_the_goal() {
     let state = ptu.state().await.unwrap();
     assert!(state.tilt.fault && !state.tilt.homed, "{state:?}");
     let home = ptu.home().await.unwrap();
-    assert!(
-        home.pan_rad.abs() < 1e-4 && home.tilt_rad.abs() < 1e-4,
-        "{home:?}"
-    );
+    assert!(home.pan_rad.abs() < 1e-4 && home.tilt_rad.abs() < 1e-4, "{home:?}");
     let state = ptu.state().await.unwrap();
-    assert!(
-        state.pan.homed && state.tilt.homed && !state.tilt.fault,
-        "{state:?}"
-    );
+    assert!(state.pan.homed && state.tilt.homed && !state.tilt.fault, "{state:?}");
 
     let goal = Goal {
         pan_rad: 0.1,
@@ -98,14 +92,8 @@ async fn home_clears_a_halt_and_a_move_reaches_the_goal() {
     );
 
     // A goal beyond the limits the driver read from the modules is refused before sending.
-    let far = Goal {
-        tilt_rad: 3.0,
-        ..goal
-    };
-    assert!(matches!(
-        ptu.move_to(far).await,
-        Err(Error::OutOfRange { .. })
-    ));
+    let far = Goal { tilt_rad: 3.0, ..goal };
+    assert!(matches!(ptu.move_to(far).await, Err(Error::OutOfRange { .. })));
     mock.task.abort();
 }
 
@@ -120,10 +108,7 @@ async fn position_samples_follow_the_ramp() {
         tilt_rad: 0.6,
         speed_rad_s: speed,
     };
-    let end = ptu
-        .move_and_track(goal, Some(&tx), MOVE_TIMEOUT)
-        .await
-        .unwrap();
+    let end = ptu.move_and_track(goal, Some(&tx), MOVE_TIMEOUT).await.unwrap();
     drop(tx);
     let mut samples: Vec<PositionSample> = Vec::new();
     while let Some(s) = rx.recv().await {
@@ -139,17 +124,11 @@ async fn position_samples_follow_the_ramp() {
     assert!(inside >= 2, "only {inside} samples during the ramp");
     for w in samples.windows(2) {
         let (a, b) = (&w[0], &w[1]);
-        assert!(
-            b.t > a.t && b.tilt_rad >= a.tilt_rad - 1e-6,
-            "{a:?} -> {b:?}"
-        );
+        assert!(b.t > a.t && b.tilt_rad >= a.tilt_rad - 1e-6, "{a:?} -> {b:?}");
         // The joint moved no faster than the ramp speed, allowing for each stamp's uncertainty
         // (half its span) and for the mock integrating its motion in 1 ms steps.
         let dt = (b.t - a.t).as_secs_f64() + (a.span + b.span).as_secs_f64() / 2.0 + 2e-3;
-        assert!(
-            b.tilt_rad - a.tilt_rad <= speed * dt + 1e-4,
-            "{a:?} -> {b:?}"
-        );
+        assert!(b.tilt_rad - a.tilt_rad <= speed * dt + 1e-4, "{a:?} -> {b:?}");
     }
     mock.task.abort();
 }
@@ -225,11 +204,7 @@ async fn garbage_before_every_reply_is_skipped() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn an_unplugged_device_is_reported_and_reconnects_when_back() {
     let link = temp_link("unplug");
-    let mock = start_mock(
-        MockPowerCubeConfig::default(),
-        Faults::default(),
-        Some(&link),
-    );
+    let mock = start_mock(MockPowerCubeConfig::default(), Faults::default(), Some(&link));
     let mut ptu = open(&link).await;
     ptu.position().await.unwrap();
 
@@ -244,10 +219,7 @@ async fn an_unplugged_device_is_reported_and_reconnects_when_back() {
     let mock = start_mock(cfg, Faults::default(), Some(&link));
     ptu.reconnect().await.unwrap();
     // Positions travel as f32.
-    assert_eq!(
-        ptu.joint_position(Joint::Tilt).await.unwrap(),
-        f64::from(0.4f32)
-    );
+    assert_eq!(ptu.joint_position(Joint::Tilt).await.unwrap(), f64::from(0.4f32));
 
     // The unplug fault: after 12 more replies the mock closes the line by itself.
     mock.task.abort();

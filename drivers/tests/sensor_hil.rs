@@ -18,24 +18,13 @@ fn ramp(_now: Instant) -> Profile {
         timestamp_ns: 0,
         fraction_bits: 4,
         rows: (0..COLUMNS)
-            .map(|c| {
-                if c % 8 == 7 {
-                    0
-                } else {
-                    (16 * (10 + c)) as u16
-                }
-            })
+            .map(|c| if c % 8 == 7 { 0 } else { (16 * (10 + c)) as u16 })
             .collect(),
         intensity: Some(vec![200; COLUMNS]),
     }
 }
 
-fn start_mock(
-    faults: Faults,
-) -> (
-    std::path::PathBuf,
-    tokio::task::JoinHandle<std::io::Result<ServeEnd>>,
-) {
+fn start_mock(faults: Faults) -> (std::path::PathBuf, tokio::task::JoinHandle<std::io::Result<ServeEnd>>) {
     let port = MockPort::create(None).expect("a pty");
     let path = port.path().to_owned();
     let task = tokio::spawn(port.stream(ramp, Duration::from_millis(10), faults));
@@ -56,14 +45,7 @@ async fn profiles_stream_between_start_and_stop() {
     for i in 0..20 {
         let r = sensor.next_profile(WAIT).await.unwrap();
         assert_eq!(r.profile.seq, i);
-        assert_eq!(
-            r.seq,
-            if i == 0 {
-                SeqEvent::First
-            } else {
-                SeqEvent::InOrder
-            }
-        );
+        assert_eq!(r.seq, if i == 0 { SeqEvent::First } else { SeqEvent::InOrder });
         assert_eq!(r.profile.row_px(3), Some(13.0));
         assert_eq!(r.profile.row_px(7), None);
         if let Some(t) = last_ts {
@@ -131,8 +113,5 @@ async fn an_unplugged_sensor_is_reported() {
         }
     };
     assert!(matches!(err, Error::Disconnected), "{err}");
-    assert!(matches!(
-        task.await.unwrap(),
-        Ok(ServeEnd::Unplugged { replies: 5 })
-    ));
+    assert!(matches!(task.await.unwrap(), Ok(ServeEnd::Unplugged { replies: 5 })));
 }

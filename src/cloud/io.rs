@@ -59,10 +59,7 @@ use super::{FieldData, PointCloud, with_field_data};
 pub enum CloudError {
     /// An error while reading or writing the file `path`.
     #[error("{}: {error}", path.display())]
-    File {
-        path: PathBuf,
-        error: Box<CloudError>,
-    },
+    File { path: PathBuf, error: Box<CloudError> },
     #[error("I/O error: {0}")]
     Io(#[from] io::Error),
     /// A malformed header; `line` is 1-based.
@@ -90,13 +87,7 @@ pub enum CloudError {
     InvalidCloud(String),
 }
 
-fn fmt_record(
-    element: &str,
-    index: usize,
-    line: Option<usize>,
-    field: Option<&str>,
-    msg: &str,
-) -> String {
+fn fmt_record(element: &str, index: usize, line: Option<usize>, field: Option<&str>, msg: &str) -> String {
     let mut s = format!("{element} {index}");
     if let Some(line) = line {
         s += &format!(" (line {line})");
@@ -109,10 +100,7 @@ fn fmt_record(
 
 impl CloudError {
     pub(crate) fn header(line: usize, msg: impl Into<String>) -> CloudError {
-        CloudError::Header {
-            line,
-            msg: msg.into(),
-        }
+        CloudError::Header { line, msg: msg.into() }
     }
 
     pub(crate) fn record(
@@ -164,10 +152,7 @@ enum Format {
 }
 
 fn format_of(path: &Path, content: Option<&[u8]>) -> Format {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match (ext.as_deref(), content) {
         (Some("ply"), _) => Format::Ply,
         (Some("pcd"), _) => Format::Pcd,
@@ -388,10 +373,7 @@ impl FieldData {
             FieldData::F64(v) => v.into_iter().map(|x| x as f32).collect(),
             other => {
                 let n = other.len();
-                (0..n)
-                    .filter_map(|i| other.get_f64(i))
-                    .map(|x| x as f32)
-                    .collect()
+                (0..n).filter_map(|i| other.get_f64(i)).map(|x| x as f32).collect()
             }
         }
     }
@@ -410,11 +392,7 @@ pub(crate) struct Column {
 
 /// Builds the cloud from decoded columns: `x`, `y`, `z` (count 1; the readers check that they
 /// exist with the right length) become the points, the rest the fields, in file order.
-pub(crate) fn assemble(
-    columns: Vec<Column>,
-    width: usize,
-    height: usize,
-) -> Result<PointCloud, CloudError> {
+pub(crate) fn assemble(columns: Vec<Column>, width: usize, height: usize) -> Result<PointCloud, CloudError> {
     let mut xyz: [Option<Vec<f32>>; 3] = [None, None, None];
     let mut fields = Vec::new();
     for col in columns {
@@ -436,17 +414,8 @@ pub(crate) fn assemble(
     let [Some(x), Some(y), Some(z)] = xyz else {
         return Err(CloudError::Format("missing x, y or z".into()));
     };
-    let points: Vec<[f32; 3]> = x
-        .into_iter()
-        .zip(y)
-        .zip(z)
-        .map(|((x, y), z)| [x, y, z])
-        .collect();
-    let (width, height) = if height > 1 {
-        (width, height)
-    } else {
-        (points.len(), 1)
-    };
+    let points: Vec<[f32; 3]> = x.into_iter().zip(y).zip(z).map(|((x, y), z)| [x, y, z]).collect();
+    let (width, height) = if height > 1 { (width, height) } else { (points.len(), 1) };
     let cloud = PointCloud {
         points,
         width,
@@ -490,11 +459,7 @@ impl<'a> Tokens<'a> {
             self.pos += 1;
         }
         let start = self.pos;
-        while self
-            .buf
-            .get(self.pos)
-            .is_some_and(|b| !b.is_ascii_whitespace())
-        {
+        while self.buf.get(self.pos).is_some_and(|b| !b.is_ascii_whitespace()) {
             self.pos += 1;
         }
         let tok = self.buf.get(start..self.pos).filter(|t| !t.is_empty())?;
@@ -562,11 +527,7 @@ mod tests {
         for v in vals {
             let mut s = String::new();
             v.write_token(&mut s);
-            assert_eq!(
-                f32::parse_token(&s).map(f32::to_bits),
-                Some(v.to_bits()),
-                "{s}"
-            );
+            assert_eq!(f32::parse_token(&s).map(f32::to_bits), Some(v.to_bits()), "{s}");
         }
         let mut s = String::new();
         f32::NAN.write_token(&mut s);
@@ -596,16 +557,10 @@ mod tests {
         assert_eq!(sniff(b"ply\nformat"), Format::Ply);
         assert_eq!(sniff(b"# .PCD v0.7"), Format::Pcd);
         assert_eq!(sniff(b"FIELDS x y z"), Format::Pcd);
-        assert_eq!(
-            sniff(b"# made by hand\n\nVERSION .5\nFIELDS x y z"),
-            Format::Pcd
-        );
+        assert_eq!(sniff(b"# made by hand\n\nVERSION .5\nFIELDS x y z"), Format::Pcd);
         assert_eq!(sniff(b"# x y z\n1 2 3\n"), Format::Text);
         assert_eq!(sniff(b"1 2 3\n"), Format::Text);
         assert_eq!(format_of(Path::new("a/b.PLY"), None), Format::Ply);
-        assert_eq!(
-            format_of(Path::new("a/cylinder"), Some(b"1 2 3")),
-            Format::Text
-        );
+        assert_eq!(format_of(Path::new("a/cylinder"), Some(b"1 2 3")), Format::Text);
     }
 }

@@ -113,10 +113,7 @@ fn push_literal(out: &mut Vec<u8>, ctrl: &mut usize, lit: &mut usize, byte: u8) 
 pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudError> {
     let err = |offset, msg| Err(CloudError::Lzf { offset, msg });
     if expected_len > input.len().saturating_mul(MAX_EXPANSION) {
-        return err(
-            0,
-            "declared uncompressed size is larger than the data can expand to",
-        );
+        return err(0, "declared uncompressed size is larger than the data can expand to");
     }
     let mut out: Vec<u8> = Vec::with_capacity(expected_len);
     let mut ip = 0usize;
@@ -199,9 +196,7 @@ mod tests {
         assert!(c <= random.len() + random.len() / 32 + 1);
         let zeros = vec![0u8; 100_000];
         assert!(round_trip(&zeros) < 1300);
-        let pattern: Vec<u8> = (0..50_000u32)
-            .flat_map(|i| (i % 977).to_le_bytes())
-            .collect();
+        let pattern: Vec<u8> = (0..50_000u32).flat_map(|i| (i % 977).to_le_bytes()).collect();
         assert!(round_trip(&pattern) < pattern.len() / 2);
         // Lengths around the literal-run and match limits.
         for n in [31, 32, 33, 63, 64, 65, 263, 264, 265, 266, 8193, 8194] {

@@ -324,10 +324,7 @@ impl PointCloud {
                 ));
             }
         } else if self.width != n && !(n == 0 && self.width == 0) {
-            return bad(format!(
-                "{n} points but width = {} (unorganized)",
-                self.width
-            ));
+            return bad(format!("{n} points but width = {} (unorganized)", self.width));
         }
         for (i, f) in self.fields.iter().enumerate() {
             if f.name.is_empty() || f.name.chars().any(|c| c.is_whitespace() || c.is_control()) {
@@ -366,12 +363,7 @@ mod tests {
         let mut c = PointCloud::organized(
             2,
             2,
-            vec![
-                [0.0, 1.0, 2.0],
-                [nan, nan, nan],
-                [-1.0, 5.0, 0.5],
-                [3.0, nan, 1.0],
-            ],
+            vec![[0.0, 1.0, 2.0], [nan, nan, nan], [-1.0, 5.0, 0.5], [3.0, nan, 1.0]],
         );
         c.fields.push(Field {
             name: "n".into(),

@@ -89,8 +89,8 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
 
     for (line_no, (bytes, next)) in (1..).zip(lines(buf)) {
         let err = |msg: String| CloudError::header(line_no, msg);
-        let text = std::str::from_utf8(bytes)
-            .map_err(|_| err("not text (binary data before the DATA line?)".into()))?;
+        let text =
+            std::str::from_utf8(bytes).map_err(|_| err("not text (binary data before the DATA line?)".into()))?;
         let text = text.trim();
         if text.is_empty() || text.starts_with('#') {
             continue;
@@ -111,10 +111,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
         };
         let single = || match values.as_slice() {
             [v] => number(v),
-            _ => Err(err(format!(
-                "{keyword} needs one value, found {}",
-                values.len()
-            ))),
+            _ => Err(err(format!("{keyword} needs one value, found {}", values.len()))),
         };
         match keyword {
             "VERSION" => {
@@ -170,9 +167,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                 match <[f64; 7]>::try_from(nums.as_slice()) {
                     Ok(v) if values.len() == 7 && v.iter().all(|x| x.is_finite()) => viewpoint = Some(v),
                     _ => {
-                        return Err(err(
-                            "VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)".into()
-                        ));
+                        return Err(err("VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)".into()));
                     }
                 }
             }
@@ -200,12 +195,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     ))
 }
 
-fn finish_header(
-    raw: RawHeader,
-    data: PcdData,
-    data_start: usize,
-    data_line: usize,
-) -> Result<Header, CloudError> {
+fn finish_header(raw: RawHeader, data: PcdData, data_start: usize, data_line: usize) -> Result<Header, CloudError> {
     let RawHeader {
         fields,
         sizes,
@@ -233,21 +223,9 @@ fn finish_header(
     // Old (v.5) headers may lack SIZE, TYPE or COUNT: PCL then assumes 4-byte floats, one each.
     let mut out = Vec::with_capacity(n);
     for (i, name) in names.into_iter().enumerate() {
-        let size = sizes
-            .as_ref()
-            .and_then(|(_, v)| v.get(i))
-            .copied()
-            .unwrap_or(4);
-        let ty = types
-            .as_ref()
-            .and_then(|(_, v)| v.get(i))
-            .copied()
-            .unwrap_or('F');
-        let count = counts
-            .as_ref()
-            .and_then(|(_, v)| v.get(i))
-            .copied()
-            .unwrap_or(1);
+        let size = sizes.as_ref().and_then(|(_, v)| v.get(i)).copied().unwrap_or(4);
+        let ty = types.as_ref().and_then(|(_, v)| v.get(i)).copied().unwrap_or('F');
+        let count = counts.as_ref().and_then(|(_, v)| v.get(i)).copied().unwrap_or(1);
         let Some(kind) = pcd_kind(ty, size) else {
             let line = (types.as_ref().map(|e| e.0))
                 .or(sizes.as_ref().map(|e| e.0))
@@ -258,20 +236,14 @@ fn finish_header(
             ));
         };
         if name != "_" && out.iter().any(|f: &PcdField| f.name == name) {
-            return Err(CloudError::header(
-                fields_line,
-                format!("field `{name}` appears twice"),
-            ));
+            return Err(CloudError::header(fields_line, format!("field `{name}` appears twice")));
         }
         out.push(PcdField { name, kind, count });
     }
     for axis in ["x", "y", "z"] {
         match out.iter().find(|f| f.name == axis) {
             None => {
-                return Err(CloudError::header(
-                    fields_line,
-                    format!("FIELDS has no `{axis}` field"),
-                ));
+                return Err(CloudError::header(fields_line, format!("FIELDS has no `{axis}` field")));
             }
             Some(f) if f.count != 1 => {
                 let line = counts.as_ref().map_or(fields_line, |e| e.0);
@@ -293,20 +265,14 @@ fn finish_header(
             if let Some((pl, p)) = p
                 && p != wh
             {
-                return Err(CloudError::header(
-                    pl,
-                    format!("POINTS {p} but WIDTH*HEIGHT = {wh}"),
-                ));
+                return Err(CloudError::header(pl, format!("POINTS {p} but WIDTH*HEIGHT = {wh}")));
             }
             (w, h, wh)
         }
         (None, None, Some((_, p))) => (p, 1, p),
         (None, Some((hl, _)), _) => return Err(CloudError::header(hl, "HEIGHT without WIDTH")),
         (None, None, None) => {
-            return Err(CloudError::header(
-                data_line,
-                "no WIDTH or POINTS before DATA",
-            ));
+            return Err(CloudError::header(data_line, "no WIDTH or POINTS before DATA"));
         }
     };
     Ok(Header {
@@ -343,9 +309,7 @@ pub(crate) fn parse_pcd(buf: &[u8]) -> Result<PointCloud, CloudError> {
 fn point_size(h: &Header) -> Result<usize, CloudError> {
     h.fields
         .iter()
-        .try_fold(0usize, |acc, f| {
-            f.kind.size().checked_mul(f.count)?.checked_add(acc)
-        })
+        .try_fold(0usize, |acc, f| f.kind.size().checked_mul(f.count)?.checked_add(acc))
         .ok_or_else(|| CloudError::Format("PCD header: point size overflows".into()))
 }
 
@@ -382,10 +346,7 @@ fn read_ascii(h: &Header, body: &[u8]) -> Result<Vec<Column>, CloudError> {
             break;
         }
         tokens.clear();
-        tokens.extend(
-            line.split(|b| b.is_ascii_whitespace())
-                .filter(|t| !t.is_empty()),
-        );
+        tokens.extend(line.split(|b| b.is_ascii_whitespace()).filter(|t| !t.is_empty()));
         if tokens.is_empty() {
             continue;
         }
@@ -613,25 +574,18 @@ mod tests {
         parse_pcd(text.as_bytes()).unwrap_err().to_string()
     }
 
-    const HEAD: &str =
-        "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n";
+    const HEAD: &str = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n";
 
     #[test]
     fn header_errors_name_the_line() {
-        let e =
-            err("VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4\nTYPE F F F F\nPOINTS 1\nDATA ascii\n");
+        let e = err("VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4\nTYPE F F F F\nPOINTS 1\nDATA ascii\n");
         assert_eq!(e, "header line 3: SIZE has 3 entries but FIELDS has 4");
-        let e = err(&format!(
-            "{HEAD}WIDTH 10\nHEIGHT 12\nPOINTS 100\nDATA ascii\n"
-        ));
+        let e = err(&format!("{HEAD}WIDTH 10\nHEIGHT 12\nPOINTS 100\nDATA ascii\n"));
         assert_eq!(e, "header line 9: POINTS 100 but WIDTH*HEIGHT = 120");
         let e = err("FIELDS x y\nPOINTS 1\nDATA ascii\n1 2\n");
         assert_eq!(e, "header line 1: FIELDS has no `z` field");
         let e = err("FIELDS x y z\nSIZE 4 4 3\nPOINTS 1\nDATA ascii\n");
-        assert!(
-            e.starts_with("header line 2: field `z`: TYPE F with SIZE 3"),
-            "{e}"
-        );
+        assert!(e.starts_with("header line 2: field `z`: TYPE F with SIZE 3"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 2\nDATA zip\n"));
         assert!(e.starts_with("header line 8: DATA zip"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 2\n"));
@@ -641,15 +595,9 @@ mod tests {
     #[test]
     fn data_errors_name_point_and_field() {
         let e = err(&format!("{HEAD}WIDTH 2\nDATA ascii\n1 2 3\n4 five 6\n"));
-        assert_eq!(
-            e,
-            "point 1 (line 10), field `y`: cannot parse `five` as f32"
-        );
+        assert_eq!(e, "point 1 (line 10), field `y`: cannot parse `five` as f32");
         let e = err(&format!("{HEAD}WIDTH 3\nDATA ascii\n1 2 3\n4 5 6\n"));
-        assert!(
-            e.starts_with("point 2 (line 11): unexpected end of file"),
-            "{e}"
-        );
+        assert!(e.starts_with("point 2 (line 11): unexpected end of file"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 2\nDATA binary\n0123456789abcdef"));
         assert!(e.starts_with("point 1: unexpected end of file"), "{e}");
     }
@@ -669,9 +617,7 @@ mod tests {
         file.extend_from_slice(&[0xff; 4]);
         let e = parse_pcd(&file).unwrap_err().to_string();
         assert!(e.contains("LZF data corrupt at byte"), "{e}");
-        let e = err(&format!(
-            "{HEAD}WIDTH 1000000000000\nHEIGHT 1000000000\nDATA binary\n"
-        ));
+        let e = err(&format!("{HEAD}WIDTH 1000000000000\nHEIGHT 1000000000\nDATA binary\n"));
         assert!(e.contains("overflows"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 1000000000\nDATA ascii\n1 2 3\n"));
         assert!(e.contains("point 1"), "{e}");
@@ -680,9 +626,7 @@ mod tests {
         assert!(e.contains("4 values, expected 1000000000000000003"), "{e}");
         let e = err(&format!("{huge_count} binary\n1 2 3 4\n"));
         assert!(e.starts_with("point 0: unexpected end of file"), "{e}");
-        let e = err(&format!(
-            "{huge_count} binary_compressed\n1 2 3 4 5 6 7 8\n"
-        ));
+        let e = err(&format!("{huge_count} binary_compressed\n1 2 3 4 5 6 7 8\n"));
         assert!(e.contains("overflow"), "{e}");
         let e = err("FIELDS x y z n m\nCOUNT 1 1 1 18446744073709551615 9\nWIDTH 9\nDATA ascii\n");
         assert!(e.contains("values per point overflow"), "{e}");
@@ -691,8 +635,7 @@ mod tests {
     #[test]
     fn old_header_and_padding() {
         // v.5 style: no VERSION, SIZE/TYPE/COUNT defaults; `_` padding skipped; x after others.
-        let c = parse_pcd(b"COLUMNS i x _ y z\nPOINTS 2\nDATA ascii\n7 1 0 2 3\n8 4 0 5 nan\n")
-            .unwrap();
+        let c = parse_pcd(b"COLUMNS i x _ y z\nPOINTS 2\nDATA ascii\n7 1 0 2 3\n8 4 0 5 nan\n").unwrap();
         assert_eq!(c.points[0], [1.0, 2.0, 3.0]);
         assert!(c.points[1][2].is_nan());
         assert_eq!(c.fields.len(), 1);

@@ -109,7 +109,9 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
             }
             ["obj_info", "sqscan", "viewpoint", rest @ ..] => {
                 let v: Vec<f64> = rest.iter().filter_map(|t| t.parse().ok()).collect();
-                viewpoint = <[f64; 7]>::try_from(v.as_slice()).ok().filter(|v| v.iter().all(|x| x.is_finite()));
+                viewpoint = <[f64; 7]>::try_from(v.as_slice())
+                    .ok()
+                    .filter(|v| v.iter().all(|x| x.is_finite()));
             }
             ["obj_info", ..] => {}
             ["format", f, _version] => {
@@ -137,23 +139,14 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                 let Some(element) = elements.last_mut() else {
                     return Err(err("property before any element".into()));
                 };
-                let kind =
-                    |t: &str| ply_kind(t).ok_or_else(|| err(format!("unknown type {}", quote(t))));
+                let kind = |t: &str| ply_kind(t).ok_or_else(|| err(format!("unknown type {}", quote(t))));
                 let (ty, name) = match rest {
                     ["list", len, item, name] => {
                         let len = kind(len)?;
                         if matches!(len, ScalarKind::F32 | ScalarKind::F64) {
-                            return Err(err(format!(
-                                "list `{name}`: length type must be an integer"
-                            )));
+                            return Err(err(format!("list `{name}`: length type must be an integer")));
                         }
-                        (
-                            PropType::List {
-                                len,
-                                item: kind(item)?,
-                            },
-                            name,
-                        )
+                        (PropType::List { len, item: kind(item)? }, name)
                     }
                     [ty, name] => (PropType::Scalar(kind(ty)?), name),
                     _ => return Err(err("property needs a type and a name".into())),
@@ -245,11 +238,7 @@ fn vertex_columns(vertex: &Element, capacity: usize) -> Vec<Option<Column>> {
 
 /// Decodes the vertex element and returns its columns and vertex count; elements before it are
 /// skipped, elements after it are not read at all.
-fn read_binary(
-    h: &Header,
-    body: &[u8],
-    big_endian: bool,
-) -> Result<(Vec<Column>, usize), CloudError> {
+fn read_binary(h: &Header, body: &[u8], big_endian: bool) -> Result<(Vec<Column>, usize), CloudError> {
     let mut pos = 0usize;
     for el in &h.elements {
         if el.name != "vertex" {
@@ -268,8 +257,7 @@ fn read_binary(
             for (p, col) in el.props.iter().zip(cols.iter_mut()) {
                 if let (Some(col), PropType::Scalar(kind)) = (col, p.ty) {
                     let range = (offset, kind.size());
-                    col.data
-                        .extend_strided(data, (stride, el.count), range, big_endian);
+                    col.data.extend_strided(data, (stride, el.count), range, big_endian);
                     offset += kind.size();
                 }
             }
@@ -312,12 +300,7 @@ fn eof(el: &Element, index: usize, field: Option<&str>) -> CloudError {
 }
 
 /// Skips a binary element starting at `pos`; returns the position after it.
-fn skip_binary(
-    el: &Element,
-    body: &[u8],
-    pos: usize,
-    big_endian: bool,
-) -> Result<usize, CloudError> {
+fn skip_binary(el: &Element, body: &[u8], pos: usize, big_endian: bool) -> Result<usize, CloudError> {
     let remaining = body.len().saturating_sub(pos);
     if let Some(size) = el.fixed_size() {
         return match el.count.checked_mul(size) {
@@ -341,12 +324,7 @@ fn skip_binary(
 }
 
 /// Skips the list at `at`; `None` if it runs past the end (or has a negative length).
-fn skip_list(
-    data: &[u8],
-    at: usize,
-    (len, item): (ScalarKind, ScalarKind),
-    big_endian: bool,
-) -> Option<usize> {
+fn skip_list(data: &[u8], at: usize, (len, item): (ScalarKind, ScalarKind), big_endian: bool) -> Option<usize> {
     let bytes = data.get(at..at + len.size())?;
     let mut value = FieldData::with_capacity(len, 1);
     if big_endian {
@@ -380,18 +358,13 @@ fn read_ascii(h: &Header, body: &[u8]) -> Result<(Vec<Column>, usize), CloudErro
                     let msg = "unexpected end of file";
                     return Err(CloudError::record(&el.name, i, line, Some(&p.name), msg));
                 };
-                let bad =
-                    |msg: String| CloudError::record(&el.name, i, Some(line), Some(&p.name), msg);
+                let bad = |msg: String| CloudError::record(&el.name, i, Some(line), Some(&p.name), msg);
                 match p.ty {
                     PropType::Scalar(kind) => {
                         if let Some(Some(col)) = cols.get_mut(j)
                             && !col.data.push_token(tok)
                         {
-                            return Err(bad(format!(
-                                "cannot parse {} as {}",
-                                quote(tok),
-                                ply_name(kind)
-                            )));
+                            return Err(bad(format!("cannot parse {} as {}", quote(tok), ply_name(kind))));
                         }
                     }
                     PropType::List { .. } => {
@@ -402,13 +375,7 @@ fn read_ascii(h: &Header, body: &[u8]) -> Result<(Vec<Column>, usize), CloudErro
                             if tokens.next_token().is_none() {
                                 let line = Some(tokens.line);
                                 let msg = "unexpected end of file in a list";
-                                return Err(CloudError::record(
-                                    &el.name,
-                                    i,
-                                    line,
-                                    Some(&p.name),
-                                    msg,
-                                ));
+                                return Err(CloudError::record(&el.name, i, line, Some(&p.name), msg));
                             }
                         }
                     }
@@ -424,11 +391,7 @@ fn read_ascii(h: &Header, body: &[u8]) -> Result<(Vec<Column>, usize), CloudErro
 
 /// Writes `cloud` as a PLY vertex element: `x y z` as `float`, then each field with its type
 /// (a field with `count > 1` as properties `name_0`, `name_1`, ...).
-pub fn write_ply(
-    mut w: impl Write,
-    cloud: &PointCloud,
-    format: PlyFormat,
-) -> Result<(), CloudError> {
+pub fn write_ply(mut w: impl Write, cloud: &PointCloud, format: PlyFormat) -> Result<(), CloudError> {
     cloud.validate()?;
     let n = cloud.points.len();
     let mut header = String::from("ply\n");
@@ -445,8 +408,7 @@ pub fn write_ply(
         let v: Vec<String> = v.iter().map(|x| x.to_string()).collect();
         header += &format!("obj_info sqscan viewpoint {}\n", v.join(" "));
     }
-    header +=
-        &format!("element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n");
+    header += &format!("element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n");
     for f in &cloud.fields {
         let ty = ply_name(f.data.kind());
         if f.count == 1 {
@@ -510,8 +472,7 @@ mod tests {
             .to_vec();
         for face in [[0i32, 1, 1], [1, 0, 0]] {
             file.push(3);
-            face.iter()
-                .for_each(|v| file.extend_from_slice(&v.to_be_bytes()));
+            face.iter().for_each(|v| file.extend_from_slice(&v.to_be_bytes()));
         }
         for (x, y, z, r) in [(1.0f64, 2.0f32, 3.0f32, 7u8), (4.0, 5.0, -6.0, 255)] {
             file.extend_from_slice(&x.to_be_bytes());
@@ -542,10 +503,7 @@ mod tests {
     #[test]
     fn errors_name_line_and_field() {
         let e = err(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n");
-        assert_eq!(
-            e,
-            "header line 3: vertex element has no scalar `z` property"
-        );
+        assert_eq!(e, "header line 3: vertex element has no scalar `z` property");
         let e = err(b"ply\nformat ascii 1.0\nelement vertex 1\nproperty floot x\n");
         assert_eq!(e, "header line 4: unknown type `floot`");
         let e = err(
@@ -558,10 +516,8 @@ mod tests {
             property float z\nend_header\n1 2 3\n4 5",
         );
         assert_eq!(e, "vertex 1 (line 9), field `z`: unexpected end of file");
-        let e = err(
-            b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n\
-            property float x\nproperty float y\nproperty float z\nend_header\n",
-        );
+        let e = err(b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n\
+            property float x\nproperty float y\nproperty float z\nend_header\n");
         assert_eq!(e, "vertex 0: unexpected end of file");
     }
 }

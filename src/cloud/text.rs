@@ -20,10 +20,7 @@ struct Spec {
 fn parse_spec(line: usize, rest: &str) -> Result<Vec<Spec>, CloudError> {
     let mut words = rest.split_ascii_whitespace();
     if words.by_ref().take(3).collect::<Vec<_>>() != ["x", "y", "z"] {
-        return Err(CloudError::header(
-            line,
-            format!("{COLUMNS_TAG} must start with x y z"),
-        ));
+        return Err(CloudError::header(line, format!("{COLUMNS_TAG} must start with x y z")));
     }
     words
         .map(|w| {
@@ -47,9 +44,7 @@ fn parse_spec(line: usize, rest: &str) -> Result<Vec<Spec>, CloudError> {
         .collect::<Result<Vec<Spec>, CloudError>>()
         .and_then(|specs| {
             for (i, s) in specs.iter().enumerate() {
-                if matches!(s.name.as_str(), "x" | "y" | "z")
-                    || specs[..i].iter().any(|t| t.name == s.name)
-                {
+                if matches!(s.name.as_str(), "x" | "y" | "z") || specs[..i].iter().any(|t| t.name == s.name) {
                     let msg = format!("{COLUMNS_TAG} column `{}` appears twice", s.name);
                     return Err(CloudError::header(line, msg));
                 }
@@ -79,9 +74,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
 
     for (line_no, (raw, _)) in (1..).zip(lines(buf)) {
         let point = coords[0].len();
-        let err = |field: Option<&str>, msg: String| {
-            CloudError::record("point", point, Some(line_no), field, msg)
-        };
+        let err = |field: Option<&str>, msg: String| CloudError::record("point", point, Some(line_no), field, msg);
         let text = std::str::from_utf8(raw).map_err(|_| err(None, "not UTF-8 text".into()))?;
         let (data, comment) = text.split_once('#').unwrap_or((text, ""));
         if let Some(rest) = comment.trim_start().strip_prefix(COLUMNS_TAG)
@@ -104,10 +97,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
         match layout {
             None => {
                 if tokens.len() < 3 {
-                    return Err(err(
-                        None,
-                        format!("{} columns, need at least x y z", tokens.len()),
-                    ));
+                    return Err(err(None, format!("{} columns, need at least x y z", tokens.len())));
                 }
                 if let Some((spec_line, specs)) = spec.take() {
                     let declared = specs.iter().try_fold(3usize, |n, s| n.checked_add(s.count));
@@ -135,20 +125,14 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
                 layout = Some((tokens.len(), line_no));
             }
             Some((n, first)) if n != tokens.len() => {
-                let msg = format!(
-                    "{} columns, expected {n} (as on line {first})",
-                    tokens.len()
-                );
+                let msg = format!("{} columns, expected {n} (as on line {first})", tokens.len());
                 return Err(err(None, msg));
             }
             Some(_) => {}
         }
         for (k, (axis, tok)) in ["x", "y", "z"].iter().zip(&tokens).enumerate() {
             let Some(v) = f32::parse_token(tok) else {
-                return Err(err(
-                    Some(axis),
-                    format!("cannot parse {} as f32", quote(tok)),
-                ));
+                return Err(err(Some(axis), format!("cannot parse {} as f32", quote(tok))));
             };
             coords[k].push(v);
         }
@@ -168,10 +152,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
                 for (c, (col, tok)) in cols.iter_mut().zip(rest).enumerate() {
                     let Some(v) = f64::parse_token(tok) else {
                         let name = format!("c{}", c + 3);
-                        return Err(err(
-                            Some(&name),
-                            format!("cannot parse {} as f64", quote(tok)),
-                        ));
+                        return Err(err(Some(&name), format!("cannot parse {} as f64", quote(tok))));
                     };
                     col.push(v);
                 }
@@ -298,10 +279,7 @@ mod tests {
             e(b"1 2 3\n4 5 z\n"),
             "point 1 (line 2), field `z`: cannot parse `z` as f32"
         );
-        assert_eq!(
-            e(b"1 2\n"),
-            "point 0 (line 1): 2 columns, need at least x y z"
-        );
+        assert_eq!(e(b"1 2\n"), "point 0 (line 1): 2 columns, need at least x y z");
         assert_eq!(
             e(b"# sqscan-columns: x y z i:u8\n1 2 3 300\n"),
             "point 0 (line 2), field `i`: cannot parse `300` as u8"

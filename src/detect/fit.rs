@@ -37,7 +37,13 @@ pub fn fit_pose(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iteratio
 }
 
 /// [`fit_pose`] stopping when a step improves the cost by less than `rel_tol` relative.
-pub fn fit_pose_tol(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iterations: usize, five_dof: bool, rel_tol: f64) -> Fit {
+pub fn fit_pose_tol(
+    start: &PlacedSuperquadric,
+    points: &[Point3<f64>],
+    max_iterations: usize,
+    five_dof: bool,
+    rel_tol: f64,
+) -> Fit {
     let mut placed = *start;
     // Every candidate is evaluated with its normal equations: an accepted step (the usual case
     // once the damping has settled) then needs no second pass over the points.
@@ -84,7 +90,11 @@ pub fn fit_pose_tol(start: &PlacedSuperquadric, points: &[Point3<f64>], max_iter
 
 /// The cost `sum r^2`, the Gauss-Newton matrix `J^T J` and the gradient `J^T r` at a pose, in
 /// one pass over the points. For a 5-DoF fit the spin row and column are replaced by identity.
-fn normal_equations(placed: &PlacedSuperquadric, points: &[Point3<f64>], five_dof: bool) -> (f64, Matrix6<f64>, Vector6<f64>) {
+fn normal_equations(
+    placed: &PlacedSuperquadric,
+    points: &[Point3<f64>],
+    five_dof: bool,
+) -> (f64, Matrix6<f64>, Vector6<f64>) {
     let mut h = Matrix6::<f64>::zeros();
     let mut g = Vector6::<f64>::zeros();
     let mut cost = 0.0;
@@ -116,7 +126,10 @@ mod tests {
     fn recovers_a_perturbed_pose_from_a_visible_half() {
         // Not a body of revolution, so all six pose parameters are observable.
         let sq = Superquadric::new([0.06, 0.045, 0.02], 0.4, 0.8, 0.3, 0.1).unwrap();
-        let truth = PlacedSuperquadric::new(sq, Isometry3::new(Vector3::new(0.8, 0.1, 0.74), Vector3::new(0.1, -0.2, 0.3)));
+        let truth = PlacedSuperquadric::new(
+            sq,
+            Isometry3::new(Vector3::new(0.8, 0.1, 0.74), Vector3::new(0.1, -0.2, 0.3)),
+        );
         // The half facing +x+z, as a sensor up and in front would see it.
         let view = Vector3::new(1.0, 0.0, 1.0).normalize();
         let pts: Vec<Point3<f64>> = truth

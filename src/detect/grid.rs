@@ -37,13 +37,22 @@ impl Grid {
         let mut cell = cell;
         let dims = loop {
             let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
-            if d.iter().try_fold(1usize, |acc, &x| acc.checked_mul(x)).is_some_and(|n| n <= 8 * points.len().max(1024)) {
+            if d.iter()
+                .try_fold(1usize, |acc, &x| acc.checked_mul(x))
+                .is_some_and(|n| n <= 8 * points.len().max(1024))
+            {
                 break d;
             }
             cell *= 1.5;
         };
         let n_cells = dims[0] * dims[1] * dims[2];
-        let mut g = Grid { cell, origin: lo, dims, starts: vec![0; n_cells + 1], order: Vec::new() };
+        let mut g = Grid {
+            cell,
+            origin: lo,
+            dims,
+            starts: vec![0; n_cells + 1],
+            order: Vec::new(),
+        };
         let ids: Vec<usize> = points.iter().map(|p| g.cell_index(p)).collect();
         for &c in &ids {
             g.starts[c + 1] += 1;
@@ -129,11 +138,21 @@ mod tests {
     fn radius_queries_match_brute_force() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
         let pts: Vec<Point3<f64>> = (0..3000)
-            .map(|_| Point3::new(rng.random_range(-1.0..1.0), rng.random_range(-0.5..0.5), rng.random_range(0.0..0.3)))
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(0.0..0.3),
+                )
+            })
             .collect();
         let grid = Grid::new(&pts, 0.05);
         for _ in 0..200 {
-            let c = Point3::new(rng.random_range(-1.2..1.2), rng.random_range(-0.6..0.6), rng.random_range(-0.1..0.4));
+            let c = Point3::new(
+                rng.random_range(-1.2..1.2),
+                rng.random_range(-0.6..0.6),
+                rng.random_range(-0.1..0.4),
+            );
             let r = rng.random_range(0.01..0.2);
             let mut got = grid.within(&pts, &c, r);
             got.sort();

@@ -219,9 +219,19 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let t_plane = Instant::now();
     let (plane, noise, scene) = if params.remove_plane {
         let removal = remove_dominant_plane(&points, false, params.viewpoint);
-        let noise = if removal.plane.is_some() { (removal.band / 3.0).max(0.0005) } else { 0.002 };
+        let noise = if removal.plane.is_some() {
+            (removal.band / 3.0).max(0.0005)
+        } else {
+            0.002
+        };
         if std::env::var_os("SQSCAN_DEBUG").is_some() {
-            eprintln!("plane {:?} band {:.4} inliers {} kept {}", removal.plane.map(|p| p.coefficients()), removal.band, removal.inliers, removal.kept.len());
+            eprintln!(
+                "plane {:?} band {:.4} inliers {} kept {}",
+                removal.plane.map(|p| p.coefficients()),
+                removal.band,
+                removal.inliers,
+                removal.kept.len()
+            );
         }
         let scene: Vec<Point3<f64>> = removal.kept.iter().map(|&i| points[i]).collect();
         (removal.plane, noise, scene)
@@ -235,14 +245,21 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         plane,
         points: n_input,
         scene_points: scene.len(),
-        timing: Timing { plane_ms, ..Default::default() },
+        timing: Timing {
+            plane_ms,
+            ..Default::default()
+        },
     };
     if scene.len() < 10 {
         report.timing.total_ms = ms(start);
         return report;
     }
     let t_search = Instant::now();
-    let min_size = model.parts.iter().map(|p| p.shape.min_size()).fold(f64::INFINITY, f64::min);
+    let min_size = model
+        .parts
+        .iter()
+        .map(|p| p.shape.min_size())
+        .fold(f64::INFINITY, f64::min);
     let max_size = model.parts.iter().map(|p| p.shape.max_size()).fold(0.0, f64::max);
     // Subsample to a quarter of the smallest size: a 30-point sample within min(a) of its seed
     // then still spans the patch, and the trials touch a fraction of the points.
@@ -250,12 +267,31 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let sub: Vec<Point3<f64>> = voxel_subsample(&scene, voxel).into_iter().map(|i| scene[i]).collect();
     let grid = Grid::new(&scene, 1.2 * max_size);
     let sub_grid = Grid::new(&sub, min_size);
-    let space =
-        SearchSpace { points: &scene, grid: &grid, sub: &sub, sub_grid: &sub_grid, viewpoint: params.viewpoint, noise, plane };
+    let space = SearchSpace {
+        points: &scene,
+        grid: &grid,
+        sub: &sub,
+        sub_grid: &sub_grid,
+        viewpoint: params.viewpoint,
+        noise,
+        plane,
+    };
     let spacing = median_spacing(&scene, &Grid::new(&scene, 0.02));
-    let samples: Vec<SurfaceSamples> = model.parts.iter().map(|p| SurfaceSamples::new(&p.shape, spacing, p.open)).collect();
-    let checks: Vec<search::PlaneCheck> = model.parts.iter().map(|p| search::PlaneCheck::new(&p.shape, noise)).collect();
-    let settings = SearchSettings { trials: params.trials, sample_points: params.sample_points, fit_iterations: params.fit_iterations };
+    let samples: Vec<SurfaceSamples> = model
+        .parts
+        .iter()
+        .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
+        .collect();
+    let checks: Vec<search::PlaneCheck> = model
+        .parts
+        .iter()
+        .map(|p| search::PlaneCheck::new(&p.shape, noise))
+        .collect();
+    let settings = SearchSettings {
+        trials: params.trials,
+        sample_points: params.sample_points,
+        fit_iterations: params.fit_iterations,
+    };
 
     // The first (anchor) part: the largest, searched over the whole scene.
     let anchor = (0..model.parts.len())
@@ -279,12 +315,22 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         if round > 0 {
             t_search = Instant::now();
         }
-        let anchors =
-            search_part(&space, &anchor_shape, &all_seeds, m, &settings, model.parts[anchor].open, &checks[anchor], stream_seed(params.seed, anchor as u64 + 1000 * round));
+        let anchors = search_part(
+            &space,
+            &anchor_shape,
+            &all_seeds,
+            m,
+            &settings,
+            model.parts[anchor].open,
+            &checks[anchor],
+            stream_seed(params.seed, anchor as u64 + 1000 * round),
+        );
         search_ms += ms(t_search);
         let t_verify = Instant::now();
-        let anchor_scores: Vec<Scores> =
-            anchors.par_iter().map(|h| score(&space, &h.placed, h.m, params.gamma, &samples[anchor])).collect();
+        let anchor_scores: Vec<Scores> = anchors
+            .par_iter()
+            .map(|h| score(&space, &h.placed, h.m, params.gamma, &samples[anchor]))
+            .collect();
         let anchor_rank = rank_sums(&paper_criteria(&anchor_scores));
         verify_ms += ms(t_verify);
 
@@ -295,14 +341,34 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                 let t = anchors[k].placed.pose.translation.vector;
                 let z = anchors[k].placed.pose.rotation * Vector3::z();
                 let s = &anchor_scores[k];
-                eprintln!("rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
-                    anchor_rank[k], t.x, t.y, t.z, z.x, z.y, z.z, s.m, s.s, s.i, s.coverage, s.rms, s.surface_points, s.inside_points, s.shell_points);
+                eprintln!(
+                    "rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
+                    anchor_rank[k],
+                    t.x,
+                    t.y,
+                    t.z,
+                    z.x,
+                    z.y,
+                    z.z,
+                    s.m,
+                    s.s,
+                    s.i,
+                    s.coverage,
+                    s.rms,
+                    s.surface_points,
+                    s.inside_points,
+                    s.shell_points
+                );
             }
         }
         let first_new = candidates.len();
         if !model.is_compound() {
             for &k in &order {
-                let parts = vec![PartResult { name: model.parts[0].name.clone(), placed: Some(anchors[k].placed), scores: anchor_scores[k] }];
+                let parts = vec![PartResult {
+                    name: model.parts[0].name.clone(),
+                    placed: Some(anchors[k].placed),
+                    scores: anchor_scores[k],
+                }];
                 candidates.push(finish(model, parts, Vec::new(), noise, &params.acceptance));
             }
         } else {
@@ -311,7 +377,9 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             let mut picked: Vec<usize> = Vec::new();
             for &k in &order {
                 let c = anchors[k].placed.pose.translation.vector;
-                let distinct = picked.iter().all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.max_size());
+                let distinct = picked
+                    .iter()
+                    .all(|&j| (anchors[j].placed.pose.translation.vector - c).norm() > anchor_shape.max_size());
                 if distinct && anchor_scores[k].coverage >= MIN_ANCHOR_COVERAGE {
                     picked.push(k);
                 }
@@ -320,7 +388,18 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                 }
             }
             let t = Instant::now();
-            let combos = compound_combinations(&space, model, anchor, &picked, &anchors, &anchor_scores, params, round, &samples, &checks);
+            let combos = compound_combinations(
+                &space,
+                model,
+                anchor,
+                &picked,
+                &anchors,
+                &anchor_scores,
+                params,
+                round,
+                &samples,
+                &checks,
+            );
             search_ms += ms(t);
             // Rank the combinations over the connection errors and every part's M, S, I.
             let t = Instant::now();
@@ -339,10 +418,34 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             if std::env::var_os("SQSCAN_DEBUG").is_some() {
                 for &k in idx.iter().take(12) {
                     let (_, parts, errs) = &combos[k];
-                    let desc: Vec<String> = parts.iter().map(|p| match p.placed {
-                        Some(q) => { let t = q.pose.translation.vector; format!("{} ({:.3} {:.3} {:.3}) M {:.3} S {} cov {:.2} in {} surf {}", p.name, t.x, t.y, t.z, p.scores.m, p.scores.s, p.scores.coverage, p.scores.inside_points, p.scores.surface_points) }
-                        None => format!("{} -", p.name) }).collect();
-                    eprintln!("combo sum {} A {:.1} deg D {:.3} | {}", sums[k], errs[0].0.to_degrees(), errs[0].1, desc.join(" | "));
+                    let desc: Vec<String> = parts
+                        .iter()
+                        .map(|p| match p.placed {
+                            Some(q) => {
+                                let t = q.pose.translation.vector;
+                                format!(
+                                    "{} ({:.3} {:.3} {:.3}) M {:.3} S {} cov {:.2} in {} surf {}",
+                                    p.name,
+                                    t.x,
+                                    t.y,
+                                    t.z,
+                                    p.scores.m,
+                                    p.scores.s,
+                                    p.scores.coverage,
+                                    p.scores.inside_points,
+                                    p.scores.surface_points
+                                )
+                            }
+                            None => format!("{} -", p.name),
+                        })
+                        .collect();
+                    eprintln!(
+                        "combo sum {} A {:.1} deg D {:.3} | {}",
+                        sums[k],
+                        errs[0].0.to_degrees(),
+                        errs[0].1,
+                        desc.join(" | ")
+                    );
                 }
             }
             // The best-ranked combination of every anchor candidate is refined as one rigid object
@@ -358,7 +461,12 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                 .map(|&k| {
                     let (_, parts, errors) = &combos[k];
                     let start = object_pose(model, parts);
-                    let smallest = model.parts.iter().map(|p| p.shape).min_by(|a, b| volume(a).total_cmp(&volume(b))).expect("parts");
+                    let smallest = model
+                        .parts
+                        .iter()
+                        .map(|p| p.shape)
+                        .min_by(|a, b| volume(a).total_cmp(&volume(b)))
+                        .expect("parts");
                     let coarse = 0.3 * search::sample_radius(&smallest);
                     let fine = search::refine_band(&smallest, noise);
                     let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
@@ -371,13 +479,21 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                         .map(|((p, q), samples)| {
                             let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
                             let m = fit::measure_of_fit(&q, &inliers);
-                            PartResult { name: p.name.clone(), placed: Some(q), scores: score(&space, &q, m, params.gamma, samples) }
+                            PartResult {
+                                name: p.name.clone(),
+                                placed: Some(q),
+                                scores: score(&space, &q, m, params.gamma, samples),
+                            }
                         })
                         .collect();
                     let mut d = finish(model, parts, Vec::new(), noise, &params.acceptance);
                     // The rigid fit moves parts that were not searched (a part never found is placed
                     // by the model): none may go through the support plane.
-                    let possible = d.parts.iter().zip(&checks).all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
+                    let possible = d
+                        .parts
+                        .iter()
+                        .zip(&checks)
+                        .all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
                     if !possible {
                         d.found = false;
                         d.confidence = d.confidence.min(0.1);
@@ -391,8 +507,26 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             if std::env::var_os("SQSCAN_DEBUG").is_some() {
                 for d in &refined {
                     let t = d.pose.translation.vector;
-                    eprintln!("refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}", d.found, d.confidence, t.x, t.y, t.z,
-                        d.parts.iter().map(|p| format!("{} cov {:.2} surf {} in {} rms {:.4}", p.name, p.scores.coverage, p.scores.surface_points, p.scores.inside_points, p.scores.rms)).collect::<Vec<_>>().join(" | "));
+                    eprintln!(
+                        "refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}",
+                        d.found,
+                        d.confidence,
+                        t.x,
+                        t.y,
+                        t.z,
+                        d.parts
+                            .iter()
+                            .map(|p| format!(
+                                "{} cov {:.2} surf {} in {} rms {:.4}",
+                                p.name,
+                                p.scores.coverage,
+                                p.scores.surface_points,
+                                p.scores.inside_points,
+                                p.scores.rms
+                            ))
+                            .collect::<Vec<_>>()
+                            .join(" | ")
+                    );
                 }
             }
             candidates.extend(refined);
@@ -419,7 +553,14 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             }
             for (k, part) in d.parts.iter().enumerate() {
                 let Some(placed) = part.placed else { continue };
-                let vis = verify::visibility(&points, &all_grid, &placed, params.viewpoint, report.plane.as_ref(), &samples[k]);
+                let vis = verify::visibility(
+                    &points,
+                    &all_grid,
+                    &placed,
+                    params.viewpoint,
+                    report.plane.as_ref(),
+                    &samples[k],
+                );
                 if std::env::var_os("SQSCAN_DEBUG").is_some() {
                     eprintln!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
                 }
@@ -561,7 +702,14 @@ fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec
     let mut order: Vec<(u64, usize)> = seeds.iter().map(|&i| (key(&points[i]), i)).collect();
     order.sort_unstable();
     let m = m.min(order.len());
-    (0..m).map(|h| order[h * order.len() / m..(h + 1) * order.len() / m].iter().map(|&(_, i)| i).collect()).collect()
+    (0..m)
+        .map(|h| {
+            order[h * order.len() / m..(h + 1) * order.len() / m]
+                .iter()
+                .map(|&(_, i)| i)
+                .collect()
+        })
+        .collect()
 }
 
 /// Which anchor candidate a combination grew from, its parts, and its connection errors.
@@ -589,7 +737,13 @@ fn compound_combinations(
     let mut frontier = vec![anchor];
     while let Some(p) = frontier.pop() {
         for (ci, c) in model.connections.iter().enumerate() {
-            let other = if c.parts[0] == p { c.parts[1] } else if c.parts[1] == p { c.parts[0] } else { continue };
+            let other = if c.parts[0] == p {
+                c.parts[1]
+            } else if c.parts[1] == p {
+                c.parts[0]
+            } else {
+                continue;
+            };
             if !seen[other] {
                 seen[other] = true;
                 visit.push((other, p, ci));
@@ -604,13 +758,24 @@ fn compound_combinations(
         sample_points: params.sample_points,
         fit_iterations: params.fit_iterations,
     };
-    let empty = |name: &str| PartResult { name: name.to_owned(), placed: None, scores: Scores { m: f64::INFINITY, ..Default::default() } };
+    let empty = |name: &str| PartResult {
+        name: name.to_owned(),
+        placed: None,
+        scores: Scores {
+            m: f64::INFINITY,
+            ..Default::default()
+        },
+    };
     // Partial combinations: a placement (or none) per part.
     let mut partial: Vec<(usize, Vec<PartResult>)> = picked
         .iter()
         .map(|&k| {
             let mut v: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
-            v[anchor] = PartResult { name: model.parts[anchor].name.clone(), placed: Some(anchors[k].placed), scores: anchor_scores[k] };
+            v[anchor] = PartResult {
+                name: model.parts[anchor].name.clone(),
+                placed: Some(anchors[k].placed),
+                scores: anchor_scores[k],
+            };
             (k, v)
         })
         .collect();
@@ -629,23 +794,41 @@ fn compound_combinations(
             let reach = shape.bounding_radius();
             let band = search::refine_band(&parent_placed.shape, space.noise);
             let mut seeds = Vec::new();
-            space.sub_grid.for_each_within(space.sub, &pc, conn.distance + reach, |i| {
-                let p = &space.sub[i];
-                if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
-                    seeds.push(i);
-                }
-            });
+            space
+                .sub_grid
+                .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
+                    let p = &space.sub[i];
+                    if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
+                        seeds.push(i);
+                    }
+                });
             let m = params.local_hypotheses.max(1);
             let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
-            let hyps = search_part(space, &shape, &seeds, m, &settings, model.parts[part].open, &checks[part], stream);
+            let hyps = search_part(
+                space,
+                &shape,
+                &seeds,
+                m,
+                &settings,
+                model.parts[part].open,
+                &checks[part],
+                stream,
+            );
             if hyps.is_empty() {
                 next.push((*origin, combo.clone()));
                 continue;
             }
-            let scores: Vec<Scores> = hyps.par_iter().map(|h| score(space, &h.placed, h.m, params.gamma, &samples[part])).collect();
+            let scores: Vec<Scores> = hyps
+                .par_iter()
+                .map(|h| score(space, &h.placed, h.m, params.gamma, &samples[part]))
+                .collect();
             for (h, s) in hyps.iter().zip(scores) {
                 let mut c = combo.clone();
-                c[part] = PartResult { name: model.parts[part].name.clone(), placed: Some(h.placed), scores: s };
+                c[part] = PartResult {
+                    name: model.parts[part].name.clone(),
+                    placed: Some(h.placed),
+                    scores: s,
+                };
                 next.push((*origin, c));
             }
         }
@@ -654,7 +837,11 @@ fn compound_combinations(
     partial
         .into_iter()
         .map(|(origin, parts)| {
-            let errors = model.connections.iter().map(|c| connection_error(model, c, &parts)).collect();
+            let errors = model
+                .connections
+                .iter()
+                .map(|c| connection_error(model, c, &parts))
+                .collect();
             (origin, parts, errors)
         })
         .collect()
@@ -669,14 +856,24 @@ fn connection_error(model: &Model, c: &crate::model::Connection, parts: &[PartRe
     let signed = model.parts[c.parts[0]].shape.is_tapered() && model.parts[c.parts[1]].shape.is_tapered();
     let za = a.pose.rotation * Vector3::z();
     let zb = b.pose.rotation * Vector3::z();
-    let nominal = if signed { c.angle } else { c.angle.min(std::f64::consts::PI - c.angle) };
+    let nominal = if signed {
+        c.angle
+    } else {
+        c.angle.min(std::f64::consts::PI - c.angle)
+    };
     let angle = axis_angle(&za, &zb, signed);
     let dist = (a.pose.translation.vector - b.pose.translation.vector).norm();
     ((nominal - angle).abs(), (c.distance - dist).abs())
 }
 
 /// Turn part placements into a detection: the object pose, the acceptance test, the confidence.
-fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f64)>, noise: f64, acc: &Acceptance) -> Detection {
+fn finish(
+    model: &Model,
+    parts: Vec<PartResult>,
+    connection_errors: Vec<(f64, f64)>,
+    noise: f64,
+    acc: &Acceptance,
+) -> Detection {
     let pose = object_pose(model, &parts);
     // Pool the measures over the parts found (a hidden part lowers coverage by its share).
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
@@ -697,7 +894,11 @@ fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f6
     }
     let coverage = covered / expected_weight.max(1e-12);
     let interior = inside as f64 / (surface as f64).max(1.0);
-    let rms = if surface > 0 { (ss / surface as f64).sqrt() } else { f64::INFINITY };
+    let rms = if surface > 0 {
+        (ss / surface as f64).sqrt()
+    } else {
+        f64::INFINITY
+    };
     let max_rms = acc.max_rms_sigmas * noise.max(0.001);
     let mut margins = vec![
         (coverage - acc.min_coverage) / 0.15,
@@ -715,7 +916,13 @@ fn finish(model: &Model, parts: Vec<PartResult>, connection_errors: Vec<(f64, f6
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
-    Detection { found: worst >= 0.0, confidence, pose, parts, connection_errors }
+    Detection {
+        found: worst >= 0.0,
+        confidence,
+        pose,
+        parts,
+        connection_errors,
+    }
 }
 
 /// The object's pose from its parts' placements. The anchor part (the largest found) fixes the
@@ -746,10 +953,19 @@ fn object_pose(model: &Model, parts: &[PartResult]) -> Isometry3<f64> {
     if others.is_empty() {
         return placed.pose * anchor_in_object.inverse();
     }
-    let mut symmetries = vec![UnitQuaternion::identity(), UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI)];
+    let mut symmetries = vec![
+        UnitQuaternion::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI),
+    ];
     if !shape.is_tapered() {
-        symmetries.push(UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
-        symmetries.push(UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::PI));
+        symmetries.push(UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            std::f64::consts::PI,
+        ));
+        symmetries.push(UnitQuaternion::from_axis_angle(
+            &Vector3::y_axis(),
+            std::f64::consts::PI,
+        ));
     }
     let mut best = (f64::INFINITY, placed.pose);
     for g in symmetries {
@@ -763,7 +979,10 @@ fn object_pose(model: &Model, parts: &[PartResult]) -> Isometry3<f64> {
                 part_pose *= Isometry3::rotation(Vector3::z() * spin);
             }
         }
-        let err: f64 = others.iter().map(|(mc, wc)| (part_pose.transform_point(mc).coords - wc).norm_squared()).sum();
+        let err: f64 = others
+            .iter()
+            .map(|(mc, wc)| (part_pose.transform_point(mc).coords - wc).norm_squared())
+            .sum();
         if err < best.0 {
             best = (err, part_pose);
         }

@@ -42,8 +42,10 @@ pub fn detection_json(d: &Detection) -> Value {
         v["connections"] = d
             .connection_errors
             .iter()
-            .map(|(a, dd)| json!({"angle_error_rad": if a.is_finite() { json!(r6(*a)) } else { Value::Null },
-                                  "distance_error_m": if dd.is_finite() { json!(r6(*dd)) } else { Value::Null }}))
+            .map(|(a, dd)| {
+                json!({"angle_error_rad": if a.is_finite() { json!(r6(*a)) } else { Value::Null },
+                                  "distance_error_m": if dd.is_finite() { json!(r6(*dd)) } else { Value::Null }})
+            })
             .collect();
     }
     v

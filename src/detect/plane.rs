@@ -37,7 +37,10 @@ impl Plane {
     }
 
     fn flipped(&self) -> Plane {
-        Plane { normal: -self.normal, d: -self.d }
+        Plane {
+            normal: -self.normal,
+            d: -self.d,
+        }
     }
 }
 
@@ -79,19 +82,32 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
     let k = eig.eigenvalues.imin();
     let normal = eig.eigenvectors.column(k).into_owned().try_normalize(1e-12)?;
     // The smallest eigenvalue is the mean squared distance to the plane.
-    Some((Plane { normal, d: -normal.dot(&c) }, eig.eigenvalues[k].max(0.0)))
+    Some((
+        Plane {
+            normal,
+            d: -normal.dot(&c),
+        },
+        eig.eigenvalues[k].max(0.0),
+    ))
 }
 
 /// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
 pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
     let all: Vec<usize> = (0..points.len()).collect();
-    let none = PlaneRemoval { plane: None, inliers: 0, band: 0.0, kept: all };
+    let none = PlaneRemoval {
+        plane: None,
+        inliers: 0,
+        band: 0.0,
+        kept: all,
+    };
     if points.len() < SEEDS {
         return none;
     }
     // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
-    let Some((whole, _)) = fit_plane(points, 0..points.len()) else { return none };
+    let Some((whole, _)) = fit_plane(points, 0..points.len()) else {
+        return none;
+    };
     let (u, v) = orthonormal_basis(&whole.normal);
     let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for p in points {
@@ -103,7 +119,10 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     }
     let side = (SEEDS as f64).sqrt().ceil() as usize;
     let mut seed_of_cell: Vec<Option<(usize, f64)>> = vec![None; side * side];
-    let (du, dv) = ((umax - umin).max(1e-9) / side as f64, (vmax - vmin).max(1e-9) / side as f64);
+    let (du, dv) = (
+        (umax - umin).max(1e-9) / side as f64,
+        (vmax - vmin).max(1e-9) / side as f64,
+    );
     for (i, p) in points.iter().enumerate() {
         let (a, b) = (u.dot(&p.coords), v.dot(&p.coords));
         let (cu, cv) = (((a - umin) / du) as usize, ((b - vmin) / dv) as usize);
@@ -143,7 +162,10 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let mut voted: Vec<(usize, Plane, f64)> = hypotheses
         .iter()
         .map(|(s, h, rms)| {
-            let support = seeds.iter().filter(|&&t| t != *s && h.signed_distance(&points[t]).abs() < threshold).count();
+            let support = seeds
+                .iter()
+                .filter(|&&t| t != *s && h.signed_distance(&points[t]).abs() < threshold)
+                .count();
             (support, *h, *rms)
         })
         .collect();
@@ -151,7 +173,11 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let (best, patch_rms) = voted
         .iter()
         .map(|(_, h, rms)| {
-            let consensus = points.iter().step_by(16).filter(|p| h.signed_distance(p).abs() < 0.01).count();
+            let consensus = points
+                .iter()
+                .step_by(16)
+                .filter(|p| h.signed_distance(p).abs() < 0.01)
+                .count();
             (consensus, *h, *rms)
         })
         .max_by_key(|(c, _, _)| *c)
@@ -184,9 +210,18 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     for _ in 0..12 {
         let previous = band;
         let near = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band);
-        let Some((p, _)) = fit_plane(points, near) else { return none };
-        plane = if p.normal.dot(&plane.normal) < 0.0 { p.flipped() } else { p };
-        let mut dist: Vec<f64> = (0..points.len()).map(|i| norm_dist(&plane, i).abs()).filter(|&d| d < band).collect();
+        let Some((p, _)) = fit_plane(points, near) else {
+            return none;
+        };
+        plane = if p.normal.dot(&plane.normal) < 0.0 {
+            p.flipped()
+        } else {
+            p
+        };
+        let mut dist: Vec<f64> = (0..points.len())
+            .map(|i| norm_dist(&plane, i).abs())
+            .filter(|&d| d < band)
+            .collect();
         // 1.4826 MAD estimates sigma; three sigma hold 99.7 % of the plane's noise.
         band = (3.0 * 1.4826 * median(&mut dist)).clamp(0.002, cap);
         if (band - previous).abs() < 0.05 * previous {
@@ -199,7 +234,12 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
     // by far the largest structure in view.
     if (inliers as f64) < MIN_PLANE_SHARE * points.len() as f64 {
-        return PlaneRemoval { plane: None, inliers, band, kept: (0..points.len()).collect() };
+        return PlaneRemoval {
+            plane: None,
+            inliers,
+            band,
+            kept: (0..points.len()).collect(),
+        };
     }
     // Orient the normal towards the objects: towards the sensor, which sees the plane's top
     // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
@@ -221,7 +261,12 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             d >= band || (keep_below && d <= -band)
         })
         .collect();
-    PlaneRemoval { plane: Some(plane), inliers, band, kept }
+    PlaneRemoval {
+        plane: Some(plane),
+        inliers,
+        band,
+        kept,
+    }
 }
 
 fn median(v: &mut [f64]) -> f64 {

@@ -14,28 +14,33 @@ use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
 
 /// Points near the placed model: each with the index of the part whose surface it is nearest.
 fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> Vec<(usize, Point3<f64>)> {
-    let centre = parts.iter().fold(Vector3::zeros(), |a, p| a + p.pose.translation.vector) / parts.len() as f64;
+    let centre = parts
+        .iter()
+        .fold(Vector3::zeros(), |a, p| a + p.pose.translation.vector)
+        / parts.len() as f64;
     let reach = parts
         .iter()
         .map(|p| (p.pose.translation.vector - centre).norm() + p.shape.bounding_radius())
         .fold(0.0, f64::max)
         + band;
     let mut out = Vec::new();
-    space.grid.for_each_within(space.points, &Point3::from(centre), reach, |i| {
-        let p = &space.points[i];
-        let mut best = (f64::INFINITY, usize::MAX);
-        for (k, part) in parts.iter().enumerate() {
-            let d = part.surface_distance(p);
-            if d.abs() < best.0.abs() {
-                best = (d, k);
+    space
+        .grid
+        .for_each_within(space.points, &Point3::from(centre), reach, |i| {
+            let p = &space.points[i];
+            let mut best = (f64::INFINITY, usize::MAX);
+            for (k, part) in parts.iter().enumerate() {
+                let d = part.surface_distance(p);
+                if d.abs() < best.0.abs() {
+                    best = (d, k);
+                }
             }
-        }
-        // A point inside one part but on another's surface belongs to the other: a handle's
-        // root sits inside the body.
-        if best.0.abs() < band && parts.iter().all(|q| q.surface_distance(p) > -band) {
-            out.push((best.1, *p));
-        }
-    });
+            // A point inside one part but on another's surface belongs to the other: a handle's
+            // root sits inside the body.
+            if best.0.abs() < band && parts.iter().all(|q| q.surface_distance(p) > -band) {
+                out.push((best.1, *p));
+            }
+        });
     out
 }
 
@@ -90,7 +95,12 @@ pub fn refine_object(
 }
 
 /// LM on the object pose: translation in the frame, rotation vector in the object frame.
-fn fit_object(model: &Model, start: &Isometry3<f64>, pts: &[(usize, Point3<f64>)], iterations: usize) -> Isometry3<f64> {
+fn fit_object(
+    model: &Model,
+    start: &Isometry3<f64>,
+    pts: &[(usize, Point3<f64>)],
+    iterations: usize,
+) -> Isometry3<f64> {
     let mut pose = *start;
     let mut c = cost(model, &pose, pts);
     let mut lambda = 1e-3;
@@ -177,14 +187,19 @@ mod tests {
                 delta[d] = h;
                 let perturb = |delta: &[f64; 6]| {
                     let t = pose.translation.vector + Vector3::new(delta[0], delta[1], delta[2]);
-                    let r = pose.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
+                    let r =
+                        pose.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
                     place(&model, &Isometry3::from_parts(t.into(), r))[k].residual(&p)
                 };
                 let plus = perturb(&delta);
                 delta[d] = -h;
                 let minus = perturb(&delta);
                 let fd = (plus - minus) / (2.0 * h);
-                assert!((fd - analytic[d]).abs() < 1e-4 * analytic.iter().fold(1.0f64, |a, v| a.max(v.abs())), "part {k} param {d}: {fd} vs {}", analytic[d]);
+                assert!(
+                    (fd - analytic[d]).abs() < 1e-4 * analytic.iter().fold(1.0f64, |a, v| a.max(v.abs())),
+                    "part {k} param {d}: {fd} vs {}",
+                    analytic[d]
+                );
             }
         }
     }

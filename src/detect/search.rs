@@ -64,20 +64,32 @@ impl PlaneCheck {
         // the noise before calling a pose impossible.
         // Samples half the smallest size apart find the lowest point to well within the
         // tolerance (the sagitta between samples is a small fraction of the spacing).
-        PlaneCheck { samples: shape.sample_surface(shape.min_size() / 2.0), tolerance: 3.0 * noise + 0.1 * shape.min_size() }
+        PlaneCheck {
+            samples: shape.sample_surface(shape.min_size() / 2.0),
+            tolerance: 3.0 * noise + 0.1 * shape.min_size(),
+        }
     }
 
     /// How far (m) the placed shape reaches through the plane (negative: it stays above).
     pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &super::plane::Plane) -> f64 {
         let n_local = placed.pose.rotation.inverse() * plane.normal;
-        let lowest = self.samples.iter().map(|q| n_local.dot(q)).fold(f64::INFINITY, f64::min);
+        let lowest = self
+            .samples
+            .iter()
+            .map(|q| n_local.dot(q))
+            .fold(f64::INFINITY, f64::min);
         -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + lowest)
     }
 
     /// Whether the pose is possible for an object resting on or above the plane.
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
-        if std::env::var_os("SQSCAN_NOCHECK").is_some() { return true; }
-        space.plane.as_ref().is_none_or(|p| self.penetration(placed, p) <= self.tolerance)
+        if std::env::var_os("SQSCAN_NOCHECK").is_some() {
+            return true;
+        }
+        space
+            .plane
+            .as_ref()
+            .is_none_or(|p| self.penetration(placed, p) <= self.tolerance)
     }
 }
 
@@ -101,7 +113,11 @@ pub struct Hypothesis {
 /// the sign observable, both spins of the x axis when the cross-section is not round), the
 /// centre one half-size behind the patch along its normal (on both sides when no viewpoint says
 /// which side faces the sensor).
-pub fn initial_poses(shape: &Superquadric, sample: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> Vec<Isometry3<f64>> {
+pub fn initial_poses(
+    shape: &Superquadric,
+    sample: &[Point3<f64>],
+    viewpoint: Option<Point3<f64>>,
+) -> Vec<Isometry3<f64>> {
     let n = sample.len() as f64;
     let c = sample.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / n;
     let mut cov = Matrix3::zeros();
@@ -140,10 +156,16 @@ pub fn initial_poses(shape: &Superquadric, sample: &[Point3<f64>], viewpoint: Op
             for r in rots {
                 // The half-size along the patch normal: how far behind the patch the centre lies.
                 let local_n = r.inverse() * normal;
-                let depth = (local_n.x * shape.a[0]).abs().max((local_n.y * shape.a[1]).abs()).max((local_n.z * shape.a[2]).abs());
+                let depth = (local_n.x * shape.a[0])
+                    .abs()
+                    .max((local_n.y * shape.a[1]).abs())
+                    .max((local_n.z * shape.a[2]).abs());
                 for o in &outward {
                     let centre = c - o * depth;
-                    out.push(Isometry3::from_parts(centre.into(), UnitQuaternion::from_rotation_matrix(&r)));
+                    out.push(Isometry3::from_parts(
+                        centre.into(),
+                        UnitQuaternion::from_rotation_matrix(&r),
+                    ));
                 }
             }
         }
@@ -154,13 +176,26 @@ pub fn initial_poses(shape: &Superquadric, sample: &[Point3<f64>], viewpoint: Op
 /// Fit the best of several starts: every start gets a short fit on half the sample, the best
 /// continues on all of it. A trial's pose only has to be good enough for the refinement to take
 /// over, so its fit stops at a 0.1 % improvement.
-pub fn fit_from_starts(shape: &Superquadric, starts: &[Isometry3<f64>], sample: &[Point3<f64>], iterations: usize) -> Option<Fit> {
+pub fn fit_from_starts(
+    shape: &Superquadric,
+    starts: &[Isometry3<f64>],
+    sample: &[Point3<f64>],
+    iterations: usize,
+) -> Option<Fit> {
     let five = shape.is_revolution();
     let half: Vec<Point3<f64>> = sample.iter().step_by(2).copied().collect();
     let screen_points = if half.len() >= MIN_SAMPLE { &half[..] } else { sample };
     let screened = starts
         .iter()
-        .map(|s| fit_pose_tol(&PlacedSuperquadric::new(*shape, *s), screen_points, SCREEN_ITERATIONS.min(iterations), five, 1e-3))
+        .map(|s| {
+            fit_pose_tol(
+                &PlacedSuperquadric::new(*shape, *s),
+                screen_points,
+                SCREEN_ITERATIONS.min(iterations),
+                five,
+                1e-3,
+            )
+        })
         .min_by(|a, b| a.m.total_cmp(&b.m))?;
     let rest = iterations.saturating_sub(screened.iterations);
     if rest == 0 {
@@ -190,7 +225,10 @@ fn inliers_in(points: &[Point3<f64>], grid: &Grid, placed: &PlacedSuperquadric, 
 /// The inlier band for refinement: three noise sigmas, at least a tenth of the smallest size
 /// (so a rough RANSAC pose still gathers its object's points), at most half of it.
 pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
-    (3.0 * noise).max(0.1 * shape.min_size()).min(0.5 * shape.min_size()).max(0.002)
+    (3.0 * noise)
+        .max(0.1 * shape.min_size())
+        .min(0.5 * shape.min_size())
+        .max(0.002)
 }
 
 /// Refine a pose on the full-resolution points near it until M stops improving.
@@ -200,7 +238,10 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothes
     // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
     // size, so the first round gathers points in a wide band and each round halves it.
     let mut band = (0.3 * sample_radius(&shape)).max(final_band);
-    let mut best = Hypothesis { placed: fit.placed, m: f64::INFINITY };
+    let mut best = Hypothesis {
+        placed: fit.placed,
+        m: f64::INFINITY,
+    };
     let mut placed = fit.placed;
     for _ in 0..REFINE_ROUNDS {
         let coarse = band > final_band;
@@ -226,7 +267,12 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothes
             break;
         }
         best = Hypothesis { placed, m: before };
-        let f = fit_pose(&placed, &inliers, iterations.min(FINE_ITERATIONS), shape.is_revolution());
+        let f = fit_pose(
+            &placed,
+            &inliers,
+            iterations.min(FINE_ITERATIONS),
+            shape.is_revolution(),
+        );
         if f.m >= before * 0.99 {
             break;
         }
@@ -272,7 +318,9 @@ pub fn ransac(
     for _ in 0..settings.trials {
         let s = seeds[rng.random_range(0..seeds.len())];
         near.clear();
-        space.sub_grid.for_each_within(space.sub, &space.sub[s], radius, |i| near.push(i));
+        space
+            .sub_grid
+            .for_each_within(space.sub, &space.sub[s], radius, |i| near.push(i));
         if near.len() < MIN_SAMPLE {
             continue;
         }
@@ -290,7 +338,10 @@ pub fn ransac(
                 continue;
             }
             let support = consensus(space, &f.placed, band);
-            if best.as_ref().is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m)) {
+            if best
+                .as_ref()
+                .is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m))
+            {
                 best = Some((support, f));
             }
         }
@@ -302,11 +353,13 @@ pub fn ransac(
 fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
     let centre = Point3::from(placed.pose.translation.vector);
     let mut n = 0;
-    space.sub_grid.for_each_within(space.sub, &centre, placed.shape.bounding_radius() + band, |i| {
-        if placed.surface_distance(&space.sub[i]).abs() < band {
-            n += 1;
-        }
-    });
+    space
+        .sub_grid
+        .for_each_within(space.sub, &centre, placed.shape.bounding_radius() + band, |i| {
+            if placed.surface_distance(&space.sub[i]).abs() < band {
+                n += 1;
+            }
+        });
     n
 }
 
@@ -323,7 +376,8 @@ pub fn distinct(mut fits: Vec<(usize, Fit)>) -> Vec<Fit> {
         let z = f.placed.pose.rotation * Vector3::z();
         let repeat = kept.iter().any(|k| {
             let dz = axis_angle_deg(&z, &(k.placed.pose.rotation * Vector3::z()), shape.is_tapered());
-            (k.placed.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape) && dz < 30.0
+            (k.placed.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
+                && dz < 30.0
         });
         if !repeat {
             kept.push(f);

@@ -54,7 +54,13 @@ impl Scores {
 }
 
 /// Compute the paper's S and I and the acceptance measures for a hypothesis.
-pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma: f64, samples: &SurfaceSamples) -> Scores {
+pub fn score(
+    space: &SearchSpace<'_>,
+    placed: &PlacedSuperquadric,
+    m: f64,
+    gamma: f64,
+    samples: &SurfaceSamples,
+) -> Scores {
     let centre = Point3::from(placed.pose.translation.vector);
     let shape = &placed.shape;
     let radius = 1.2 * shape.max_size();
@@ -66,34 +72,39 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
     let mut lid = 0usize;
     let mut outside_near: Vec<Point3<f64>> = Vec::new();
     let shell = band + 0.3 * super::search::sample_radius(shape);
-    space.grid.for_each_within(space.points, &centre, radius.max(shape.bounding_radius() + shell), |k| {
-        let p = &space.points[k];
-        let within_paper_radius = (p - centre).norm() <= radius;
-        let g = placed.f_pow_e1(p);
-        if within_paper_radius {
-            if g < 1.0 - gamma {
-                i += 1;
-            } else if g < 1.0 + gamma {
-                s += 1;
+    space.grid.for_each_within(
+        space.points,
+        &centre,
+        radius.max(shape.bounding_radius() + shell),
+        |k| {
+            let p = &space.points[k];
+            let within_paper_radius = (p - centre).norm() <= radius;
+            let g = placed.f_pow_e1(p);
+            if within_paper_radius {
+                if g < 1.0 - gamma {
+                    i += 1;
+                } else if g < 1.0 + gamma {
+                    s += 1;
+                }
             }
-        }
-        let d = placed.surface_distance(p);
-        if samples.open && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
-            // On the lid of an open container, where there is nothing to see: a closed lookalike
-            // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
-            lid += 1;
-        } else if d.abs() < band {
-            near_surface.push(*p);
-            ss += d * d;
-        } else if d < 0.0 {
-            // Inside an open container is its inner wall, seen through the opening.
-            if !samples.open {
-                inside_points += 1;
+            let d = placed.surface_distance(p);
+            if samples.open && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
+                // On the lid of an open container, where there is nothing to see: a closed lookalike
+                // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
+                lid += 1;
+            } else if d.abs() < band {
+                near_surface.push(*p);
+                ss += d * d;
+            } else if d < 0.0 {
+                // Inside an open container is its inner wall, seen through the opening.
+                if !samples.open {
+                    inside_points += 1;
+                }
+            } else if d < shell {
+                outside_near.push(*p);
             }
-        } else if d < shell {
-            outside_near.push(*p);
-        }
-    });
+        },
+    );
     // Of the points just outside, those that continue the explained surface (a neighbour on it
     // within reach): the data goes on past the model's edge, as when a smaller model sits on a
     // larger object of the same shape. Points of another object across a gap do not count.
@@ -112,11 +123,24 @@ pub fn score(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, m: f64, gamma
             .count()
     };
     let surface_points = near_surface.len();
-    let rms = if surface_points > 0 { (ss / surface_points as f64).sqrt() } else { f64::INFINITY };
+    let rms = if surface_points > 0 {
+        (ss / surface_points as f64).sqrt()
+    } else {
+        f64::INFINITY
+    };
     let coverage = coverage(placed, &near_surface, space.viewpoint, samples);
     // For an open part the paper's I (points that should not be there) are the lid points.
     let (i, inside_points) = if samples.open { (lid, lid) } else { (i, inside_points) };
-    Scores { m, s, i, coverage, rms, surface_points, inside_points, shell_points }
+    Scores {
+        m,
+        s,
+        i,
+        coverage,
+        rms,
+        surface_points,
+        inside_points,
+        shell_points,
+    }
 }
 
 /// A shape's surface samples with their outward normals, in the shape's frame, spaced for the
@@ -140,12 +164,22 @@ impl SurfaceSamples {
             .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
             .filter(|(_, n)| !(open && crate::model::is_lid(n)))
             .collect();
-        SurfaceSamples { spacing, data_spacing, open, local }
+        SurfaceSamples {
+            spacing,
+            data_spacing,
+            open,
+            local,
+        }
     }
 }
 
 /// Share of the visible model surface that has a measured point within reach.
-fn coverage(placed: &PlacedSuperquadric, observed: &[Point3<f64>], viewpoint: Option<Point3<f64>>, samples: &SurfaceSamples) -> f64 {
+fn coverage(
+    placed: &PlacedSuperquadric,
+    observed: &[Point3<f64>],
+    viewpoint: Option<Point3<f64>>,
+    samples: &SurfaceSamples,
+) -> f64 {
     if observed.is_empty() {
         return 0.0;
     }
@@ -172,7 +206,11 @@ fn coverage(placed: &PlacedSuperquadric, observed: &[Point3<f64>], viewpoint: Op
             covered += 1;
         }
     }
-    if expected == 0 { 0.0 } else { covered as f64 / expected as f64 }
+    if expected == 0 {
+        0.0
+    } else {
+        covered as f64 / expected as f64
+    }
 }
 
 /// Ranks of values (1 = best), ties sharing the better rank.
@@ -243,7 +281,11 @@ mod tests {
     fn ranked_voting_sums_ranks_with_ties() {
         assert_eq!(ranks(&[0.3, 0.1, 0.3, 0.2], true), vec![3, 1, 3, 2]);
         assert_eq!(ranks(&[5.0, 9.0, 1.0], false), vec![2, 1, 3]);
-        let sums = rank_sums(&[(vec![0.1, 0.2, 0.3], true), (vec![10.0, 30.0, 20.0], false), (vec![0.0, 5.0, 1.0], true)]);
+        let sums = rank_sums(&[
+            (vec![0.1, 0.2, 0.3], true),
+            (vec![10.0, 30.0, 20.0], false),
+            (vec![0.0, 5.0, 1.0], true),
+        ]);
         assert_eq!(sums, vec![1 + 3 + 1, 2 + 1 + 3, 3 + 2 + 2]);
     }
 }
@@ -272,7 +314,11 @@ impl Visibility {
     /// through, or that lies where nothing was scanned, is.
     pub fn seen_ratio(&self) -> f64 {
         let could = self.covered + self.see_through + self.unknown;
-        if could == 0 { 1.0 } else { self.covered as f64 / could as f64 }
+        if could == 0 {
+            1.0
+        } else {
+            self.covered as f64 / could as f64
+        }
     }
 }
 

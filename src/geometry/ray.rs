@@ -121,7 +121,11 @@ fn refine(f: &impl Fn(f64) -> f64, mut ta: f64, mut fa: f64, mut tb: f64, mut fb
         if tb - ta <= T_TOLERANCE {
             break;
         }
-        let t = if fa - fb > 0.0 { (ta * (-fb) + tb * fa) / (fa - fb) } else { 0.5 * (ta + tb) };
+        let t = if fa - fb > 0.0 {
+            (ta * (-fb) + tb * fa) / (fa - fb)
+        } else {
+            0.5 * (ta + tb)
+        };
         let t = t.clamp(ta, tb);
         let ft = f(t);
         if ft <= 0.0 {

@@ -29,7 +29,12 @@ impl Superquadric {
         if !(spacing.is_finite() && spacing > 0.0) {
             return out;
         }
-        let mut walk = Walk { sq: self, share: spacing * spacing, acc: 0.0, out: &mut out };
+        let mut walk = Walk {
+            sq: self,
+            share: spacing * spacing,
+            acc: 0.0,
+            out: &mut out,
+        };
         for face in 0..6 {
             walk.cell(face, -1.0, -1.0, 2.0, 0);
         }
@@ -104,7 +109,10 @@ impl PlacedSuperquadric {
     /// Dense sampling rather than a closed form (a tapered superquadric has none): at 1/64 of
     /// the smallest size the sagitta of a round bottom between samples is below 1e-4 of it.
     pub fn lowest_z(&self) -> f64 {
-        self.sample_surface(self.shape.min_size() / 64.0).iter().map(|p| p.z).fold(f64::INFINITY, f64::min)
+        self.sample_surface(self.shape.min_size() / 64.0)
+            .iter()
+            .map(|p| p.z)
+            .fold(f64::INFINITY, f64::min)
     }
 
     /// Surface points in the pose's frame, about `spacing` metres apart.

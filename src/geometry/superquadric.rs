@@ -203,7 +203,16 @@ impl Superquadric {
             None => s.powf(m),
         };
         let b = rz.powi(n1);
-        Some(Plain { n1, n2, rx, ry, rz, s, a, f: a + b })
+        Some(Plain {
+            n1,
+            n2,
+            rx,
+            ry,
+            rz,
+            s,
+            a,
+            f: a + b,
+        })
     }
 
     /// `F^e1` from `F`.
@@ -255,21 +264,31 @@ impl Superquadric {
                 Some(v) => v,
                 None => {
                     let g = (self.e1 * self.ln_f_parts(&q).lf).exp();
-                    return ResidualGrad { residual: g - 1.0, grad: Vector3::zeros() };
+                    return ResidualGrad {
+                        residual: g - 1.0,
+                        grad: Vector3::zeros(),
+                    };
                 }
             },
         };
         // Chain through the untaper x = X / fx(Z): dx/dX = 1/fx, dx/dZ = -x kx / (a3 fx). Where
         // the factor is clamped it does not depend on Z.
         let t = p.z / self.a[2];
-        let dfx = if self.kx * t + 1.0 > 0.5 * (1.0 - self.kx.abs()) { self.kx / self.a[2] } else { 0.0 };
-        let dfy = if self.ky * t + 1.0 > 0.5 * (1.0 - self.ky.abs()) { self.ky / self.a[2] } else { 0.0 };
-        let grad = Vector3::new(
-            gx / fx,
-            gy / fy,
-            gz - gx * q.x * dfx / fx - gy * q.y * dfy / fy,
-        );
-        ResidualGrad { residual: g - 1.0, grad }
+        let dfx = if self.kx * t + 1.0 > 0.5 * (1.0 - self.kx.abs()) {
+            self.kx / self.a[2]
+        } else {
+            0.0
+        };
+        let dfy = if self.ky * t + 1.0 > 0.5 * (1.0 - self.ky.abs()) {
+            self.ky / self.a[2]
+        } else {
+            0.0
+        };
+        let grad = Vector3::new(gx / fx, gy / fy, gz - gx * q.x * dfx / fx - gy * q.y * dfy / fy);
+        ResidualGrad {
+            residual: g - 1.0,
+            grad,
+        }
     }
 
     /// `F^e1` evaluated in the log domain only (the reference the fast path is tested against).
@@ -289,7 +308,13 @@ impl Superquadric {
         let m = self.e2 / self.e1;
         let da_ds = if pl.s > 0.0 { m * pl.a / pl.s } else { 0.0 };
         // d(r^n)/dq = n r^(n-1) sign(q) / a, with r = |q| / a.
-        let d = |r: f64, n: i32, c: f64, a: f64| if c == 0.0 && n > 1 { 0.0 } else { n as f64 * r.powi(n - 1) * c.signum() / a };
+        let d = |r: f64, n: i32, c: f64, a: f64| {
+            if c == 0.0 && n > 1 {
+                0.0
+            } else {
+                n as f64 * r.powi(n - 1) * c.signum() / a
+            }
+        };
         let gx = dg_df * da_ds * d(pl.rx, pl.n2, q.x, self.a[0]);
         let gy = dg_df * da_ds * d(pl.ry, pl.n2, q.y, self.a[1]);
         let gz = dg_df * d(pl.rz, pl.n1, q.z, self.a[2]);
@@ -417,7 +442,13 @@ impl PlacedSuperquadric {
     pub fn surface_distance(&self, p: &Point3<f64>) -> f64 {
         let rg = self.shape.residual_grad(&self.to_local(p));
         let g = rg.grad.norm();
-        if g > 0.0 { rg.residual / g } else if rg.residual < 0.0 { f64::NEG_INFINITY } else { f64::INFINITY }
+        if g > 0.0 {
+            rg.residual / g
+        } else if rg.residual < 0.0 {
+            f64::NEG_INFINITY
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Radial Euclidean distance of a point given in the frame.
@@ -449,8 +480,11 @@ impl PlacedSuperquadric {
     /// [`residual_pose_jacobian`](Self::residual_pose_jacobian).
     pub fn perturbed(&self, delta: &[f64; 6]) -> Self {
         let t = self.pose.translation.vector + Vector3::new(delta[0], delta[1], delta[2]);
-        let r = self.pose.rotation
-            * nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
-        Self { shape: self.shape, pose: Isometry3::from_parts(t.into(), r) }
+        let r =
+            self.pose.rotation * nalgebra::UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
+        Self {
+            shape: self.shape,
+            pose: Isometry3::from_parts(t.into(), r),
+        }
     }
 }

@@ -6,7 +6,11 @@ use rand_chacha::ChaCha8Rng;
 /// A random tapered superquadric with sizes 1-30 cm and the full exponent range.
 fn random_sq(rng: &mut ChaCha8Rng) -> Superquadric {
     Superquadric::new(
-        [rng.random_range(0.01..0.3), rng.random_range(0.01..0.3), rng.random_range(0.01..0.3)],
+        [
+            rng.random_range(0.01..0.3),
+            rng.random_range(0.01..0.3),
+            rng.random_range(0.01..0.3),
+        ],
         rng.random_range(0.1..=2.0),
         rng.random_range(0.1..=2.0),
         rng.random_range(-0.9..0.9),
@@ -23,8 +27,12 @@ fn random_pose(rng: &mut ChaCha8Rng) -> Isometry3<f64> {
     );
     let rot = UnitQuaternion::from_scaled_axis(axis * 3.0);
     Isometry3::from_parts(
-        Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(0.0..2.0))
-            .into(),
+        Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.0..2.0),
+        )
+        .into(),
         rot,
     )
 }
@@ -103,7 +111,11 @@ fn finite_and_accurate_on_planes_small_exponents_and_far_away() {
         assert!(f.is_finite() && f >= 0.0, "F = {f} at {p:?} for {sq}");
         assert!(g.is_finite() && g >= 0.0, "F^e1 = {g} at {p:?} for {sq}");
         let rg = sq.residual_grad(&p);
-        assert!(rg.grad.iter().all(|v| v.is_finite()), "gradient {:?} at {p:?} for {sq}", rg.grad);
+        assert!(
+            rg.grad.iter().all(|v| v.is_finite()),
+            "gradient {:?} at {p:?} for {sq}",
+            rg.grad
+        );
         let d = f_direct(&sq, &p);
         if d.is_finite() && d > 1e-200 && d < 1e200 {
             assert!((f - d).abs() <= 1e-9 * d, "F = {f}, direct {d} at {p:?} for {sq}");
@@ -122,12 +134,26 @@ fn sampled_points_lie_on_the_surface_and_scaling_moves_them_in_and_out() {
         assert!(!pts.is_empty());
         let centre = Point3::from(placed.pose.translation.vector);
         for p in &pts {
-            assert!(placed.residual(p).abs() < 1e-9, "residual {} for {sq}", placed.residual(p));
-            assert!(placed.radial_distance(p) < 1e-9, "radial {} for {sq}", placed.radial_distance(p));
+            assert!(
+                placed.residual(p).abs() < 1e-9,
+                "residual {} for {sq}",
+                placed.residual(p)
+            );
+            assert!(
+                placed.radial_distance(p) < 1e-9,
+                "radial {} for {sq}",
+                placed.radial_distance(p)
+            );
             let inner = centre + (p - centre) * 0.9;
             let outer = centre + (p - centre) * 1.1;
-            assert!(placed.residual(&inner) < 0.0, "0.9 x a surface point is not inside {sq}");
-            assert!(placed.residual(&outer) > 0.0, "1.1 x a surface point is not outside {sq}");
+            assert!(
+                placed.residual(&inner) < 0.0,
+                "0.9 x a surface point is not inside {sq}"
+            );
+            assert!(
+                placed.residual(&outer) > 0.0,
+                "1.1 x a surface point is not outside {sq}"
+            );
         }
     }
 }
@@ -141,7 +167,10 @@ fn sampling_is_uniform_over_the_area() {
     let pts = s.sample_surface(spacing);
     let expected = 4.0 * std::f64::consts::PI * r * r / (spacing * spacing);
     let n = pts.len() as f64;
-    assert!((n - expected).abs() < 0.03 * expected, "{n} points, area says {expected}");
+    assert!(
+        (n - expected).abs() < 0.03 * expected,
+        "{n} points, area says {expected}"
+    );
     // A prolate spheroid: the share of points in the band |z| < c/2 follows the share of area,
     // which the angle parametrisation gets badly wrong for elongated shapes.
     let (a, c) = (0.02, 0.1);
@@ -160,27 +189,45 @@ fn sampling_is_uniform_over_the_area() {
             2.0 * std::f64::consts::PI * x * (1.0 + dx * dx).sqrt() * (c / steps as f64)
         })
         .sum();
-    assert!((band - area_band / area_all).abs() < 0.01, "band share {band} vs {}", area_band / area_all);
+    assert!(
+        (band - area_band / area_all).abs() < 0.01,
+        "band share {band} vs {}",
+        area_band / area_all
+    );
     let n = pts.len() as f64 * 0.002 * 0.002;
-    assert!((n - area_all).abs() < 0.03 * area_all, "area from count {n} vs {area_all}");
+    assert!(
+        (n - area_all).abs() < 0.03 * area_all,
+        "area from count {n} vs {area_all}"
+    );
     // A box-like shape (e = 0.1) of very unequal sides: rounding its edges takes a few per cent
     // off the sharp box's area, never more.
     let b = Superquadric::untapered([0.1, 0.05, 0.01], 0.1, 0.1).unwrap();
     let n = b.sample_surface(0.003).len() as f64 * 0.003 * 0.003;
     let sharp = 8.0 * (0.1 * 0.05 + 0.1 * 0.01 + 0.05 * 0.01);
-    assert!(n < sharp && n > 0.93 * sharp, "box area from count {n} vs sharp {sharp}");
+    assert!(
+        n < sharp && n > 0.93 * sharp,
+        "box area from count {n} vs sharp {sharp}"
+    );
     // Nearest-neighbour distances on the sphere: no clumps, no holes.
     let s_pts = s.sample_surface(spacing);
     let mut nn: Vec<f64> = s_pts
         .iter()
         .map(|p| {
-            s_pts.iter().filter(|q| *q != p).map(|q| (p - q).norm()).fold(f64::INFINITY, f64::min)
+            s_pts
+                .iter()
+                .filter(|q| *q != p)
+                .map(|q| (p - q).norm())
+                .fold(f64::INFINITY, f64::min)
         })
         .collect();
     nn.sort_by(|a, b| a.total_cmp(b));
     let median = nn[nn.len() / 2];
     assert!(median > 0.5 * spacing && median < 1.2 * spacing, "median NN {median}");
-    assert!(nn[nn.len() * 99 / 100] < 2.0 * spacing, "largest gaps {}", nn[nn.len() * 99 / 100]);
+    assert!(
+        nn[nn.len() * 99 / 100] < 2.0 * spacing,
+        "largest gaps {}",
+        nn[nn.len() * 99 / 100]
+    );
 }
 
 #[test]
@@ -210,7 +257,11 @@ fn pose_jacobian_matches_finite_differences() {
             let rm = placed.perturbed(&d).residual(&p);
             let fd = (rp - rm) / (2.0 * h);
             let scale = j.iter().map(|v| v.abs()).fold(1.0, f64::max);
-            assert!((fd - j[k]).abs() < 1e-4 * scale, "param {k}: analytic {} vs fd {fd} for {sq}", j[k]);
+            assert!(
+                (fd - j[k]).abs() < 1e-4 * scale,
+                "param {k}: analytic {} vs fd {fd} for {sq}",
+                j[k]
+            );
         }
         checked += 1;
     }
@@ -249,9 +300,15 @@ fn ray_hits_lie_on_the_surface_and_are_the_first_hit() {
         let origin_local = target_local - dir_local * (3.0 * sq.bounding_radius());
         let origin = placed.pose.transform_point(&Point3::from(origin_local));
         let dir = placed.pose.transform_vector(&dir_local);
-        let t = placed.ray_hit(&origin, &dir, 10.0).expect("a ray through an inside point must hit");
+        let t = placed
+            .ray_hit(&origin, &dir, 10.0)
+            .expect("a ray through an inside point must hit");
         let hit = origin + dir * t;
-        assert!(placed.residual(&hit).abs() < 1e-6, "residual {} at the hit", placed.residual(&hit));
+        assert!(
+            placed.residual(&hit).abs() < 1e-6,
+            "residual {} at the hit",
+            placed.residual(&hit)
+        );
         // Nothing before the hit is inside (checked densely).
         for i in 0..200 {
             let s = t * i as f64 / 200.0;
@@ -278,15 +335,22 @@ fn plain_and_log_domain_evaluations_agree_for_integer_exponents() {
         sq.e1 = nice[rng.random_range(0..nice.len())];
         sq.e2 = nice[rng.random_range(0..nice.len())];
         let scale = [0.0, 1e-3, 0.5, 1.0, 1.5, 5.0, 100.0][rng.random_range(0..7)];
-        let mut p = Vector3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
-            .component_mul(&Vector3::from(sq.a))
+        let mut p = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .component_mul(&Vector3::from(sq.a))
             * scale;
         if rng.random_bool(0.3) {
             p.y = 0.0;
         }
         let fast = sq.f_pow_e1(&p);
         let reference = sq.f_pow_e1_log(&p);
-        assert!((fast - reference).abs() <= 1e-10 * reference.max(1e-300), "{fast} vs {reference} at {p:?} for {sq}");
+        assert!(
+            (fast - reference).abs() <= 1e-10 * reference.max(1e-300),
+            "{fast} vs {reference} at {p:?} for {sq}"
+        );
         // The gradient against central differences, away from the coordinate planes where the
         // shape has kinks for e = 2.
         if p.iter().all(|c| c.abs() > 1e-4) && scale > 0.1 && scale < 10.0 {

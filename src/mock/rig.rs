@@ -47,7 +47,13 @@ pub struct RigConfig {
 
 impl Default for RigConfig {
     fn default() -> Self {
-        Self { protocol: RigProtocol::PowerCube, rate_hz: 50.0, seed: 1, ptu_faults: Faults::default(), sensor_faults: Faults::default() }
+        Self {
+            protocol: RigProtocol::PowerCube,
+            rate_hz: 50.0,
+            seed: 1,
+            ptu_faults: Faults::default(),
+            sensor_faults: Faults::default(),
+        }
     }
 }
 
@@ -64,9 +70,17 @@ pub struct RigMock {
 impl RigMock {
     /// Starts the rig on the current tokio runtime: two ptys (with symlinks at the given links),
     /// the PTU answering on one, the sensor streaming on the other once started.
-    pub fn start(scene: Arc<Scene>, cfg: &RigConfig, ptu_link: Option<&Path>, sensor_link: Option<&Path>) -> io::Result<RigMock> {
+    pub fn start(
+        scene: Arc<Scene>,
+        cfg: &RigConfig,
+        ptu_link: Option<&Path>,
+        sensor_link: Option<&Path>,
+    ) -> io::Result<RigMock> {
         if !(cfg.rate_hz.is_finite() && cfg.rate_hz > 0.0 && cfg.rate_hz <= 10_000.0) {
-            return Err(io::Error::new(io::ErrorKind::InvalidInput, format!("rate {} Hz: give (0, 10000]", cfg.rate_hz)));
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("rate {} Hz: give (0, 10000]", cfg.rate_hz),
+            ));
         }
         let ptu: Arc<Mutex<dyn MockDevice>> = match cfg.protocol {
             RigProtocol::PowerCube => Arc::new(Mutex::new(MockPowerCube::new(MockPowerCubeConfig::default()))),
@@ -79,7 +93,13 @@ impl RigMock {
         let source = scene_source(scene, ptu.clone(), cfg.seed);
         let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
         let sensor_task = tokio::spawn(sensor_port.stream(source, period, cfg.sensor_faults.clone()));
-        Ok(RigMock { ptu_path, sensor_path, ptu, ptu_task, sensor_task })
+        Ok(RigMock {
+            ptu_path,
+            sensor_path,
+            ptu,
+            ptu_task,
+            sensor_task,
+        })
     }
 
     /// Unplugs both devices (their ptys close).
@@ -90,7 +110,11 @@ impl RigMock {
 }
 
 /// The sensor's view: the scene rendered at the PTU's angles at `now`.
-fn scene_source(scene: Arc<Scene>, ptu: Arc<Mutex<dyn MockDevice>>, seed: u64) -> impl FnMut(Instant) -> Profile + Send {
+fn scene_source(
+    scene: Arc<Scene>,
+    ptu: Arc<Mutex<dyn MockDevice>>,
+    seed: u64,
+) -> impl FnMut(Instant) -> Profile + Send {
     let mut index = 0u64;
     move |now| {
         let (pan, tilt) = ptu.lock().unwrap_or_else(|p| p.into_inner()).joint_angles(now);
@@ -98,6 +122,12 @@ fn scene_source(scene: Arc<Scene>, ptu: Arc<Mutex<dyn MockDevice>>, seed: u64) -
         let mut rng = ChaCha8Rng::seed_from_u64(sim::stream_seed(seed, index));
         index += 1;
         let raw = sim::render_profile(&scene, &pose, &mut rng);
-        Profile { seq: 0, timestamp_ns: 0, fraction_bits: scene.rig.sensor.fraction_bits, rows: raw.rows, intensity: Some(raw.intensity) }
+        Profile {
+            seq: 0,
+            timestamp_ns: 0,
+            fraction_bits: scene.rig.sensor.fraction_bits,
+            rows: raw.rows,
+            intensity: Some(raw.intensity),
+        }
     }
 }

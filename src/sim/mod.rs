@@ -203,7 +203,11 @@ pub fn render_profile(scene: &Scene, sensor_in_base: &Isometry3<f64>, rng: &mut 
 fn render_with(caster: &Caster<'_>, sensor_in_base: &Isometry3<f64>, rng: &mut ChaCha8Rng) -> RawProfile {
     let sensor = &caster.scene.rig.sensor;
     let n = sensor.columns;
-    let mut out = RawProfile { rows: vec![0; n], intensity: vec![0; n], labels: vec![LABEL_NONE; n] };
+    let mut out = RawProfile {
+        rows: vec![0; n],
+        intensity: vec![0; n],
+        labels: vec![LABEL_NONE; n],
+    };
     let origin = Point3::from(sensor_in_base.translation.vector);
     let camera = sensor_in_base.transform_point(&Point3::new(0.0, 0.0, sensor.baseline));
     let plane_normal = sensor_in_base.rotation * Vector3::z();
@@ -283,7 +287,9 @@ pub fn simulate(scene: &Scene, seed: u64) -> Sweep {
     for (i, (stamp, tilt, raw)) in rendered.into_iter().enumerate() {
         let pose = rig.sensor_in_base(rig.pan, tilt);
         for col in 0..columns {
-            let Some(row) = sensor.decode_row(raw.rows[col]) else { continue };
+            let Some(row) = sensor.decode_row(raw.rows[col]) else {
+                continue;
+            };
             let p = sensor.point_in_sensor(col, row);
             let k = i * columns + col;
             range_m[k] = p.norm() as f32;
@@ -300,12 +306,28 @@ pub fn simulate(scene: &Scene, seed: u64) -> Sweep {
         width: columns,
         height: profiles,
         fields: vec![
-            Field { name: "intensity".into(), count: 1, data: FieldData::U8(intensity) },
-            Field { name: "label".into(), count: 1, data: FieldData::U32(labels) },
+            Field {
+                name: "intensity".into(),
+                count: 1,
+                data: FieldData::U8(intensity),
+            },
+            Field {
+                name: "label".into(),
+                count: 1,
+                data: FieldData::U32(labels),
+            },
         ],
         viewpoint: Some(viewpoint_of(rig)),
     };
-    Sweep { profiles, columns, stamp_s, tilt_rad, pan_rad: rig.pan, range_m, cloud }
+    Sweep {
+        profiles,
+        columns,
+        stamp_s,
+        tilt_rad,
+        pan_rad: rig.pan,
+        range_m,
+        cloud,
+    }
 }
 
 /// The sensor pose at mid-sweep as a PCD viewpoint `[tx, ty, tz, qw, qx, qy, qz]`: the sensor
@@ -321,12 +343,20 @@ fn viewpoint_of(rig: &Rig) -> [f64; 7] {
 /// Render the range image as 8-bit grey: near returns bright, far ones darker, no return black.
 pub fn range_image_grey(sweep: &Sweep) -> Vec<u8> {
     let finite = sweep.range_m.iter().filter(|r| r.is_finite());
-    let (lo, hi) = finite.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &r| (lo.min(r), hi.max(r)));
+    let (lo, hi) = finite.fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), &r| {
+        (lo.min(r), hi.max(r))
+    });
     let span = (hi - lo).max(1e-6);
     sweep
         .range_m
         .iter()
-        .map(|&r| if r.is_finite() { (255.0 - 200.0 * (r - lo) / span).round() as u8 } else { 0 })
+        .map(|&r| {
+            if r.is_finite() {
+                (255.0 - 200.0 * (r - lo) / span).round() as u8
+            } else {
+                0
+            }
+        })
         .collect()
 }
 

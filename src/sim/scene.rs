@@ -173,8 +173,15 @@ impl Rig {
     /// Time of profile `i` from the start of the sweep (s) and the tilt then (rad): the tilt moves
     /// at constant speed and profiles are exposed at a constant rate from end to end.
     pub fn profile_time_and_tilt(&self, i: usize) -> (f64, f64) {
-        let f = if self.profiles > 1 { i as f64 / (self.profiles - 1) as f64 } else { 0.0 };
-        (f * self.sweep_duration(), self.tilt_start + f * (self.tilt_end - self.tilt_start))
+        let f = if self.profiles > 1 {
+            i as f64 / (self.profiles - 1) as f64
+        } else {
+            0.0
+        };
+        (
+            f * self.sweep_duration(),
+            self.tilt_start + f * (self.tilt_end - self.tilt_start),
+        )
     }
 }
 
@@ -212,9 +219,16 @@ impl Scene {
                     return Err(bad("table".into(), "height and center must be finite".into()));
                 }
                 if !(t.size.iter().all(|s| s.is_finite() && *s > 0.0)) {
-                    return Err(bad("table.size".into(), format!("{:?} must be two positive lengths (m)", t.size)));
+                    return Err(bad(
+                        "table.size".into(),
+                        format!("{:?} must be two positive lengths (m)", t.size),
+                    ));
                 }
-                Some(Table { height: t.height, center: t.center, size: t.size })
+                Some(Table {
+                    height: t.height,
+                    center: t.center,
+                    size: t.size,
+                })
             }
             None => None,
         };
@@ -235,7 +249,10 @@ impl Scene {
             let model_path = resolve(&o.model, models_dir);
             // A model path relative to the scene file is looked up next to it first.
             let model_path = if model_path.is_relative() && !model_path.exists() {
-                path.parent().map(|d| d.join(&model_path)).filter(|p| p.exists()).unwrap_or(model_path)
+                path.parent()
+                    .map(|d| d.join(&model_path))
+                    .filter(|p| p.exists())
+                    .unwrap_or(model_path)
             } else {
                 model_path
             };
@@ -258,16 +275,29 @@ impl Scene {
         let mut free_parts = Vec::new();
         for (i, p) in file.part.into_iter().enumerate() {
             let field = |f: &str| format!("part[{i}] ({}).{f}", p.name);
-            let shape = Superquadric::new(p.a, p.e1, p.e2, p.kx, p.ky).map_err(|e| bad(field("shape"), e.to_string()))?;
+            let shape =
+                Superquadric::new(p.a, p.e1, p.e2, p.kx, p.ky).map_err(|e| bad(field("shape"), e.to_string()))?;
             let mut pose = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
             if p.on_table {
-                let rotated = PlacedSuperquadric::new(shape, Isometry3::from_parts(Translation3::identity(), pose.rotation));
+                let rotated =
+                    PlacedSuperquadric::new(shape, Isometry3::from_parts(Translation3::identity(), pose.rotation));
                 let lowest = rotated.lowest_z();
                 pose = rest_on_table(field("on_table"), pose, lowest)?;
             }
-            free_parts.push(FreePart { name: p.name, placed: PlacedSuperquadric::new(shape, pose) });
+            free_parts.push(FreePart {
+                name: p.name,
+                placed: PlacedSuperquadric::new(shape, pose),
+            });
         }
-        Ok(Scene { description: file.description, table, floor: file.floor, objects, free_parts, rig, source: path.to_owned() })
+        Ok(Scene {
+            description: file.description,
+            table,
+            floor: file.floor,
+            objects,
+            free_parts,
+            rig,
+            source: path.to_owned(),
+        })
     }
 
     /// Every superquadric in the scene in the base frame, with its point label

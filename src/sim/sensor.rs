@@ -57,13 +57,19 @@ impl SensorModel {
             return Err(("columns", format!("{columns}: give 1 to 8192")));
         }
         if !(fov > 0.0 && fov < 170f64.to_radians()) {
-            return Err(("fov_deg", format!("{} deg: give a field of view in (0, 170)", fov.to_degrees())));
+            return Err((
+                "fov_deg",
+                format!("{} deg: give a field of view in (0, 170)", fov.to_degrees()),
+            ));
         }
         if !(baseline.is_finite() && baseline > 0.0 && baseline < 2.0) {
             return Err(("baseline", format!("{baseline} m: give a camera offset in (0, 2) m")));
         }
         if !(range_min > 0.0 && range_max > range_min && range_max.is_finite()) {
-            return Err(("range_min", format!("[{range_min}, {range_max}] m is not a depth range")));
+            return Err((
+                "range_min",
+                format!("[{range_min}, {range_max}] m is not a depth range"),
+            ));
         }
         if !(noise_sigma_at_1m.is_finite() && (0.0..0.1).contains(&noise_sigma_at_1m)) {
             return Err(("noise_sigma_at_1m", format!("{noise_sigma_at_1m} m: give 0 to 0.1")));
@@ -72,7 +78,10 @@ impl SensorModel {
             return Err(("dropout", format!("{dropout}: a probability in [0, 1]")));
         }
         if !(max_incidence > 0.0 && max_incidence <= std::f64::consts::FRAC_PI_2) {
-            return Err(("max_incidence_deg", format!("{} deg: give (0, 90]", max_incidence.to_degrees())));
+            return Err((
+                "max_incidence_deg",
+                format!("{} deg: give (0, 90]", max_incidence.to_degrees()),
+            ));
         }
         if fraction_bits > 8 {
             return Err(("fraction_bits", format!("{fraction_bits}: give 0 to 8")));
@@ -135,7 +144,11 @@ impl SensorModel {
     /// The fixed-point row value the sensor reports (0 = no return).
     pub fn encode_row(&self, row: f64) -> u16 {
         let v = (row * f64::from(1u32 << self.fraction_bits)).round();
-        if v >= 1.0 && v <= f64::from(u16::MAX) { v as u16 } else { 0 }
+        if v >= 1.0 && v <= f64::from(u16::MAX) {
+            v as u16
+        } else {
+            0
+        }
     }
 
     /// The sub-pixel row of a reported value, `None` for 0 (no return).

@@ -95,8 +95,14 @@ fn laser_and_camera_shadows_of_a_sphere() {
             }
         }
     }
-    assert!(camera_shadow > 50, "the scene must produce a camera shadow ({camera_shadow})");
-    assert!(table_points > 20_000 && sphere_points > 500, "{table_points} table, {sphere_points} sphere points");
+    assert!(
+        camera_shadow > 50,
+        "the scene must produce a camera shadow ({camera_shadow})"
+    );
+    assert!(
+        table_points > 20_000 && sphere_points > 500,
+        "{table_points} table, {sphere_points} sphere points"
+    );
     // Every column whose laser hits the sphere returns from the sphere or nothing; the ones that
     // return nothing are grazing or self-shadowed from the camera.
     assert!(laser_shadow < sphere_points);
@@ -108,7 +114,13 @@ fn same_seed_same_sweep_other_seed_other_noise() {
     let a = simulate(&scene, 5);
     let b = simulate(&scene, 5);
     let c = simulate(&scene, 6);
-    let bits = |s: &Sweep| s.cloud.points.iter().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+    let bits = |s: &Sweep| {
+        s.cloud
+            .points
+            .iter()
+            .flat_map(|p| p.map(f32::to_bits))
+            .collect::<Vec<_>>()
+    };
     assert_eq!(bits(&a), bits(&b));
     assert_ne!(bits(&a), bits(&c));
 }

@@ -131,8 +131,7 @@ impl<S: Link> FlirPtu<S> {
     /// through its whole range (see [`PanTilt::home`]).
     pub async fn new(link: S, cfg: FlirConfig) -> Result<Self, Error> {
         let placeholder = FlirAxisInfo {
-            resolution: Resolution::from_arcsec_per_step(1.0)
-                .unwrap_or_else(|| unreachable!("1 arcsec/step is valid")),
+            resolution: Resolution::from_arcsec_per_step(1.0).unwrap_or_else(|| unreachable!("1 arcsec/step is valid")),
             min_steps: 0,
             max_steps: 0,
             max_speed_steps: 0,
@@ -240,12 +239,10 @@ impl<S: Link> FlirPtu<S> {
     /// A query's value as a step count (positions, limits, speeds are integers).
     pub async fn query_steps(&mut self, axis: Axis, q: AxisQuery) -> Result<i32, Error> {
         let n = self.query(axis, q).await?;
-        n.as_i64()
-            .and_then(|v| i32::try_from(v).ok())
-            .ok_or(Error::Protocol {
-                expected: "an integer step count",
-                got: format!("{n:?}"),
-            })
+        n.as_i64().and_then(|v| i32::try_from(v).ok()).ok_or(Error::Protocol {
+            expected: "an integer step count",
+            got: format!("{n:?}"),
+        })
     }
 
     async fn query(&mut self, axis: Axis, q: AxisQuery) -> Result<Number, Error> {
@@ -267,18 +264,13 @@ impl<S: Link> FlirPtu<S> {
     /// and waits for the answer, up to the home timeout.
     pub async fn reset(&mut self) -> Result<(), Error> {
         self.goal = None;
-        self.exchange(&PtuCommand::Reset, self.cfg.home_timeout)
-            .await?;
+        self.exchange(&PtuCommand::Reset, self.cfg.home_timeout).await?;
         // The reset answer's limit hits are the recalibration, not a fault.
         self.limit_hit = None;
         Ok(())
     }
 
-    async fn exchange(
-        &mut self,
-        cmd: &PtuCommand,
-        wait: Duration,
-    ) -> Result<Option<Number>, Error> {
+    async fn exchange(&mut self, cmd: &PtuCommand, wait: Duration) -> Result<Option<Number>, Error> {
         let wire = cmd.encode();
         let want_value = cmd.is_query();
         self.stats.exchanges += 1;
@@ -350,11 +342,7 @@ impl<S: Link> FlirPtu<S> {
         None
     }
 
-    async fn await_reply(
-        &mut self,
-        want_value: bool,
-        wait: Duration,
-    ) -> Result<Option<Number>, Error> {
+    async fn await_reply(&mut self, want_value: bool, wait: Duration) -> Result<Option<Number>, Error> {
         let deadline = tokio::time::Instant::from_std(deadline_after(wait));
         let mut buf = [0u8; 256];
         loop {
@@ -389,10 +377,7 @@ impl<S: Link> FlirPtu<S> {
         let sample = PositionSample {
             t: start + span / 2,
             span,
-            pan_rad: self
-                .cfg
-                .pan
-                .to_joint(self.pan.resolution.steps_to_rad(i64::from(pan))),
+            pan_rad: self.cfg.pan.to_joint(self.pan.resolution.steps_to_rad(i64::from(pan))),
             tilt_rad: self
                 .cfg
                 .tilt
@@ -452,15 +437,11 @@ impl<S: Link> PanTilt for FlirPtu<S> {
         let tilt = self.target_steps(Axis::Tilt, goal.tilt_rad)?;
         let pan_speed = self.speed_steps(Axis::Pan, goal.speed_rad_s)?;
         let tilt_speed = self.speed_steps(Axis::Tilt, goal.speed_rad_s)?;
-        self.command(&PtuCommand::SetSpeed(Axis::Pan, pan_speed))
-            .await?;
-        self.command(&PtuCommand::SetSpeed(Axis::Tilt, tilt_speed))
-            .await?;
+        self.command(&PtuCommand::SetSpeed(Axis::Pan, pan_speed)).await?;
+        self.command(&PtuCommand::SetSpeed(Axis::Tilt, tilt_speed)).await?;
         self.limit_hit = None;
-        self.command(&PtuCommand::SetPosition(Axis::Pan, pan))
-            .await?;
-        self.command(&PtuCommand::SetPosition(Axis::Tilt, tilt))
-            .await?;
+        self.command(&PtuCommand::SetPosition(Axis::Pan, pan)).await?;
+        self.command(&PtuCommand::SetPosition(Axis::Tilt, tilt)).await?;
         self.goal = Some(GoalSteps {
             pan: i64::from(pan),
             tilt: i64::from(tilt),
@@ -486,8 +467,7 @@ impl<S: Link> PanTilt for FlirPtu<S> {
         let mut tick = tokio::time::interval(self.cfg.sample_period);
         tick.set_missed_tick_behavior(MissedTickBehavior::Delay);
         let still_for = Duration::try_from_secs_f64(
-            2.0 / self.goal.map_or(1.0, |g| g.min_speed.max(1) as f64)
-                + 4.0 * self.cfg.sample_period.as_secs_f64(),
+            2.0 / self.goal.map_or(1.0, |g| g.min_speed.max(1) as f64) + 4.0 * self.cfg.sample_period.as_secs_f64(),
         )
         .unwrap_or(Duration::MAX);
         let mut last: Option<((i64, i64), Instant)> = None;

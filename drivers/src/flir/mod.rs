@@ -51,8 +51,7 @@ impl Resolution {
     /// i32 (the unit's own limits, `pn`/`px`, are far smaller: check against those too).
     pub fn rad_to_steps(self, rad: f64) -> Option<i32> {
         let steps = (rad / self.rad_per_step()).round();
-        (steps.is_finite() && steps >= f64::from(i32::MIN) && steps <= f64::from(i32::MAX))
-            .then_some(steps as i32)
+        (steps.is_finite() && steps >= f64::from(i32::MIN) && steps <= f64::from(i32::MAX)).then_some(steps as i32)
     }
 }
 

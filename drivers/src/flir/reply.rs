@@ -233,17 +233,14 @@ fn first_number(text: &str) -> Option<Number> {
             .trim_end_matches([',', ';', ':', '.', ')'])
             .trim_start_matches('(');
         let numeric = t.bytes().any(|b| b.is_ascii_digit())
-            && t.bytes()
-                .all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.'));
+            && t.bytes().all(|b| b.is_ascii_digit() || matches!(b, b'-' | b'+' | b'.'));
         if !numeric {
             return None;
         }
-        t.parse::<i64>().map(Number::Int).ok().or_else(|| {
-            t.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .map(Number::Float)
-        })
+        t.parse::<i64>()
+            .map(Number::Int)
+            .ok()
+            .or_else(|| t.parse::<f64>().ok().filter(|v| v.is_finite()).map(Number::Float))
     })
 }
 
@@ -316,7 +313,9 @@ mod tests {
 
     #[test]
     fn errors_are_typed() {
-        let got = parse(b"! Illegal Command\r\n! Illegal Command Argument\r\n! Pan speed out of range\r\n! something else\r\n");
+        let got = parse(
+            b"! Illegal Command\r\n! Illegal Command Argument\r\n! Pan speed out of range\r\n! something else\r\n",
+        );
         assert_eq!(
             got,
             [
@@ -340,14 +339,8 @@ mod tests {
                 Ok
             ]
         );
-        assert_eq!(
-            parse(b"!P\r\n* 12\r\n"),
-            [LimitHit(Axis::Pan), Value(Number::Int(12))]
-        );
-        assert_eq!(
-            parse(b"!T* 12\r\n"),
-            [LimitHit(Axis::Tilt), Value(Number::Int(12))]
-        );
+        assert_eq!(parse(b"!P\r\n* 12\r\n"), [LimitHit(Axis::Pan), Value(Number::Int(12))]);
+        assert_eq!(parse(b"!T* 12\r\n"), [LimitHit(Axis::Tilt), Value(Number::Int(12))]);
     }
 
     #[test]
@@ -372,10 +365,7 @@ mod tests {
     #[test]
     fn garbage_is_unparsed_never_a_panic() {
         let got = parse(b"Pan-Tilt Controller v2.13.4r0(D46-17)\r\n\xFF\xFE\x00\r\npp\r\n*** \r\n");
-        assert_eq!(
-            got[0],
-            Unparsed("Pan-Tilt Controller v2.13.4r0(D46-17)".into())
-        );
+        assert_eq!(got[0], Unparsed("Pan-Tilt Controller v2.13.4r0(D46-17)".into()));
         assert!(matches!(&got[1], Unparsed(_)));
         assert_eq!(got[2], Unparsed("pp".into()));
         // "*** ": an ok whose text "**" has no number.
@@ -414,9 +404,7 @@ mod tests {
                 Value(Number::Int(-3090)),
                 Value(Number::Int(3090)),
                 Ok,
-                Error(PtuError::OutOfRange(
-                    "Maximum allowable Pan position is 3090".into()
-                )),
+                Error(PtuError::OutOfRange("Maximum allowable Pan position is 3090".into())),
                 LimitHit(Axis::Pan),
                 LimitHit(Axis::Tilt),
                 LimitHit(Axis::Tilt),

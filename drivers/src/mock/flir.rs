@@ -191,8 +191,7 @@ impl MockFlirPtu {
     fn read(&mut self, bytes: &[u8], now: Instant, out: &mut Vec<Vec<u8>>) {
         for (i, &b) in bytes.iter().enumerate() {
             if self.blocked.is_some() {
-                self.backlog
-                    .extend_from_slice(bytes.get(i..).unwrap_or_default());
+                self.backlog.extend_from_slice(bytes.get(i..).unwrap_or_default());
                 return;
             }
             if matches!(b, b' ' | b'\r' | b'\n') {
@@ -295,10 +294,7 @@ impl MockFlirPtu {
         let value = if arg.is_empty() {
             None
         } else {
-            match std::str::from_utf8(arg)
-                .ok()
-                .and_then(|s| s.parse::<i64>().ok())
-            {
+            match std::str::from_utf8(arg).ok().and_then(|s| s.parse::<i64>().ok()) {
                 Some(v) => Some(v),
                 None => return self.refuse(token, "Illegal Command Argument"),
             }
@@ -329,22 +325,10 @@ impl MockFlirPtu {
                     axis.cfg.resolution_arcsec
                 )
             }),
-            (b'n', None) => Ok(answer(
-                "Minimum position of",
-                axis.cfg.min_steps.to_string(),
-            )),
-            (b'x', None) => Ok(answer(
-                "Maximum position of",
-                axis.cfg.max_steps.to_string(),
-            )),
-            (b'u', None) => Ok(answer(
-                "Upper speed bound of",
-                axis.cfg.upper_speed.to_string(),
-            )),
-            (b'l', None) => Ok(answer(
-                "Lower speed bound of",
-                axis.cfg.lower_speed.to_string(),
-            )),
+            (b'n', None) => Ok(answer("Minimum position of", axis.cfg.min_steps.to_string())),
+            (b'x', None) => Ok(answer("Maximum position of", axis.cfg.max_steps.to_string())),
+            (b'u', None) => Ok(answer("Upper speed bound of", axis.cfg.upper_speed.to_string())),
+            (b'l', None) => Ok(answer("Lower speed bound of", axis.cfg.lower_speed.to_string())),
             (b'p' | b'o', Some(v)) => {
                 let target = if q == b'o' {
                     (axis.target.round() as i64).saturating_add(v)
@@ -352,15 +336,9 @@ impl MockFlirPtu {
                     v
                 };
                 if target > axis.cfg.max_steps {
-                    Err(format!(
-                        "Maximum allowable {name} position is {}",
-                        axis.cfg.max_steps
-                    ))
+                    Err(format!("Maximum allowable {name} position is {}", axis.cfg.max_steps))
                 } else if target < axis.cfg.min_steps {
-                    Err(format!(
-                        "Minimum allowable {name} position is {}",
-                        axis.cfg.min_steps
-                    ))
+                    Err(format!("Minimum allowable {name} position is {}", axis.cfg.min_steps))
                 } else {
                     if immediate {
                         axis.target = target as f64;
@@ -372,15 +350,9 @@ impl MockFlirPtu {
             }
             (b's', Some(v)) => {
                 if v > axis.cfg.upper_speed {
-                    Err(format!(
-                        "Maximum allowable {name} speed is {}",
-                        axis.cfg.upper_speed
-                    ))
+                    Err(format!("Maximum allowable {name} speed is {}", axis.cfg.upper_speed))
                 } else if v < axis.cfg.lower_speed {
-                    Err(format!(
-                        "Minimum allowable {name} speed is {}",
-                        axis.cfg.lower_speed
-                    ))
+                    Err(format!("Minimum allowable {name} speed is {}", axis.cfg.lower_speed))
                 } else {
                     axis.speed = v as f64;
                     Ok("*".into())
@@ -503,10 +475,7 @@ mod tests {
         assert!(m.wants_poll());
         assert!(m.poll(t0 + Duration::from_millis(50)).is_empty());
         // The `pp ` waited in the input buffer until `a ` was answered.
-        assert_eq!(
-            text(m.poll(t0 + Duration::from_millis(200))),
-            "*\r\n* 100\r\n"
-        );
+        assert_eq!(text(m.poll(t0 + Duration::from_millis(200))), "*\r\n* 100\r\n");
         assert!(m.receive(b"r ", t0 + Duration::from_millis(200)).is_empty());
         assert_eq!(text(m.poll(t0 + Duration::from_secs(2))), "!T!T!P!P*\r\n");
         assert_eq!(m.steps(t0 + Duration::from_secs(2)), (0, 0));

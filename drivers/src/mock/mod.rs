@@ -144,10 +144,7 @@ impl MockPort {
         let mut replies = 0u64;
         let mut buf = [0u8; 1024];
         loop {
-            let polling = device
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .wants_poll();
+            let polling = device.lock().unwrap_or_else(|p| p.into_inner()).wants_poll();
             // `read` is cancel-safe: losing the race to the poll timer loses no bytes.
             let input = if polling {
                 tokio::select! {

@@ -14,8 +14,8 @@ use std::time::{Duration, Instant};
 
 use super::MockDevice;
 use crate::powercube::{
-    Command, CubeState, Direction, Frame, FrameDecoder, ModuleId, MotionTarget, Param, Reply,
-    ShortState, Value, player_bcc, schunk_bcc,
+    Command, CubeState, Direction, Frame, FrameDecoder, ModuleId, MotionTarget, Param, Reply, ShortState, Value,
+    player_bcc, schunk_bcc,
 };
 
 /// Integration step (s): fine enough that a ramp ends within micro-radians of its target.
@@ -473,11 +473,7 @@ mod tests {
         ask(&mut m, Request::new(pan, Command::Reset), t0);
         ask(&mut m, Request::new(pan, ramp(0.5)), t0);
         assert_eq!(m.pan.position(t0 + Duration::from_secs(5)), 0.5);
-        ask(
-            &mut m,
-            Request::new(pan, Command::Home),
-            t0 + Duration::from_secs(5),
-        );
+        ask(&mut m, Request::new(pan, Command::Home), t0 + Duration::from_secs(5));
         assert!(!m.pan.cube_state().is_homed());
         assert_eq!(m.pan.position(t0 + Duration::from_secs(10)), 0.0);
         assert!(m.pan.cube_state().is_homed());
@@ -491,10 +487,7 @@ mod tests {
         ask(&mut m, Request::new(tilt, ramp(9.0)), t0);
         assert_eq!(m.tilt.position(t0 + Duration::from_secs(20)), 1.5);
         let nobody = ModuleId::new(5).unwrap();
-        assert!(
-            m.receive(&Request::new(nobody, Command::Reset).encode(), t0)
-                .is_empty()
-        );
+        assert!(m.receive(&Request::new(nobody, Command::Reset).encode(), t0).is_empty());
     }
 
     #[test]

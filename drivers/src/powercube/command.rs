@@ -226,11 +226,7 @@ impl Motion {
             MotionTarget::Step { .. } => mode::FSTEP,
             MotionTarget::Velocity { .. } => mode::FVEL,
         };
-        if self.with_reply {
-            base + mode::WITH_REPLY
-        } else {
-            base
-        }
+        if self.with_reply { base + mode::WITH_REPLY } else { base }
     }
 }
 
@@ -312,11 +308,7 @@ impl Command {
             len: data.len(),
         };
         let no_args = |cmd: Command| {
-            if args.is_empty() {
-                Ok(cmd)
-            } else {
-                Err(bad_len)
-            }
+            if args.is_empty() { Ok(cmd) } else { Err(bad_len) }
         };
         match c {
             code::RESET => no_args(Command::Reset),
@@ -409,12 +401,9 @@ impl Reply {
             len: data.len(),
         };
         match c {
-            code::RESET
-            | code::HOME
-            | code::HALT
-            | code::WATCHDOG
-            | code::STARTMOVE
-            | code::RESETTIME => Ok(Reply::Ack { command: c }),
+            code::RESET | code::HOME | code::HALT | code::WATCHDOG | code::STARTMOVE | code::RESETTIME => {
+                Ok(Reply::Ack { command: c })
+            }
             code::SET_EXT => {
                 let &p = args.first().ok_or(bad_len)?;
                 Ok(Reply::SetExt { param: param(p)? })
@@ -569,10 +558,7 @@ mod tests {
 
     #[test]
     fn command_byte_literals() {
-        assert_eq!(
-            Command::GetExt(Param::ActPos).payload().as_slice(),
-            [0x0A, 0x3C]
-        );
+        assert_eq!(Command::GetExt(Param::ActPos).payload().as_slice(), [0x0A, 0x3C]);
         assert_eq!(
             Command::SetExt {
                 param: Param::RampVel,
@@ -605,10 +591,7 @@ mod tests {
             target: MotionTarget::Ramp { pos_rad: 0.0 },
             with_reply: true,
         };
-        assert_eq!(
-            Command::SetMotion(framp).payload().as_slice(),
-            [0x0B, 0x0E, 0, 0, 0, 0]
-        );
+        assert_eq!(Command::SetMotion(framp).payload().as_slice(), [0x0B, 0x0E, 0, 0, 0, 0]);
         assert_eq!(Command::Reset.payload().as_slice(), [0x00]);
         assert_eq!(Command::Home.payload().as_slice(), [0x01]);
         assert_eq!(Command::Halt.payload().as_slice(), [0x02]);
@@ -620,9 +603,7 @@ mod tests {
     #[test]
     fn act_pos_reply_from_the_worked_example() {
         let mut d = FrameDecoder::new();
-        d.push(&[
-            0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x15, 0x03,
-        ]);
+        d.push(&[0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x15, 0x03]);
         let frame = d.next_frame().unwrap().unwrap();
         let req = Request::new(id(12), Command::GetExt(Param::ActPos));
         assert!(req.is_reply(&frame));
@@ -664,9 +645,7 @@ mod tests {
                     dio: 0x03,
                 },
                 Command::SetMotion(_) => return None,
-                other => Reply::Ack {
-                    command: other.code(),
-                },
+                other => Reply::Ack { command: other.code() },
             })
         };
         for cmd in all_commands() {
@@ -686,29 +665,18 @@ mod tests {
         // UNVERIFIED payload after the echo: accept the echo plus anything.
         assert_eq!(
             Reply::parse(&[0x08, 0x4F, 0x00, 0x00]),
-            Ok(Reply::SetExt {
-                param: Param::RampVel
-            })
+            Ok(Reply::SetExt { param: Param::RampVel })
         );
     }
 
     #[test]
     fn malformed_data_gives_typed_errors() {
         assert_eq!(Command::parse(&[]), Err(CommandError::Empty));
-        assert_eq!(
-            Command::parse(&[0x55]),
-            Err(CommandError::UnknownCommand(0x55))
-        );
-        assert_eq!(
-            Command::parse(&[0x0A, 0x99]),
-            Err(CommandError::UnknownParam(0x99))
-        );
+        assert_eq!(Command::parse(&[0x55]), Err(CommandError::UnknownCommand(0x55)));
+        assert_eq!(Command::parse(&[0x0A, 0x99]), Err(CommandError::UnknownParam(0x99)));
         assert_eq!(
             Command::parse(&[0x0A, 0x3C, 0x00]),
-            Err(CommandError::BadLength {
-                command: 0x0A,
-                len: 3
-            })
+            Err(CommandError::BadLength { command: 0x0A, len: 3 })
         );
         assert_eq!(
             Command::parse(&[0x0B, 0x05, 0, 0, 0, 0]),
@@ -716,24 +684,15 @@ mod tests {
         );
         assert_eq!(
             Command::parse(&[0x0B, 0x06, 0, 0, 0, 0]),
-            Err(CommandError::BadLength {
-                command: 0x0B,
-                len: 6
-            })
+            Err(CommandError::BadLength { command: 0x0B, len: 6 })
         );
         assert_eq!(
             Reply::parse(&[0x0A, 0x27, 0x01]),
-            Err(CommandError::BadLength {
-                command: 0x0A,
-                len: 3
-            })
+            Err(CommandError::BadLength { command: 0x0A, len: 3 })
         );
         assert_eq!(
             Reply::parse(&[0x0B, 0x10, 0, 0]),
-            Err(CommandError::BadLength {
-                command: 0x0B,
-                len: 4
-            })
+            Err(CommandError::BadLength { command: 0x0B, len: 4 })
         );
     }
 

@@ -14,9 +14,7 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::sync::mpsc::UnboundedSender;
 use tokio::time::{MissedTickBehavior, timeout_at};
 
-use super::{
-    Command, CubeState, FrameDecoder, ModuleId, Motion, MotionTarget, Param, Reply, Request, Value,
-};
+use super::{Command, CubeState, FrameDecoder, ModuleId, Motion, MotionTarget, Param, Reply, Request, Value};
 use crate::Error;
 use crate::link::{Link, SerialLink, classify_io, open_serial};
 use crate::ptu::{AxisConfig, AxisState, Goal, Limits, PanTilt, PositionSample, PtuState};
@@ -175,11 +173,7 @@ impl<S: Link> PowerCubePtu<S> {
     }
 
     /// One request/reply exchange with retries. `Ok(None)` for a command without a reply.
-    pub async fn request(
-        &mut self,
-        joint: Joint,
-        command: Command,
-    ) -> Result<Option<Reply>, Error> {
+    pub async fn request(&mut self, joint: Joint, command: Command) -> Result<Option<Reply>, Error> {
         let req = Request::new(self.module(joint), command);
         let wire = req.encode();
         self.stats.exchanges += 1;
@@ -259,8 +253,7 @@ impl<S: Link> PowerCubePtu<S> {
 
     /// SET_EXT of one parameter.
     pub async fn set(&mut self, joint: Joint, param: Param, value: Value) -> Result<(), Error> {
-        self.request(joint, Command::SetExt { param, value })
-            .await?;
+        self.request(joint, Command::SetExt { param, value }).await?;
         Ok(())
     }
 
@@ -298,10 +291,8 @@ impl<S: Link> PowerCubePtu<S> {
         for (joint, (lo, hi)) in [(Joint::Pan, limits.pan_rad), (Joint::Tilt, limits.tilt_rad)] {
             let axis = self.axis(joint);
             let (a, b) = (axis.to_device(lo), axis.to_device(hi));
-            self.set(joint, Param::MinPos, Value::F32(a.min(b) as f32))
-                .await?;
-            self.set(joint, Param::MaxPos, Value::F32(a.max(b) as f32))
-                .await?;
+            self.set(joint, Param::MinPos, Value::F32(a.min(b) as f32)).await?;
+            self.set(joint, Param::MaxPos, Value::F32(a.max(b) as f32)).await?;
         }
         self.limits = limits;
         Ok(())
@@ -312,8 +303,7 @@ impl<S: Link> PowerCubePtu<S> {
         self.goal = None;
         for (joint, v) in [(Joint::Pan, pan_rad_s), (Joint::Tilt, tilt_rad_s)] {
             let vel_rad_s = (self.axis(joint).sign * v) as f32;
-            self.motion(joint, MotionTarget::Velocity { vel_rad_s })
-                .await?;
+            self.motion(joint, MotionTarget::Velocity { vel_rad_s }).await?;
         }
         Ok(())
     }

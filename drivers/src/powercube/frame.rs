@@ -40,11 +40,7 @@ pub struct ModuleId(u8);
 impl ModuleId {
     /// A module id in 1..=31; `None` outside (0 is not a module, and the wire field has 5 bits).
     pub const fn new(id: u8) -> Option<Self> {
-        if id >= 1 && id <= 31 {
-            Some(Self(id))
-        } else {
-            None
-        }
+        if id >= 1 && id <= 31 { Some(Self(id)) } else { None }
     }
 
     /// The id as a number.
@@ -177,10 +173,7 @@ impl Frame {
         let id = self.module.get();
         // len <= 8 by construction of Payload, so it fits the 5-bit field.
         let len = self.data.len() as u8;
-        [
-            self.direction.telid0_base() | (id >> 3),
-            ((id << 5) & 0xE0) | len,
-        ]
+        [self.direction.telid0_base() | (id >> 3), ((id << 5) & 0xE0) | len]
     }
 
     /// The telegram as sent on the wire: STX, escaped TelID/data/Schunk BCC, ETX.
@@ -193,11 +186,7 @@ impl Frame {
         // Worst case every body byte is escaped.
         let mut out = Vec::with_capacity(2 + 2 * MAX_BODY_LEN);
         out.push(STX);
-        for &b in telid
-            .iter()
-            .chain(self.data.as_slice())
-            .chain(std::iter::once(&bcc))
-        {
+        for &b in telid.iter().chain(self.data.as_slice()).chain(std::iter::once(&bcc)) {
             if matches!(b, STX | ETX | DLE) {
                 out.push(DLE);
                 out.push(b.wrapping_add(ESCAPE_OFFSET));
@@ -239,8 +228,7 @@ pub fn schunk_bcc(telid: [u8; 2], data: &[u8]) -> u8 {
 /// "TelID-derived id" to be the 5-bit module id decoded from the TelID
 /// (`((TelID0 & 3) << 3) | (TelID1 >> 5)`), for either direction.
 pub fn player_bcc(module: ModuleId, data: &[u8]) -> u8 {
-    data.iter()
-        .fold(module.get(), |acc, &b| acc.wrapping_add(b))
+    data.iter().fold(module.get(), |acc, &b| acc.wrapping_add(b))
 }
 
 /// Which checksum form a received telegram carried.
@@ -255,14 +243,8 @@ pub enum ChecksumForm {
 /// What is wrong with a telegram. The decoder reports it and resynchronises on the next STX.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FrameError {
-    #[error(
-        "bad checksum: received {received:#04x}, expected {schunk:#04x} (Schunk) or {player:#04x} (Player)"
-    )]
-    BadChecksum {
-        received: u8,
-        schunk: u8,
-        player: u8,
-    },
+    #[error("bad checksum: received {received:#04x}, expected {schunk:#04x} (Schunk) or {player:#04x} (Player)")]
+    BadChecksum { received: u8, schunk: u8, player: u8 },
     #[error("length field says {declared} data bytes, telegram carries {actual}")]
     LengthMismatch { declared: u8, actual: usize },
     #[error("{len} data bytes, more than the 8 a telegram can carry")]
@@ -299,8 +281,7 @@ fn parse_body(body: &[u8]) -> Result<(Frame, ChecksumForm), FrameError> {
         0x08 => Direction::ToHost,
         _ => return Err(FrameError::BadTelId(*t0, *t1)),
     };
-    let module =
-        ModuleId::new(((t0 & 0x03) << 3) | (t1 >> 5)).ok_or(FrameError::BadTelId(*t0, *t1))?;
+    let module = ModuleId::new(((t0 & 0x03) << 3) | (t1 >> 5)).ok_or(FrameError::BadTelId(*t0, *t1))?;
     let declared = t1 & 0x1F;
     if usize::from(declared) != data.len() || data.len() > MAX_DATA_LEN {
         return Err(FrameError::LengthMismatch {
@@ -523,9 +504,7 @@ mod tests {
 
     #[test]
     fn module_12_position_reply_decodes() {
-        let wire = [
-            0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x15, 0x03,
-        ];
+        let wire = [0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x15, 0x03];
         let frames = decode_all(&wire);
         assert_eq!(frames.len(), 1);
         let f = frames[0].unwrap();
@@ -543,10 +522,7 @@ mod tests {
         let frames = decode_all(&[0x02, 0x05, 0x10, 0x82, 0x0A, 0x3C, 0x4D, 0x03]);
         assert_eq!(
             frames,
-            [Ok(Frame::request(
-                id(8),
-                Payload::new(&[0x0A, 0x3C]).unwrap()
-            ))]
+            [Ok(Frame::request(id(8), Payload::new(&[0x0A, 0x3C]).unwrap()))]
         );
     }
 
@@ -562,10 +538,7 @@ mod tests {
         ] {
             let wire = encode_request(id(module), data).unwrap();
             let body = &wire[1..wire.len() - 1];
-            assert!(
-                !body.iter().any(|b| matches!(b, &STX | &ETX)),
-                "{wire:02X?}"
-            );
+            assert!(!body.iter().any(|b| matches!(b, &STX | &ETX)), "{wire:02X?}");
             assert_eq!(
                 decode_all(&wire),
                 [Ok(Frame::request(id(module), Payload::new(data).unwrap()))]
@@ -579,17 +552,13 @@ mod tests {
         let wire = encode_request(id(16), &[0x02, 0x03, 0x10]).unwrap();
         assert_eq!(
             wire,
-            [
-                0x02, 0x06, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x1E, 0x03
-            ]
+            [0x02, 0x06, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x1E, 0x03]
         );
         // The same from the module: TelID0 0x0A, BCC 0x0A+03+02+03+10 = 0x22.
         let wire = encode_reply(id(16), &[0x02, 0x03, 0x10]).unwrap();
         assert_eq!(
             wire,
-            [
-                0x02, 0x0A, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x22, 0x03
-            ]
+            [0x02, 0x0A, 0x10, 0x83, 0x10, 0x82, 0x10, 0x83, 0x10, 0x90, 0x22, 0x03]
         );
     }
 
@@ -602,11 +571,7 @@ mod tests {
                 .find(|&d| schunk_bcc([0x04, 0x21], &[d]) == special)
                 .expect("some data byte gives this BCC");
             let wire = encode_request(id(1), &[d]).unwrap();
-            assert_eq!(
-                wire[wire.len() - 3..],
-                [DLE, special + 0x80, ETX],
-                "{wire:02X?}"
-            );
+            assert_eq!(wire[wire.len() - 3..], [DLE, special + 0x80, ETX], "{wire:02X?}");
             assert_eq!(
                 decode_all(&wire),
                 [Ok(Frame::request(id(1), Payload::new(&[d]).unwrap()))]
@@ -622,15 +587,10 @@ mod tests {
         d.push(&[0x02, 0x05, 0x82, 0x0A, 0x3C, 0x52, 0x03]);
         assert_eq!(
             d.next_frame(),
-            Some(Ok(Frame::request(
-                id(12),
-                Payload::new(&[0x0A, 0x3C]).unwrap()
-            )))
+            Some(Ok(Frame::request(id(12), Payload::new(&[0x0A, 0x3C]).unwrap())))
         );
         // The reply from module 12 with the Player BCC: 12 + 0x0A + 0x3C + 0x3F = 0x91.
-        d.push(&[
-            0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x91, 0x03,
-        ]);
+        d.push(&[0x02, 0x09, 0x86, 0x0A, 0x3C, 0x00, 0x00, 0x00, 0x3F, 0x91, 0x03]);
         assert!(matches!(d.next_frame(), Some(Ok(f)) if f.module == id(12)));
         assert_eq!(d.stats().frames_player_bcc, 2);
         assert_eq!(d.stats().frames_schunk_bcc, 0);
@@ -660,13 +620,7 @@ mod tests {
         let bcc = schunk_bcc([0x05, 0x83], &[0x0A, 0x3C]);
         assert_eq!(bcc, 0xCE);
         let items = decode_all(&[0x02, 0x05, 0x83, 0x0A, 0x3C, bcc, 0x03]);
-        assert_eq!(
-            items,
-            [Err(FrameError::LengthMismatch {
-                declared: 3,
-                actual: 2
-            })]
-        );
+        assert_eq!(items, [Err(FrameError::LengthMismatch { declared: 3, actual: 2 })]);
     }
 
     #[test]
@@ -685,10 +639,7 @@ mod tests {
         ];
         let mut d = FrameDecoder::new();
         d.push(&wire);
-        assert_eq!(
-            d.next_frame(),
-            Some(Err(FrameError::Interrupted { body_len: 2 }))
-        );
+        assert_eq!(d.next_frame(), Some(Err(FrameError::Interrupted { body_len: 2 })));
         assert!(matches!(d.next_frame(), Some(Ok(_))));
         assert_eq!(d.next_frame(), None);
         assert_eq!(d.stats().skipped_bytes, 3);
@@ -704,10 +655,7 @@ mod tests {
             decode_all(&[STX, 0x05, 0x80, ETX]),
             [Err(FrameError::TooShort { len: 2 })]
         );
-        assert_eq!(
-            decode_all(&[STX, ETX]),
-            [Err(FrameError::TooShort { len: 0 })]
-        );
+        assert_eq!(decode_all(&[STX, ETX]), [Err(FrameError::TooShort { len: 0 })]);
     }
 
     #[test]
@@ -741,9 +689,6 @@ mod tests {
         assert!(ModuleId::new(0).is_none());
         assert!(ModuleId::new(32).is_none());
         assert_eq!(ModuleId::new(31).map(ModuleId::get), Some(31));
-        assert_eq!(
-            encode_request(id(1), &[0; 9]),
-            Err(FrameError::DataTooLong { len: 9 })
-        );
+        assert_eq!(encode_request(id(1), &[0; 9]), Err(FrameError::DataTooLong { len: 9 }));
     }
 }

@@ -9,12 +9,10 @@ pub mod device;
 pub mod frame;
 pub mod state;
 
-pub use command::{
-    Command, CommandError, Motion, MotionTarget, Param, Reply, Request, Value, ValueKind,
-};
+pub use command::{Command, CommandError, Motion, MotionTarget, Param, Reply, Request, Value, ValueKind};
 pub use device::{Joint, LinkStats, PowerCubeConfig, PowerCubePtu};
 pub use frame::{
-    ChecksumForm, DecoderStats, Direction, Frame, FrameDecoder, FrameError, ModuleId, Payload,
-    encode_reply, encode_request, player_bcc, schunk_bcc,
+    ChecksumForm, DecoderStats, Direction, Frame, FrameDecoder, FrameError, ModuleId, Payload, encode_reply,
+    encode_request, player_bcc, schunk_bcc,
 };
 pub use state::{CubeState, ShortState};

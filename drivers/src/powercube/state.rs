@@ -179,10 +179,7 @@ mod tests {
     fn cube_state_display_lists_set_flags_and_unknown_bits() {
         assert_eq!(CubeState(0).to_string(), "(none)");
         assert_eq!(CubeState(0x2).to_string(), "HOME_OK");
-        assert_eq!(
-            CubeState(0x8803).to_string(),
-            "ERROR|HOME_OK|MOTION|RAMP_END"
-        );
+        assert_eq!(CubeState(0x8803).to_string(), "ERROR|HOME_OK|MOTION|RAMP_END");
         assert_eq!(
             CubeState(0x600_0000 | 0x40).to_string(),
             "BEYOND_HARD_LIMIT|BEYOND_SOFT_LIMIT|0x40"

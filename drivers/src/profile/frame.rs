@@ -120,11 +120,7 @@ pub fn encode_profile(p: &Profile) -> Result<Vec<u8>, ProfileError> {
     let n = p.rows.len();
     // validate() bounds n by 8192, so it fits u16.
     let columns = u16::try_from(n).map_err(|_| ProfileError::BadColumnCount(n))?;
-    let flags = if p.intensity.is_some() {
-        FLAG_INTENSITY
-    } else {
-        0
-    };
+    let flags = if p.intensity.is_some() { FLAG_INTENSITY } else { 0 };
     let mut out = Vec::with_capacity(frame_len(n, p.intensity.is_some()));
     out.extend_from_slice(&MAGIC);
     out.push(VERSION);
@@ -226,18 +222,11 @@ fn parse_frame(hdr: &Header, b: &[u8]) -> Result<Profile, ProfileError> {
         .get(HEADER_LEN..rows_end)
         .unwrap_or(&[])
         .chunks_exact(2)
-        .map(|c| {
-            u16::from_le_bytes([
-                c.first().copied().unwrap_or(0),
-                c.get(1).copied().unwrap_or(0),
-            ])
-        })
+        .map(|c| u16::from_le_bytes([c.first().copied().unwrap_or(0), c.get(1).copied().unwrap_or(0)]))
         .collect();
-    let intensity = hdr.intensity.then(|| {
-        b.get(rows_end..rows_end + hdr.columns)
-            .unwrap_or(&[])
-            .to_vec()
-    });
+    let intensity = hdr
+        .intensity
+        .then(|| b.get(rows_end..rows_end + hdr.columns).unwrap_or(&[]).to_vec());
     Ok(Profile {
         seq: hdr.seq,
         timestamp_ns: hdr.timestamp_ns,
@@ -351,9 +340,7 @@ mod tests {
     use super::*;
 
     fn sample(intensity: bool) -> Profile {
-        let rows: Vec<u16> = (0..1536u16)
-            .map(|c| if c % 7 == 0 { 0 } else { c * 3 + 5 })
-            .collect();
+        let rows: Vec<u16> = (0..1536u16).map(|c| if c % 7 == 0 { 0 } else { c * 3 + 5 }).collect();
         let intensity = intensity.then(|| (0..1536usize).map(|c| (c % 251) as u8).collect());
         Profile {
             seq: 41,
@@ -439,11 +426,7 @@ mod tests {
         stream.extend_from_slice(&absurd);
         stream.extend_from_slice(&good);
         let items = decode_all(&stream);
-        assert!(
-            matches!(items[0], Err(ProfileError::BadCrc { .. })),
-            "{:?}",
-            items[0]
-        );
+        assert!(matches!(items[0], Err(ProfileError::BadCrc { .. })), "{:?}", items[0]);
         assert_eq!(items[1], Err(ProfileError::BadVersion(2)));
         assert_eq!(items[2], Err(ProfileError::BadColumnCount(60000)));
         assert_eq!(items[3], Ok(sample(true)));
@@ -513,11 +496,7 @@ mod tests {
         let mut d = ProfileDecoder::new();
         d.push(&fake);
         d.push(&good);
-        assert_eq!(
-            d.next_profile(),
-            None,
-            "waiting for the candidate to complete"
-        );
+        assert_eq!(d.next_profile(), None, "waiting for the candidate to complete");
         d.resync();
         assert_eq!(d.next_profile(), Some(Ok(sample(false))));
     }

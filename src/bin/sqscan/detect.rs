@@ -44,7 +44,11 @@ pub struct DetectArgs {
 }
 
 pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| format!("{s:?}: {e}"))?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
     match v.as_slice() {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Point3::new(*x, *y, *z)),
         _ => Err(format!("{s:?}: give three finite numbers x,y,z")),
@@ -54,7 +58,11 @@ pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
 /// Detector parameters from the common flags and the cloud's own viewpoint.
 pub fn params_for(cloud: &PointCloud, seed: u64, viewpoint: Option<Point3<f64>>) -> Params {
     let file_viewpoint = cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
-    Params { seed, viewpoint: viewpoint.or(file_viewpoint).or(Some(Point3::origin())), ..Params::default() }
+    Params {
+        seed,
+        viewpoint: viewpoint.or(file_viewpoint).or(Some(Point3::origin())),
+        ..Params::default()
+    }
 }
 
 pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
@@ -75,10 +83,15 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     let report = detect::detect(&cloud.points, &model, &params);
     println!("{}", detect::output::report_json(&report, a.all));
     if let Some(out) = &a.out {
-        let shown: Vec<&detect::Detection> =
-            if a.all { report.detections.iter().collect() } else { report.detections.iter().take(1).collect() };
+        let shown: Vec<&detect::Detection> = if a.all {
+            report.detections.iter().collect()
+        } else {
+            report.detections.iter().take(1).collect()
+        };
         let coloured = with_detections(&cloud, &shown);
-        write_atomic(out, |w| Ok(cloud::write_ply(w, &coloured, PlyFormat::BinaryLittleEndian)?))?;
+        write_atomic(out, |w| {
+            Ok(cloud::write_ply(w, &coloured, PlyFormat::BinaryLittleEndian)?)
+        })?;
     }
     Ok(())
 }
@@ -86,7 +99,12 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
 /// The input's points in grey plus every detected part's surface (green when found, orange for
 /// the most similar thing when not), as one PLY with red, green, blue.
 fn with_detections(input: &PointCloud, detections: &[&detect::Detection]) -> PointCloud {
-    let mut points: Vec<[f32; 3]> = input.points.iter().filter(|p| p.iter().all(|v| v.is_finite())).copied().collect();
+    let mut points: Vec<[f32; 3]> = input
+        .points
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .copied()
+        .collect();
     let mut rgb: Vec<[u8; 3]> = vec![[150, 150, 150]; points.len()];
     for d in detections {
         let colour = if d.found { [40, 220, 60] } else { [250, 140, 20] };
@@ -99,7 +117,11 @@ fn with_detections(input: &PointCloud, detections: &[&detect::Detection]) -> Poi
     }
     let mut out = PointCloud::from_points(points);
     for (c, name) in ["red", "green", "blue"].iter().enumerate() {
-        out.fields.push(Field { name: (*name).into(), count: 1, data: FieldData::U8(rgb.iter().map(|x| x[c]).collect()) });
+        out.fields.push(Field {
+            name: (*name).into(),
+            count: 1,
+            data: FieldData::U8(rgb.iter().map(|x| x[c]).collect()),
+        });
     }
     out
 }

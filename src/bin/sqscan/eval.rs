@@ -40,7 +40,11 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     let scene = Scene::from_file(&a.scene, models_dir)?;
     let model = Model::load(&a.model, models_dir)?;
     let Some((object, truth)) = eval::truth_pose(&scene, &model) else {
-        bail!("{}: no object of model {:?} (or with its first part's shape) in the scene", a.scene.display(), model.name);
+        bail!(
+            "{}: no object of model {:?} (or with its first part's shape) in the scene",
+            a.scene.display(),
+            model.name
+        );
     };
     let scene = if a.absent { scene.without_object(&object) } else { scene };
     let symmetry = Symmetry::of(&model);
@@ -48,7 +52,10 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     let mut trials = Vec::with_capacity(a.trials);
     for k in 0..a.trials {
         let seed = a.seed.wrapping_add(k as u64);
-        let params = Params { seed, ..Params::default() };
+        let params = Params {
+            seed,
+            ..Params::default()
+        };
         let truth = if a.absent { None } else { Some(&truth) };
         trials.push(eval::trial(&scene, &model, truth, &symmetry, seed, &params));
         if progress {
@@ -83,7 +90,12 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
         return Ok(());
     }
     println!("scene      {}", a.scene.display());
-    println!("model      {} (scene object {:?}{})", model.name, object, if a.absent { ", removed" } else { "" });
+    println!(
+        "model      {} (scene object {:?}{})",
+        model.name,
+        object,
+        if a.absent { ", removed" } else { "" }
+    );
     println!("trials     {}", a.trials);
     if a.absent {
         println!("false found {false_found} ({:.1} %)", 100.0 * false_found as f64 / n);

@@ -47,8 +47,12 @@ pub fn simulate(a: SimulateArgs, models_dir: &Path) -> Result<()> {
     let sweep = sim::simulate(&scene, a.seed);
     let elapsed = started.elapsed();
 
-    write_atomic(&a.out.join("cloud.ply"), |w| Ok(cloud::write_ply(w, &sweep.cloud, PlyFormat::BinaryLittleEndian)?))?;
-    write_atomic(&a.out.join("cloud.pcd"), |w| Ok(cloud::write_pcd(w, &sweep.cloud, PcdData::BinaryCompressed)?))?;
+    write_atomic(&a.out.join("cloud.ply"), |w| {
+        Ok(cloud::write_ply(w, &sweep.cloud, PlyFormat::BinaryLittleEndian)?)
+    })?;
+    write_atomic(&a.out.join("cloud.pcd"), |w| {
+        Ok(cloud::write_pcd(w, &sweep.cloud, PcdData::BinaryCompressed)?)
+    })?;
     let grey = sim::range_image_grey(&sweep);
     write_atomic(&a.out.join("range.png"), |w| {
         let mut enc = png::Encoder::new(w, sweep.columns as u32, sweep.profiles as u32);
@@ -68,7 +72,10 @@ pub fn simulate(a: SimulateArgs, models_dir: &Path) -> Result<()> {
         .iter()
         .enumerate()
         .map(|(k, o)| {
-            let points = labels.iter().filter(|&&l| l >= 20 && (l / 10 - 2) as usize == k).count();
+            let points = labels
+                .iter()
+                .filter(|&&l| l >= 20 && (l / 10 - 2) as usize == k)
+                .count();
             json!({"name": o.name, "model": o.model.name, "pose": PoseJson::from(&o.pose), "points": points})
         })
         .collect();
@@ -120,7 +127,10 @@ pub fn show_model(a: ShowModelArgs, models_dir: &Path) -> Result<()> {
     for (i, part) in model.placed_parts(&nalgebra::Isometry3::identity()).iter().enumerate() {
         let samples = part.sample_surface(a.spacing);
         if samples.len() > 20_000_000 {
-            bail!("--spacing {} gives over 20 million points; choose a larger spacing", a.spacing);
+            bail!(
+                "--spacing {} gives over 20 million points; choose a larger spacing",
+                a.spacing
+            );
         }
         for p in samples {
             points.push([p.x as f32, p.y as f32, p.z as f32]);
@@ -133,10 +143,22 @@ pub fn show_model(a: ShowModelArgs, models_dir: &Path) -> Result<()> {
     let [r, g, b] = rgb;
     let mut cloud = PointCloud::from_points(points);
     for (name, data) in [("red", r), ("green", g), ("blue", b)] {
-        cloud.fields.push(Field { name: name.into(), count: 1, data: FieldData::U8(data) });
+        cloud.fields.push(Field {
+            name: name.into(),
+            count: 1,
+            data: FieldData::U8(data),
+        });
     }
-    write_atomic(&a.out, |w| Ok(cloud::write_ply(w, &cloud, PlyFormat::BinaryLittleEndian)?))?;
-    println!("{}: {} parts, {n} points at {} m spacing -> {}", model.name, model.parts.len(), a.spacing, a.out.display());
+    write_atomic(&a.out, |w| {
+        Ok(cloud::write_ply(w, &cloud, PlyFormat::BinaryLittleEndian)?)
+    })?;
+    println!(
+        "{}: {} parts, {n} points at {} m spacing -> {}",
+        model.name,
+        model.parts.len(),
+        a.spacing,
+        a.out.display()
+    );
     Ok(())
 }
 
@@ -175,7 +197,10 @@ pub fn info(a: InfoArgs) -> Result<()> {
         println!("  organized  no");
     }
     if !c.fields.is_empty() {
-        println!("  fields     x y z {}", c.fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(" "));
+        println!(
+            "  fields     x y z {}",
+            c.fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>().join(" ")
+        );
     }
     match bbox {
         Some((lo, hi)) => {

@@ -162,14 +162,35 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         },
     };
     let columns = scene.rig.sensor.columns;
-    let rig = RigMock::start(std::sync::Arc::new(scene), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
-        .context("cannot start the mock rig")?;
+    let rig = RigMock::start(
+        std::sync::Arc::new(scene),
+        &cfg,
+        a.ptu_link.as_deref(),
+        a.sensor_link.as_deref(),
+    )
+    .context("cannot start the mock rig")?;
     let shown = |path: &Path, link: &Option<PathBuf>| {
-        format!("{}{}", path.display(), link.as_ref().map(|l| format!(" (link {})", l.display())).unwrap_or_default())
+        format!(
+            "{}{}",
+            path.display(),
+            link.as_ref()
+                .map(|l| format!(" (link {})", l.display()))
+                .unwrap_or_default()
+        )
     };
-    println!("mock rig: {} on {}", a.protocol.name(), shown(&rig.ptu_path, &a.ptu_link));
-    println!("mock rig: sensor ({columns} columns, {} Hz) on {}", a.rate, shown(&rig.sensor_path, &a.sensor_link));
-    let RigMock { ptu_task, sensor_task, .. } = rig;
+    println!(
+        "mock rig: {} on {}",
+        a.protocol.name(),
+        shown(&rig.ptu_path, &a.ptu_link)
+    );
+    println!(
+        "mock rig: sensor ({columns} columns, {} Hz) on {}",
+        a.rate,
+        shown(&rig.sensor_path, &a.sensor_link)
+    );
+    let RigMock {
+        ptu_task, sensor_task, ..
+    } = rig;
     let result = tokio::select! {
         r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
         r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),
@@ -208,14 +229,23 @@ fn new_unit(protocol: MockProtocol) -> (Arc<Mutex<dyn sqscan_drivers::mock::Mock
     match protocol {
         MockProtocol::Powercube => {
             let cfg = MockPowerCubeConfig::default();
-            let text = format!("mock PowerCube: pan module {}, tilt module {}", cfg.pan.id.get(), cfg.tilt.id.get());
+            let text = format!(
+                "mock PowerCube: pan module {}, tilt module {}",
+                cfg.pan.id.get(),
+                cfg.tilt.id.get()
+            );
             (Arc::new(Mutex::new(MockPowerCube::new(cfg))), text)
         }
         MockProtocol::Flir => {
             let cfg = MockFlirConfig::default();
             let text = format!(
                 "mock PTU-D46: pan [{}, {}] steps at {} arcsec/step, tilt [{}, {}] steps at {} arcsec/step",
-                cfg.pan.min_steps, cfg.pan.max_steps, cfg.pan.resolution_arcsec, cfg.tilt.min_steps, cfg.tilt.max_steps, cfg.tilt.resolution_arcsec
+                cfg.pan.min_steps,
+                cfg.pan.max_steps,
+                cfg.pan.resolution_arcsec,
+                cfg.tilt.min_steps,
+                cfg.tilt.max_steps,
+                cfg.tilt.resolution_arcsec
             );
             (Arc::new(Mutex::new(MockFlirPtu::new(cfg))), text)
         }
@@ -223,7 +253,12 @@ fn new_unit(protocol: MockProtocol) -> (Arc<Mutex<dyn sqscan_drivers::mock::Mock
 }
 
 /// One mock unit after another: a new one is plugged in after each unplug if asked to.
-async fn serve_ptu(protocol: MockProtocol, link: Option<&Path>, faults: &Faults, replug_after_ms: Option<u64>) -> Result<()> {
+async fn serve_ptu(
+    protocol: MockProtocol,
+    link: Option<&Path>,
+    faults: &Faults,
+    replug_after_ms: Option<u64>,
+) -> Result<()> {
     loop {
         let port = MockPort::create(link).context("cannot create a pty")?;
         let (device, text) = new_unit(protocol);
@@ -232,7 +267,11 @@ async fn serve_ptu(protocol: MockProtocol, link: Option<&Path>, faults: &Faults,
             port.path().display(),
             link.map(|l| format!(" (link {})", l.display())).unwrap_or_default()
         );
-        match port.serve(device, faults.clone()).await.context("mock PTU line failed")? {
+        match port
+            .serve(device, faults.clone())
+            .await
+            .context("mock PTU line failed")?
+        {
             ServeEnd::Unplugged { replies } => {
                 println!("unplugged after {replies} replies");
                 let Some(ms) = replug_after_ms else {

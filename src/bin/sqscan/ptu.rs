@@ -35,21 +35,11 @@ pub struct PtuArgs {
     /// Pan axis sign (+1 or -1): joint = sign * device + offset
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pan_sign: f64,
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        allow_negative_numbers = true,
-        value_name = "RAD"
-    )]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "RAD")]
     pan_offset: f64,
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     tilt_sign: f64,
-    #[arg(
-        long,
-        default_value_t = 0.0,
-        allow_negative_numbers = true,
-        value_name = "RAD"
-    )]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "RAD")]
     tilt_offset: f64,
     /// Give up on a move after this many seconds
     #[arg(long, default_value_t = 60.0, value_name = "S")]
@@ -95,16 +85,20 @@ pub fn run(a: PtuArgs) -> Result<()> {
     rt.block_on(async {
         match a.protocol {
             PtuProtocol::Flir => {
-                let cfg = FlirConfig { baud: a.baud.unwrap_or(9600), pan, tilt, ..FlirConfig::default() };
+                let cfg = FlirConfig {
+                    baud: a.baud.unwrap_or(9600),
+                    pan,
+                    tilt,
+                    ..FlirConfig::default()
+                };
                 let mut ptu = FlirPtu::open(&a.device, cfg)
                     .await
                     .with_context(|| format!("no PTU-D46 on {}", a.device.display()))?;
                 act(&mut ptu, &a.action, timeout).await
             }
             PtuProtocol::Powercube => {
-                let module = |n: u8, what: &str| {
-                    ModuleId::new(n).with_context(|| format!("--{what}-module {n}: give 1 to 31"))
-                };
+                let module =
+                    |n: u8, what: &str| ModuleId::new(n).with_context(|| format!("--{what}-module {n}: give 1 to 31"));
                 let cfg = PowerCubeConfig {
                     pan_module: module(a.pan_module, "pan")?,
                     tilt_module: module(a.tilt_module, "tilt")?,
@@ -138,9 +132,7 @@ async fn act(ptu: &mut impl PanTilt, action: &Action, timeout: Duration) -> Resu
                 tilt_rad: tilt.unwrap_or(now.tilt_rad),
                 speed_rad_s: speed,
             };
-            ptu.move_and_track(goal, None, timeout)
-                .await
-                .context("move failed")?;
+            ptu.move_and_track(goal, None, timeout).await.context("move failed")?;
         }
         Action::Sweep { from, to, speed } => {
             let now = ptu.position().await?;

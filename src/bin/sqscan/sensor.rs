@@ -36,15 +36,24 @@ pub fn run(a: SensorArgs) -> Result<()> {
     if count == 0 {
         bail!("grab: give a count of at least 1");
     }
-    let rt = tokio::runtime::Builder::new_current_thread().enable_all().build().context("cannot start the async runtime")?;
-    let cfg = SensorConfig { baud: a.baud, ..SensorConfig::default() };
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("cannot start the async runtime")?;
+    let cfg = SensorConfig {
+        baud: a.baud,
+        ..SensorConfig::default()
+    };
     let device = a.device.to_string_lossy().into_owned();
     rt.block_on(async {
         if let Some(addr) = device.strip_prefix("tcp://") {
-            let sensor = ProfileSensor::connect_tcp(addr, cfg).await.with_context(|| format!("cannot reach the sensor at {addr}"))?;
+            let sensor = ProfileSensor::connect_tcp(addr, cfg)
+                .await
+                .with_context(|| format!("cannot reach the sensor at {addr}"))?;
             grab(sensor, count, wait).await
         } else {
-            let sensor = ProfileSensor::open(&a.device, cfg).with_context(|| format!("cannot open the sensor on {device}"))?;
+            let sensor =
+                ProfileSensor::open(&a.device, cfg).with_context(|| format!("cannot open the sensor on {device}"))?;
             grab(sensor, count, wait).await
         }
     })
@@ -54,7 +63,10 @@ async fn grab<S: sqscan_drivers::Link>(mut sensor: ProfileSensor<S>, count: usiz
     sensor.start().await.context("cannot start acquisition")?;
     let mut got: Vec<ReceivedProfile> = Vec::with_capacity(count.min(100_000));
     while got.len() < count {
-        let r = sensor.next_profile(wait).await.with_context(|| format!("after {} profiles", got.len()))?;
+        let r = sensor
+            .next_profile(wait)
+            .await
+            .with_context(|| format!("after {} profiles", got.len()))?;
         got.push(r);
     }
     // Stopping is a courtesy to the next user; the profiles are in already.
@@ -66,7 +78,9 @@ async fn grab<S: sqscan_drivers::Link>(mut sensor: ProfileSensor<S>, count: usiz
 }
 
 fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &ProfileSensor<S>) {
-    let (Some(first), Some(last)) = (got.first(), got.last()) else { return };
+    let (Some(first), Some(last)) = (got.first(), got.last()) else {
+        return;
+    };
     let counts = sensor.counts();
     let decoder = sensor.decoder_stats();
     println!(
@@ -81,7 +95,10 @@ fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &Profil
         sensor.frame_errors(),
         decoder.skipped_bytes
     );
-    let returns: Vec<usize> = got.iter().map(|r| r.profile.rows.iter().filter(|&&v| v != 0).count()).collect();
+    let returns: Vec<usize> = got
+        .iter()
+        .map(|r| r.profile.rows.iter().filter(|&&v| v != 0).count())
+        .collect();
     let columns = first.profile.columns();
     println!(
         "columns: {columns}  with a return: min {}  mean {:.1}  max {}",
@@ -89,13 +106,19 @@ fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &Profil
         returns.iter().sum::<usize>() as f64 / got.len() as f64,
         returns.iter().max().unwrap_or(&0)
     );
-    let rows: Vec<f64> = got.iter().flat_map(|r| (0..r.profile.columns()).filter_map(|c| r.profile.row_px(c))).collect();
+    let rows: Vec<f64> = got
+        .iter()
+        .flat_map(|r| (0..r.profile.columns()).filter_map(|c| r.profile.row_px(c)))
+        .collect();
     if rows.is_empty() {
         println!("rows: no returns");
     } else {
         let min = rows.iter().copied().fold(f64::INFINITY, f64::min);
         let max = rows.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-        println!("rows (px): min {min:.3}  mean {:.3}  max {max:.3}", rows.iter().sum::<f64>() / rows.len() as f64);
+        println!(
+            "rows (px): min {min:.3}  mean {:.3}  max {max:.3}",
+            rows.iter().sum::<f64>() / rows.len() as f64
+        );
     }
     // Received profiles by the host clock; profiles the sensor made (sequence span, dropped ones
     // included) by its own clock.
