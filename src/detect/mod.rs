@@ -224,8 +224,8 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         } else {
             0.002
         };
-        if std::env::var_os("SQSCAN_DEBUG").is_some() {
-            eprintln!(
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            tracing::debug!(
                 "plane {:?} band {:.4} inliers {} kept {}",
                 removal.plane.map(|p| p.coefficients()),
                 removal.band,
@@ -336,12 +336,12 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
 
         let mut order: Vec<usize> = (0..anchors.len()).collect();
         order.sort_by_key(|&k| (anchor_rank[k], ordered(anchors[k].m)));
-        if std::env::var_os("SQSCAN_DEBUG").is_some() {
+        if tracing::enabled!(tracing::Level::DEBUG) {
             for &k in &order {
                 let t = anchors[k].placed.pose.translation.vector;
                 let z = anchors[k].placed.pose.rotation * Vector3::z();
                 let s = &anchor_scores[k];
-                eprintln!(
+                tracing::debug!(
                     "rank {:3} pos ({:.3} {:.3} {:.3}) z ({:.2} {:.2} {:.2}) M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
                     anchor_rank[k],
                     t.x,
@@ -415,7 +415,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             let sums = rank_sums(&criteria);
             let mut idx: Vec<usize> = (0..combos.len()).collect();
             idx.sort_by_key(|&k| sums[k]);
-            if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            if tracing::enabled!(tracing::Level::DEBUG) {
                 for &k in idx.iter().take(12) {
                     let (_, parts, errs) = &combos[k];
                     let desc: Vec<String> = parts
@@ -439,7 +439,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                             None => format!("{} -", p.name),
                         })
                         .collect();
-                    eprintln!(
+                    tracing::debug!(
                         "combo sum {} A {:.1} deg D {:.3} | {}",
                         sums[k],
                         errs[0].0.to_degrees(),
@@ -504,10 +504,10 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                 })
                 .collect();
             let n_refined = refined.len();
-            if std::env::var_os("SQSCAN_DEBUG").is_some() {
+            if tracing::enabled!(tracing::Level::DEBUG) {
                 for d in &refined {
                     let t = d.pose.translation.vector;
-                    eprintln!(
+                    tracing::debug!(
                         "refined found {} conf {:.3} pos ({:.3} {:.3} {:.3}) {}",
                         d.found,
                         d.confidence,
@@ -561,8 +561,8 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
                     report.plane.as_ref(),
                     &samples[k],
                 );
-                if std::env::var_os("SQSCAN_DEBUG").is_some() {
-                    eprintln!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
+                if tracing::enabled!(tracing::Level::DEBUG) {
+                    tracing::debug!("visibility {} {vis:?} seen {:.2}", part.name, vis.seen_ratio());
                 }
                 let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
                 if margin < 0.0 {
