@@ -913,6 +913,10 @@ fn finish(
             margins.push((dmax - d) / dmax);
         }
     }
+    tracing::trace!(
+        "acceptance margins [coverage, interior, shell, rms, connections..] {:?}",
+        margins.iter().map(|m| (m * 100.0).round() / 100.0).collect::<Vec<_>>()
+    );
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
