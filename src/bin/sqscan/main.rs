@@ -45,6 +45,12 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Like every Unix filter: end quietly when the reader of stdout goes away (`sqscan eval ... |
+    // head`), instead of panicking in println! on a broken pipe. Rust ignores SIGPIPE by default.
+    // SAFETY: restoring a signal's default disposition at start-up, before any thread exists.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     // Diagnostics go to stderr, so stdout stays one JSON object where a command promises one.
     // SQSCAN_LOG=debug shows, for example, every hypothesis of the detector with its scores.
