@@ -106,13 +106,49 @@ impl Walk<'_> {
 impl PlacedSuperquadric {
     /// The lowest `z` of the surface in the pose's frame (used to stand a shape on a table).
     ///
-    /// Dense sampling rather than a closed form (a tapered superquadric has none): at 1/64 of
-    /// the smallest size the sagitta of a round bottom between samples is below 1e-4 of it.
+    /// A tapered superquadric has no closed form for it, so: a coarse grid over the six faces
+    /// of the cube-map parameterisation, then a pattern search in `(u, v)` from the best few
+    /// grid points, shrinking the step to 1e-7 of a face. Parameters are clamped to the face,
+    /// so a minimum on a face border (an edge of a box) is reached from either side. A few
+    /// thousand surface evaluations, where dense sampling fine enough for a slender part (a
+    /// pen) took millions.
     pub fn lowest_z(&self) -> f64 {
-        self.sample_surface(self.shape.min_size() / 64.0)
-            .iter()
-            .map(|p| p.z)
-            .fold(f64::INFINITY, f64::min)
+        const GRID: usize = 24;
+        let z = |face: usize, u: f64, v: f64| {
+            let q = self.shape.cube_surface_point(face, u.clamp(-1.0, 1.0), v.clamp(-1.0, 1.0));
+            self.pose.transform_point(&Point3::from(q)).z
+        };
+        let mut seeds: Vec<(f64, usize, f64, f64)> = Vec::with_capacity(6 * (GRID + 1) * (GRID + 1));
+        for face in 0..6 {
+            for i in 0..=GRID {
+                for j in 0..=GRID {
+                    let (u, v) = (-1.0 + 2.0 * i as f64 / GRID as f64, -1.0 + 2.0 * j as f64 / GRID as f64);
+                    seeds.push((z(face, u, v), face, u, v));
+                }
+            }
+        }
+        seeds.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut best = seeds.first().map_or(f64::INFINITY, |s| s.0);
+        for &(z0, face, u0, v0) in seeds.iter().take(4) {
+            let (mut u, mut v, mut zb) = (u0, v0, z0);
+            let mut step = 2.0 / GRID as f64;
+            while step > 1e-7 {
+                let mut moved = false;
+                for (du, dv) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)] {
+                    let (un, vn) = ((u + du * step).clamp(-1.0, 1.0), (v + dv * step).clamp(-1.0, 1.0));
+                    let zn = z(face, un, vn);
+                    if zn < zb {
+                        (u, v, zb) = (un, vn, zn);
+                        moved = true;
+                    }
+                }
+                if !moved {
+                    step *= 0.5;
+                }
+            }
+            best = best.min(zb);
+        }
+        best
     }
 
     /// Surface points in the pose's frame, about `spacing` metres apart.

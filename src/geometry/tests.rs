@@ -366,3 +366,33 @@ fn plain_and_log_domain_evaluations_agree_for_integer_exponents() {
         }
     }
 }
+
+#[test]
+fn lowest_z_matches_dense_sampling() {
+    let shapes = [
+        Superquadric::new([0.05, 0.05, 0.04], 0.3, 1.0, 0.2, 0.0).unwrap(),
+        Superquadric::new([0.004, 0.004, 0.07], 1.0, 1.0, 0.0, 0.0).unwrap(),
+        Superquadric::new([0.06, 0.03, 0.02], 0.1, 0.1, 0.0, 0.0).unwrap(),
+        Superquadric::new([0.03, 0.02, 0.05], 1.6, 0.4, -0.5, 0.3).unwrap(),
+    ];
+    for (k, shape) in shapes.iter().enumerate() {
+        for (r, p, y) in [(0.0, 0.0, 0.0), (0.4, 1.2, -0.3), (1.5707963, 0.0, 0.7), (2.8, -0.5, 2.0)] {
+            let placed = PlacedSuperquadric::new(
+                *shape,
+                Isometry3::from_parts(
+                    Vector3::new(0.3, -0.1, 0.8).into(),
+                    UnitQuaternion::from_euler_angles(r, p, y),
+                ),
+            );
+            let dense = placed
+                .sample_surface(shape.min_size() / 40.0)
+                .iter()
+                .map(|q| q.z)
+                .fold(f64::INFINITY, f64::min);
+            let fast = placed.lowest_z();
+            // Never above a surface point, and below the densest sample by less than its spacing.
+            assert!(fast <= dense + 1e-9, "shape {k} rpy {r},{p},{y}: {fast} above sampled {dense}");
+            assert!(dense - fast < shape.min_size() / 40.0, "shape {k} rpy {r},{p},{y}: {fast} vs {dense}");
+        }
+    }
+}
