@@ -2,82 +2,16 @@
 //! detect with a new search seed, and score the pose modulo the object's symmetries.
 
 use crate::detect::{self, Params, Report};
-use crate::geometry::Superquadric;
 use crate::model::Model;
+pub use crate::symmetry::Symmetry;
+use crate::symmetry::same_shape;
 use crate::sim::{self, Scene};
-use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3};
 use std::f64::consts::PI;
 
 /// A detection is correct within these (the paper's grasping tolerance, the criterion).
 pub const MAX_POSITION_ERROR_M: f64 = 0.010;
 pub const MAX_ROTATION_ERROR_RAD: f64 = 10.0 * PI / 180.0;
-
-/// The rotations that map a model onto itself: a finite set, plus a free spin about the object z
-/// axis when every part is a body of revolution on that axis.
-#[derive(Debug, Clone)]
-pub struct Symmetry {
-    pub discrete: Vec<UnitQuaternion<f64>>,
-    pub spin_z: bool,
-}
-
-fn same_shape(a: &Superquadric, b: &Superquadric) -> bool {
-    a.a.iter().zip(&b.a).all(|(x, y)| (x - y).abs() < 1e-9)
-        && (a.e1 - b.e1).abs() < 1e-9
-        && (a.e2 - b.e2).abs() < 1e-9
-        && (a.kx - b.kx).abs() < 1e-9
-        && (a.ky - b.ky).abs() < 1e-9
-}
-
-/// Whether `g` (a rotation of the object frame about its origin) leaves the model unchanged,
-/// checked on surface samples: each moved sample must lie on some part's surface.
-fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
-    let moved = Isometry3::from_parts(Default::default(), *g);
-    let parts = model.placed_parts(&Isometry3::identity());
-    let parts_moved = model.placed_parts(&moved);
-    parts_moved.iter().all(|pm| {
-        let tol = 1e-3 * pm.shape.min_size();
-        pm.sample_surface(pm.shape.min_size() / 3.0).iter().all(|p| {
-            parts
-                .iter()
-                .any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(p).abs() < tol)
-        })
-    })
-}
-
-impl Symmetry {
-    pub fn of(model: &Model) -> Symmetry {
-        let spin_z = model.parts.iter().all(|p| {
-            let z = p.pose_in_object.rotation * Vector3::z();
-            let t = p.pose_in_object.translation.vector;
-            p.shape.is_revolution() && z.cross(&Vector3::z()).norm() < 1e-9 && t.x.abs() < 1e-9 && t.y.abs() < 1e-9
-        });
-        let mut discrete = vec![UnitQuaternion::identity()];
-        for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
-            for angle in [PI, 0.5 * PI, -0.5 * PI] {
-                let g = UnitQuaternion::from_axis_angle(&axis, angle);
-                if is_symmetry(model, &g) {
-                    discrete.push(g);
-                }
-            }
-        }
-        Symmetry { discrete, spin_z }
-    }
-
-    /// The rotation error (rad) of `estimate` against `truth`, modulo the symmetries.
-    pub fn rotation_error(&self, estimate: &UnitQuaternion<f64>, truth: &UnitQuaternion<f64>) -> f64 {
-        self.discrete
-            .iter()
-            .map(|g| {
-                let t = truth * g;
-                if self.spin_z {
-                    (estimate * Vector3::z()).angle(&(t * Vector3::z()))
-                } else {
-                    estimate.angle_to(&t)
-                }
-            })
-            .fold(f64::INFINITY, f64::min)
-    }
-}
 
 /// The ground-truth pose of `model` in a scene: the scene object of the same model, or else the
 /// object having a part of the model's (first) part's shape, at that part.
@@ -163,23 +97,4 @@ mod tests {
         Model::load(name, &Path::new(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
     }
 
-    #[test]
-    fn symmetries_of_the_shipped_models() {
-        // A cylinder: free spin about z, and upside down is the same.
-        let s = Symmetry::of(&model("cup_body"));
-        assert!(s.spin_z);
-        assert!(s.discrete.len() >= 2);
-        // The tapered bowl spins freely but cannot be turned over.
-        let s = Symmetry::of(&model("bowl"));
-        assert!(s.spin_z);
-        let flip = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
-        assert!(s.rotation_error(&flip, &UnitQuaternion::identity()) > 3.0);
-        // The cup's handle fixes the spin; turning it over about the handle's direction (x) maps
-        // body and handle onto themselves.
-        let s = Symmetry::of(&model("cup"));
-        assert!(!s.spin_z);
-        assert!(s.rotation_error(&flip, &UnitQuaternion::identity()) < 1e-9);
-        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.5);
-        assert!((s.rotation_error(&yaw, &UnitQuaternion::identity()) - 0.5).abs() < 1e-9);
-    }
 }

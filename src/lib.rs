@@ -23,3 +23,4 @@ pub mod model;
 pub mod pose;
 pub mod sim;
 pub mod spec;
+pub mod symmetry;

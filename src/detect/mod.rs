@@ -599,6 +599,14 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             None => candidates.into_iter().take(1).collect(),
         }
     };
+    if let Some(plane) = &report.plane {
+        // Report the equivalent pose that stands on the plane (see `Symmetry::canonical_up`).
+        let symmetry = crate::symmetry::Symmetry::of(model);
+        let up = plane.normal;
+        for d in &mut report.detections {
+            d.pose.rotation = symmetry.canonical_up(&d.pose.rotation, &up);
+        }
+    }
     report.timing.search_ms = search_ms;
     report.timing.verify_ms = verify_ms;
     report.timing.total_ms = ms(start);

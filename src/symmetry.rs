@@ -1,0 +1,141 @@
+//! The symmetries of an object model: the rotations that map it onto itself. Used to score
+//! poses modulo symmetry (evaluation) and to report one canonical pose among the equivalent
+//! ones (the detector turns a sign-free object "z up").
+
+use std::f64::consts::PI;
+
+use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+
+use crate::geometry::Superquadric;
+use crate::model::Model;
+
+/// The rotations that map a model onto itself: a finite set, plus a free spin about the object z
+/// axis when every part is a body of revolution on that axis.
+#[derive(Debug, Clone)]
+pub struct Symmetry {
+    pub discrete: Vec<UnitQuaternion<f64>>,
+    pub spin_z: bool,
+}
+
+/// Whether two shapes are the same to 1e-9 (size, exponents, taper).
+pub fn same_shape(a: &Superquadric, b: &Superquadric) -> bool {
+    a.a.iter().zip(&b.a).all(|(x, y)| (x - y).abs() < 1e-9)
+        && (a.e1 - b.e1).abs() < 1e-9
+        && (a.e2 - b.e2).abs() < 1e-9
+        && (a.kx - b.kx).abs() < 1e-9
+        && (a.ky - b.ky).abs() < 1e-9
+}
+
+/// Whether `g` (a rotation of the object frame about its origin) leaves the model unchanged,
+/// checked on surface samples: each moved sample must lie on some part's surface.
+fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
+    let moved = Isometry3::from_parts(Default::default(), *g);
+    let parts = model.placed_parts(&Isometry3::identity());
+    let parts_moved = model.placed_parts(&moved);
+    parts_moved.iter().all(|pm| {
+        let tol = 1e-3 * pm.shape.min_size();
+        pm.sample_surface(pm.shape.min_size() / 3.0).iter().all(|p| {
+            parts
+                .iter()
+                .any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(p).abs() < tol)
+        })
+    })
+}
+
+impl Symmetry {
+    pub fn of(model: &Model) -> Symmetry {
+        let spin_z = model.parts.iter().all(|p| {
+            let z = p.pose_in_object.rotation * Vector3::z();
+            let t = p.pose_in_object.translation.vector;
+            p.shape.is_revolution() && z.cross(&Vector3::z()).norm() < 1e-9 && t.x.abs() < 1e-9 && t.y.abs() < 1e-9
+        });
+        let mut discrete = vec![UnitQuaternion::identity()];
+        for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
+            for angle in [PI, 0.5 * PI, -0.5 * PI] {
+                let g = UnitQuaternion::from_axis_angle(&axis, angle);
+                if is_symmetry(model, &g) {
+                    discrete.push(g);
+                }
+            }
+        }
+        Symmetry { discrete, spin_z }
+    }
+
+    /// The rotation error (rad) of `estimate` against `truth`, modulo the symmetries.
+    pub fn rotation_error(&self, estimate: &UnitQuaternion<f64>, truth: &UnitQuaternion<f64>) -> f64 {
+        self.discrete
+            .iter()
+            .map(|g| {
+                let t = truth * g;
+                if self.spin_z {
+                    (estimate * Vector3::z()).angle(&(t * Vector3::z()))
+                } else {
+                    estimate.angle_to(&t)
+                }
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Among the poses equivalent under the discrete symmetries, the one whose object z axis
+    /// points most along `up` (the support plane's normal): a cup fitted upside down, which is
+    /// the same cup, is reported standing. Identity when no symmetry turns z over.
+    pub fn canonical_up(&self, rotation: &UnitQuaternion<f64>, up: &Vector3<f64>) -> UnitQuaternion<f64> {
+        let mut best = *rotation;
+        let mut best_dot = (rotation * Vector3::z()).dot(up);
+        for g in &self.discrete {
+            let r = rotation * g;
+            let d = (r * Vector3::z()).dot(up);
+            // A clear margin: symmetries that keep z (a quarter turn about z) never replace the
+            // fitted rotation.
+            if d > best_dot + 1e-6 {
+                best = r;
+                best_dot = d;
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn model(name: &str) -> Model {
+        Model::load(name, &Path::new(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
+    }
+
+    #[test]
+    fn symmetries_of_the_shipped_models() {
+        // A cylinder: free spin about z, and upside down is the same.
+        let s = Symmetry::of(&model("cup_body"));
+        assert!(s.spin_z);
+        assert!(s.discrete.len() >= 2);
+        // The tapered bowl spins freely but cannot be turned over.
+        let s = Symmetry::of(&model("bowl"));
+        assert!(s.spin_z);
+        let flip = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), PI);
+        assert!(s.rotation_error(&flip, &UnitQuaternion::identity()) > 3.0);
+        // The cup's handle fixes the spin; turning it over about the handle's direction (x) maps
+        // body and handle onto themselves.
+        let s = Symmetry::of(&model("cup"));
+        assert!(!s.spin_z);
+        assert!(s.rotation_error(&flip, &UnitQuaternion::identity()) < 1e-9);
+        let yaw = UnitQuaternion::from_axis_angle(&Vector3::z_axis(), 0.5);
+        assert!((s.rotation_error(&yaw, &UnitQuaternion::identity()) - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn canonical_pose_stands_up() {
+        let s = Symmetry::of(&model("cup"));
+        let upside_down = UnitQuaternion::from_euler_angles(PI, 0.0, -1.0);
+        let c = s.canonical_up(&upside_down, &Vector3::z());
+        assert!((c * Vector3::z()).z > 0.999, "{c:?}");
+        // The same object: zero error modulo symmetry, and the yaw (handle direction) is kept.
+        assert!(s.rotation_error(&c, &upside_down) < 1e-9);
+        assert!(((c * Vector3::x()).y.atan2((c * Vector3::x()).x) + 1.0).abs() < 1e-9);
+        // A bowl cannot be turned over: left as fitted.
+        let b = Symmetry::of(&model("bowl"));
+        assert_eq!(b.canonical_up(&upside_down, &Vector3::z()), upside_down);
+    }
+}
