@@ -8,6 +8,7 @@
 //! - [`calibration`]: from a sensor column and raw row to a point in the base frame.
 //! - [`mock`]: the mock scanning rig (mock PTU + mock sensor seeing a simulated scene).
 //! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
+//! - [`daemon`]: pieces of the `sqscand` daemon (systemd readiness and watchdog notification).
 //!
 //! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
@@ -15,6 +16,7 @@
 
 pub mod calibration;
 pub mod cloud;
+pub mod daemon;
 pub mod detect;
 pub mod eval;
 pub mod geometry;
