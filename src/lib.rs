@@ -7,6 +7,8 @@
 //! - [`cloud`]: point clouds, organized range images, PLY/PCD/text IO.
 //! - [`calibration`]: from a sensor column and raw row to a point in the base frame.
 //! - [`mock`]: the mock scanning rig (mock PTU + mock sensor seeing a simulated scene).
+//! - [`sweep`]: assembling PTU position samples and laser profiles into one organized sweep,
+//!   and acquiring a sweep with the devices.
 //! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
 //!
 //! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
@@ -23,3 +25,4 @@ pub mod model;
 pub mod pose;
 pub mod sim;
 pub mod spec;
+pub mod sweep;
