@@ -146,7 +146,9 @@ pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
 async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
     if a.faults.replug_after_ms.is_some() {
-        anyhow::bail!("--replug-after-ms is for `sqscan mock ptu`: the rig's PTU comes back with --ptu-replug-after SECS");
+        anyhow::bail!(
+            "--replug-after-ms is for `sqscan mock ptu`: the rig's PTU comes back with --ptu-replug-after SECS"
+        );
     }
     let ptu_replug_after = a
         .ptu_replug_after
