@@ -211,14 +211,13 @@ async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
     assert!(rig.ptu_replugged.borrow().is_none(), "not back before the replug delay");
 
     // Back on a new pty behind the same link.
-    let old_target = std::fs::read_link(&link).unwrap();
     tokio::time::timeout(Duration::from_secs(5), rig.ptu_replugged.wait_for(Option::is_some))
         .await
         .expect("replugged in time")
         .unwrap();
     let new_path = rig.ptu_replugged.borrow().clone().unwrap();
+    // (The kernel may hand out the old pty number again: the path alone proves nothing.)
     assert_eq!(std::fs::read_link(&link).unwrap(), new_path);
-    assert_ne!(new_path, old_target);
     assert!(!rig.ptu_task.is_finished(), "the replugged PTU is being served");
 
     // The same link opens again and sweeps (back, from where the unit is), and it is not
