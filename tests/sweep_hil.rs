@@ -233,3 +233,43 @@ async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
     rig.shutdown();
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_sensor_unplugged_mid_sweep_fails_the_sweep_and_halts_the_ptu() {
+    let scene = scene();
+    let cal = Calibration::for_rig(&scene.rig);
+    let cfg = RigConfig {
+        protocol: RigProtocol::PowerCube,
+        rate_hz: 50.0,
+        // One second of the ~3 s sweep (the sensor only streams once started).
+        sensor_faults: Faults {
+            disconnect_after: Some(50),
+            ..Faults::default()
+        },
+        ..RigConfig::default()
+    };
+    let rig = RigMock::start(Arc::new(scene.clone()), &cfg, None, None).unwrap();
+    let mut ptu = PowerCubePtu::open(&rig.ptu_path, ptu_config()).await.unwrap();
+    let mut sensor = ProfileSensor::open(&rig.sensor_path, SensorConfig::default()).unwrap();
+    let there = settings(&scene);
+    let e = acquire(&mut ptu, &mut sensor, &cal, &there)
+        .await
+        .expect_err("the sensor was unplugged");
+    assert!(matches!(e, SweepError::Sensor(_)), "{e}");
+    // Halted mid-sweep: the unit stays where it stopped.
+    let a = ptu.position().await.unwrap();
+    tokio::time::sleep(Duration::from_millis(200)).await;
+    let b = ptu.position().await.unwrap();
+    assert!(
+        a.tilt_rad > there.tilt_from_rad + 0.02 && a.tilt_rad < there.tilt_to_rad - 0.02,
+        "stopped at tilt {}",
+        a.tilt_rad
+    );
+    assert!(
+        (a.tilt_rad - b.tilt_rad).abs() < 1e-3,
+        "still moving: {} -> {}",
+        a.tilt_rad,
+        b.tilt_rad
+    );
+    rig.shutdown();
+}

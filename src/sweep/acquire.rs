@@ -126,14 +126,7 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
 
     let sweep = assemble(&samples, &profiles, calib, settings.sensor_latency_s)?;
     tracing::debug!(report = ?sweep.report, "sweep assembled");
-    if sweep.profiles < settings.min_profiles {
-        return Err(SweepError::TooFewProfiles {
-            kept: sweep.profiles,
-            needed: settings.min_profiles,
-            report: sweep.report,
-        });
-    }
-    Ok(sweep)
+    sweep.require_profiles(settings.min_profiles)
 }
 
 fn secs(s: f64) -> Duration {

@@ -108,6 +108,20 @@ pub struct AssembledSweep {
     pub report: SweepReport,
 }
 
+impl AssembledSweep {
+    /// The sweep if it kept at least `needed` profiles, else [`SweepError::TooFewProfiles`].
+    pub fn require_profiles(self, needed: usize) -> Result<AssembledSweep, SweepError> {
+        if self.profiles < needed {
+            return Err(SweepError::TooFewProfiles {
+                kept: self.profiles,
+                needed,
+                report: self.report,
+            });
+        }
+        Ok(self)
+    }
+}
+
 /// Why a sweep failed. A sweep cut short by a fault is always one of these, never a partial
 /// [`AssembledSweep`].
 #[derive(Debug, thiserror::Error)]

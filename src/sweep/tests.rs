@@ -321,6 +321,29 @@ fn a_sweep_with_decreasing_tilt_assembles_in_exposure_order() {
 }
 
 #[test]
+fn too_few_profiles_is_an_error_with_the_report() {
+    let rig = Rig::new();
+    let cal = calib();
+    let samples = [rig.sample(0.0, 0.0, 0.5), rig.sample(1.0, 0.0, 0.6)];
+    let profiles = [
+        rig.profile(0, 0.5, 0.001),
+        rig.profile(0, 0.5, 0.001),
+        rig.profile(1, 2.0, 0.001),
+    ];
+    let s = assemble(&samples, &profiles, &cal, 0.001).unwrap();
+    let e = s.clone().require_profiles(2).unwrap_err();
+    match &e {
+        SweepError::TooFewProfiles { kept, needed, report } => {
+            assert_eq!((*kept, *needed), (1, 2));
+            assert_eq!((report.dropped_duplicate, report.dropped_extrapolated), (1, 1));
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.to_string().contains("only 1 usable profiles, 2 needed"), "{e}");
+    assert_eq!(s.require_profiles(1).unwrap().profiles, 1);
+}
+
+#[test]
 fn settings_default_validate_and_read_from_toml() {
     let d = SweepSettings::default();
     d.validate().unwrap();
