@@ -65,6 +65,7 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
 
     // 3. Acquisition on.
     sensor.start().await.map_err(SweepError::Sensor)?;
+    let started = std::time::Instant::now();
 
     // 4. The move, reading profiles meanwhile.
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
@@ -111,6 +112,14 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
             Err(sqscan_drivers::Error::Timeout { .. }) => break,
             Err(e) => return Err(SweepError::Sensor(e)),
         }
+    }
+
+    // A sensor that sent nothing at all failed, whatever the PTU did.
+    if profiles.is_empty() {
+        return Err(SweepError::Sensor(sqscan_drivers::Error::Timeout {
+            waiting_for: "a profile during the sweep",
+            after: started.elapsed(),
+        }));
     }
 
     // A move that "ended" short of the goal was halted: a cut-short sweep.
