@@ -55,7 +55,7 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
 
     // 1. To the start. Worst case from anywhere in the limits at the approach speed.
     let span = (limits.tilt_rad.1 - limits.tilt_rad.0).max(limits.pan_rad.1 - limits.pan_rad.0);
-    let approach_time = secs(span.abs() / settings.approach_speed_rad_s) + settings.timeout;
+    let approach_time = secs(span.abs() / settings.approach_speed_rad_s).saturating_add(settings.timeout);
     ptu.move_and_track(approach, None, approach_time)
         .await
         .map_err(SweepError::Ptu)?;
@@ -70,7 +70,7 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
     // 4. The move, reading profiles meanwhile.
     let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
     let mut profiles: Vec<ReceivedProfile> = Vec::new();
-    let track_time = secs(settings.nominal_duration_s()) + settings.timeout;
+    let track_time = secs(settings.nominal_duration_s()).saturating_add(settings.timeout);
     let moved = {
         let mut sweep = Box::pin(ptu.move_and_track(sweep_goal, Some(&tx), track_time));
         loop {
@@ -105,7 +105,9 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
         return Err(SweepError::Sensor(e));
     }
     // Bounded even if the sensor ignored STOP.
-    let drain_until = std::time::Instant::now() + settings.timeout;
+    let drain_until = std::time::Instant::now()
+        .checked_add(settings.timeout)
+        .unwrap_or_else(std::time::Instant::now);
     while std::time::Instant::now() < drain_until {
         match sensor.next_profile(settings.grace).await {
             Ok(p) => profiles.push(p),

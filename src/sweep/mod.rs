@@ -212,7 +212,7 @@ impl SweepSettings {
     }
 
     /// Checks that the settings make a sweep: finite angles, positive speeds, a non-empty tilt
-    /// range, a non-zero timeout, a latency in [0, 1] s.
+    /// range, a timeout in (0, 1 h], a grace period up to 1 h, a latency in [0, 1] s.
     pub fn validate(&self) -> Result<(), SweepError> {
         let bad = |field, reason: String| Err(SweepError::Settings { field, reason });
         for (field, v) in [
@@ -238,8 +238,18 @@ impl SweepSettings {
         if self.min_profiles == 0 {
             return bad("min_profiles", "give at least 1".into());
         }
-        if self.timeout.is_zero() {
-            return bad("timeout_s", "must be > 0".into());
+        // Bounded so that deadlines computed from them stay representable.
+        if self.timeout.is_zero() || self.timeout > MAX_WAIT {
+            return bad(
+                "timeout_s",
+                format!("{:?}: give (0, {}] s", self.timeout, MAX_WAIT.as_secs()),
+            );
+        }
+        if self.grace > MAX_WAIT {
+            return bad(
+                "grace_s",
+                format!("{:?}: give [0, {}] s", self.grace, MAX_WAIT.as_secs()),
+            );
         }
         if !(self.sensor_latency_s.is_finite() && (0.0..=1.0).contains(&self.sensor_latency_s)) {
             return bad("sensor_latency_s", format!("{} s: give [0, 1]", self.sensor_latency_s));
@@ -247,6 +257,9 @@ impl SweepSettings {
         Ok(())
     }
 }
+
+/// The longest timeout or grace period settings may give.
+const MAX_WAIT: Duration = Duration::from_secs(3600);
 
 /// Durations as seconds (f64) in files.
 mod secs {

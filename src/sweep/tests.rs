@@ -393,6 +393,13 @@ fn settings_default_validate_and_read_from_toml() {
         ),
         (
             SweepSettings {
+                timeout: Duration::from_secs(1 << 40),
+                ..d.clone()
+            },
+            "timeout_s",
+        ),
+        (
+            SweepSettings {
                 min_profiles: 0,
                 ..d.clone()
             },
