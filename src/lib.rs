@@ -7,8 +7,11 @@
 //! - [`cloud`]: point clouds, organized range images, PLY/PCD/text IO.
 //! - [`calibration`]: from a sensor column and raw row to a point in the base frame.
 //! - [`mock`]: the mock scanning rig (mock PTU + mock sensor seeing a simulated scene).
+//! - [`sweep`]: assembling PTU position samples and laser profiles into one organized sweep,
+//!   and acquiring a sweep with the devices.
 //! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
-//! - [`daemon`]: pieces of the `sqscand` daemon (systemd readiness and watchdog notification).
+//! - [`detect`]: the superquadric detector; [`eval`] scores it against the simulator's truth.
+//! - [`daemon`]: `sqscand`: configuration, acquisition, the socket server, systemd notification.
 //!
 //! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
@@ -25,4 +28,5 @@ pub mod model;
 pub mod pose;
 pub mod sim;
 pub mod spec;
+pub mod sweep;
 pub mod symmetry;

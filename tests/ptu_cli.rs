@@ -168,3 +168,66 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     drop(mock);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
+    let dir = std::env::temp_dir().join(format!("sqscan-cli-replug-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
+    let mut mock = Reaper(
+        Command::new(SQSCAN)
+            .args(["mock", "rig", "--protocol", "powercube", "--scene"])
+            .arg(&scene)
+            .arg("--ptu-link")
+            .arg(&ptu_link)
+            .arg("--sensor-link")
+            .arg(&sensor_link)
+            .args(["--disconnect-after", "3", "--ptu-replug-after", "0.2"])
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    );
+    let mut lines = BufReader::new(mock.0.stdout.take().unwrap()).lines();
+    let first = lines.next().unwrap().unwrap();
+    assert!(first.contains("PowerCube PTU on /dev/pts/"), "{first}");
+    lines.next().unwrap().unwrap();
+
+    // Unplugged after three replies: this session fails.
+    let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
+    assert!(!ok && err.contains("disconnected"), "{err}");
+    let back = lines.next().unwrap().unwrap();
+    assert!(back.contains("PTU plugged back in on /dev/pts/"), "{back}");
+    let target = std::fs::read_link(&ptu_link).unwrap();
+    assert!(
+        back.contains(&target.display().to_string()),
+        "{back} vs {}",
+        target.display()
+    );
+
+    // Back behind the same link, for good: many more than three replies each.
+    for tilt in ["0.6", "0.3"] {
+        let (ok, out, err) = ptu(&ptu_link, &["move", "--tilt", tilt]);
+        assert!(ok && out.contains(&format!("tilt +{tilt}000 rad")), "{out}{err}");
+    }
+    let out = Command::new(SQSCAN)
+        .args(["sensor", "--device"])
+        .arg(&sensor_link)
+        .args(["grab", "5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    // Without --disconnect-after there is nothing to replug.
+    let out = Command::new(SQSCAN)
+        .args(["mock", "rig", "--protocol", "powercube", "--scene"])
+        .arg(&scene)
+        .args(["--ptu-replug-after", "1"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--disconnect-after"));
+
+    drop(mock);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -8,6 +8,10 @@
 //! sensor's own clock (monotonic ns since the rig started) and sent as SQPF frames while the
 //! host has sent `START`.
 //!
+//! Fault tests: `RigConfig::ptu_faults.disconnect_after` unplugs the PTU mid-sweep (its pty
+//! closes); with `RigConfig::ptu_replug_after` the same unit comes back later on a new pty, the
+//! PTU link re-pointed at it, while the sensor streams on throughout.
+//!
 //! Device angles are taken as joint angles (axis sign +1, offset 0), which is what
 //! [`crate::calibration::Calibration::for_rig`] assumes.
 
@@ -22,6 +26,7 @@ use sqscan_drivers::mock::{
     Faults, MockDevice, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
 };
 use sqscan_drivers::profile::Profile;
+use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
 use crate::sim::{self, Scene};
@@ -43,6 +48,10 @@ pub struct RigConfig {
     pub seed: u64,
     pub ptu_faults: Faults,
     pub sensor_faults: Faults,
+    /// After the PTU's `ptu_faults.disconnect_after` unplug, plug it back in this much later:
+    /// a new pty, the PTU link symlink re-pointed at it, the same device (same angles, same
+    /// move) served again, once, without the unplug fault. The sensor streams on meanwhile.
+    pub ptu_replug_after: Option<Duration>,
 }
 
 impl Default for RigConfig {
@@ -53,6 +62,7 @@ impl Default for RigConfig {
             seed: 1,
             ptu_faults: Faults::default(),
             sensor_faults: Faults::default(),
+            ptu_replug_after: None,
         }
     }
 }
@@ -63,8 +73,13 @@ pub struct RigMock {
     pub sensor_path: PathBuf,
     /// The PTU's device side, e.g. to read where it really is.
     pub ptu: Arc<Mutex<dyn MockDevice>>,
+    /// Serves the PTU; with [`RigConfig::ptu_replug_after`] it goes on after the unplug, and
+    /// ends with how the second line ended.
     pub ptu_task: JoinHandle<io::Result<ServeEnd>>,
     pub sensor_task: JoinHandle<io::Result<ServeEnd>>,
+    /// The PTU's new pty path once it has been plugged back in (`None` until then). With a
+    /// PTU link, the link points there too.
+    pub ptu_replugged: watch::Receiver<Option<PathBuf>>,
 }
 
 impl RigMock {
@@ -89,7 +104,14 @@ impl RigMock {
         let ptu_port = MockPort::create(ptu_link)?;
         let sensor_port = MockPort::create(sensor_link)?;
         let (ptu_path, sensor_path) = (ptu_port.path().to_owned(), sensor_port.path().to_owned());
-        let ptu_task = tokio::spawn(ptu_port.serve(ptu.clone(), cfg.ptu_faults.clone()));
+        let (replugged_tx, ptu_replugged) = watch::channel(None);
+        let ptu_task = tokio::spawn(serve_ptu(
+            ptu_port,
+            ptu.clone(),
+            cfg.ptu_faults.clone(),
+            cfg.ptu_replug_after,
+            replugged_tx,
+        ));
         let source = scene_source(scene, ptu.clone(), cfg.seed);
         let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
         let sensor_task = tokio::spawn(sensor_port.stream(source, period, cfg.sensor_faults.clone()));
@@ -99,6 +121,7 @@ impl RigMock {
             ptu,
             ptu_task,
             sensor_task,
+            ptu_replugged,
         })
     }
 
@@ -107,6 +130,32 @@ impl RigMock {
         self.ptu_task.abort();
         self.sensor_task.abort();
     }
+}
+
+/// Serves the PTU until unplugged; then, if asked to, once more on a new pty at the same link.
+async fn serve_ptu(
+    port: MockPort,
+    device: Arc<Mutex<dyn MockDevice>>,
+    faults: Faults,
+    replug_after: Option<Duration>,
+    replugged: watch::Sender<Option<PathBuf>>,
+) -> io::Result<ServeEnd> {
+    let link = port.link().map(Path::to_owned);
+    let end = port.serve(device.clone(), faults.clone()).await?;
+    let Some(after) = replug_after else {
+        return Ok(end);
+    };
+    // `serve` consumed the port: the old pty is closed, the driver sees the unplug.
+    tokio::time::sleep(after).await;
+    let port = MockPort::create(link.as_deref())?;
+    tracing::info!(path = %port.path().display(), "mock rig: PTU plugged back in");
+    let _ = replugged.send(Some(port.path().to_owned()));
+    // Once: the fault counter does not unplug it again.
+    let faults = Faults {
+        disconnect_after: None,
+        ..faults
+    };
+    port.serve(device, faults).await
 }
 
 /// The sensor's view: the scene rendered at the PTU's angles at `now`.

@@ -40,6 +40,11 @@ pub struct MockRigArgs {
     /// Profiles a second while acquiring
     #[arg(long, value_name = "HZ", default_value_t = 50.0)]
     rate: f64,
+    /// After the PTU's --disconnect-after unplug, plug the same unit back in SECS later: a new
+    /// pty, the --ptu-link symlink re-pointed at it, same angles; once (it is not unplugged
+    /// again). The sensor keeps streaming meanwhile
+    #[arg(long, value_name = "SECS", requires = "disconnect_after")]
+    ptu_replug_after: Option<f64>,
     /// PTU fault injection; --seed also seeds the sensor noise
     #[command(flatten)]
     faults: FaultArgs,
@@ -141,8 +146,19 @@ pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
 async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
     if a.faults.replug_after_ms.is_some() {
-        anyhow::bail!("--replug-after-ms: the rig ends when a device is unplugged (use `sqscan mock ptu` to replug)");
+        anyhow::bail!(
+            "--replug-after-ms is for `sqscan mock ptu`: the rig's PTU comes back with --ptu-replug-after SECS"
+        );
     }
+    let ptu_replug_after = a
+        .ptu_replug_after
+        .map(|s| {
+            Duration::try_from_secs_f64(s)
+                .ok()
+                .filter(|d| *d <= Duration::from_secs(86_400))
+                .with_context(|| format!("--ptu-replug-after {s}: give 0 to 86400 seconds"))
+        })
+        .transpose()?;
     let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
     let cfg = RigConfig {
         protocol: match a.protocol {
@@ -160,6 +176,7 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
             disconnect_after: a.sensor_faults.sensor_disconnect_after,
             seed: a.faults.seed,
         },
+        ptu_replug_after,
     };
     let columns = scene.rig.sensor.columns;
     let rig = RigMock::start(
@@ -189,8 +206,27 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         shown(&rig.sensor_path, &a.sensor_link)
     );
     let RigMock {
-        ptu_task, sensor_task, ..
+        ptu_task,
+        sensor_task,
+        mut ptu_replugged,
+        ..
     } = rig;
+    // Announce the replugged PTU, as the first one was.
+    let ptu_link = a.ptu_link.clone();
+    tokio::spawn(async move {
+        if ptu_replugged.wait_for(Option::is_some).await.is_ok()
+            && let Some(path) = ptu_replugged.borrow().clone()
+        {
+            println!(
+                "mock rig: PTU plugged back in on {}{}",
+                path.display(),
+                ptu_link
+                    .as_ref()
+                    .map(|l| format!(" (link {})", l.display()))
+                    .unwrap_or_default()
+            );
+        }
+    });
     let result = tokio::select! {
         r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
         r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),

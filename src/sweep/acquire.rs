@@ -1,0 +1,145 @@
+//! One sweep with real devices: drive the PTU through the tilt range while reading profiles,
+//! then [`assemble`](super::assemble) them.
+//!
+//! The order of events:
+//!
+//! 1. move to the start (`tilt_from_rad` at `pan_rad`) and wait for the move to end;
+//! 2. one position sample (it brackets the first profiles: none is exposed before it);
+//! 3. `START` to the sensor;
+//! 4. the sweep move, tracked with every position sample kept, while profiles are read
+//!    concurrently (one task: `select!` over the move and the next profile);
+//! 5. when the move has ended, `STOP`, then the frames still on the line are read until it has
+//!    been quiet for [`SweepSettings::grace`];
+//! 6. one more position sample (it brackets the last profiles: all were exposed before it).
+//!
+//! Any device error ends the sweep with an error naming the device; the other device is left
+//! quiet on a best-effort basis (the PTU halted after a sensor failure, the sensor stopped after
+//! a PTU failure). Back-and-forth sweeping is calling this with the tilts swapped
+//! ([`SweepSettings::reversed`]); frames left on the line from an earlier sweep were exposed
+//! before step 2 and are dropped as outside the samples' span.
+
+use std::time::Duration;
+
+use sqscan_drivers::sensor::{ProfileSensor, ReceivedProfile};
+use sqscan_drivers::{Goal, PanTilt, PositionSample};
+use tokio::io::{AsyncRead, AsyncWrite};
+
+use super::{AssembledSweep, SweepError, SweepSettings, assemble};
+use crate::calibration::Calibration;
+
+/// How far short of the goal tilt the PTU may report the sweep move ended (rad).
+const GOAL_SLACK_RAD: f64 = 0.01;
+
+/// Runs one sweep and assembles it. See the module docs for the order of events.
+pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
+    ptu: &mut P,
+    sensor: &mut ProfileSensor<S>,
+    calib: &Calibration,
+    settings: &SweepSettings,
+) -> Result<AssembledSweep, SweepError> {
+    settings.validate()?;
+    let approach = Goal {
+        pan_rad: settings.pan_rad,
+        tilt_rad: settings.tilt_from_rad,
+        speed_rad_s: settings.approach_speed_rad_s,
+    };
+    let sweep_goal = Goal {
+        tilt_rad: settings.tilt_to_rad,
+        speed_rad_s: settings.speed_rad_s,
+        ..approach
+    };
+    // Refuse an out-of-range sweep before moving at all.
+    let limits = ptu.limits();
+    limits.check(&approach).map_err(SweepError::Ptu)?;
+    limits.check(&sweep_goal).map_err(SweepError::Ptu)?;
+
+    // 1. To the start. Worst case from anywhere in the limits at the approach speed.
+    let span = (limits.tilt_rad.1 - limits.tilt_rad.0).max(limits.pan_rad.1 - limits.pan_rad.0);
+    let approach_time = secs(span.abs() / settings.approach_speed_rad_s).saturating_add(settings.timeout);
+    ptu.move_and_track(approach, None, approach_time)
+        .await
+        .map_err(SweepError::Ptu)?;
+
+    // 2. The sample before the first exposure.
+    let mut samples: Vec<PositionSample> = vec![ptu.position().await.map_err(SweepError::Ptu)?];
+
+    // 3. Acquisition on.
+    sensor.start().await.map_err(SweepError::Sensor)?;
+    let started = std::time::Instant::now();
+
+    // 4. The move, reading profiles meanwhile.
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+    let mut profiles: Vec<ReceivedProfile> = Vec::new();
+    let track_time = secs(settings.nominal_duration_s()).saturating_add(settings.timeout);
+    let moved = {
+        let mut sweep = Box::pin(ptu.move_and_track(sweep_goal, Some(&tx), track_time));
+        loop {
+            tokio::select! {
+                r = &mut sweep => break Ok(r),
+                r = sensor.next_profile(settings.timeout) => match r {
+                    Ok(p) => profiles.push(p),
+                    Err(e) => break Err(e),
+                },
+            }
+        }
+    };
+    drop(tx);
+    while let Ok(s) = rx.try_recv() {
+        samples.push(s);
+    }
+    let last = match moved {
+        Ok(Ok(last)) => last,
+        Ok(Err(e)) => {
+            let _ = sensor.stop().await;
+            return Err(SweepError::Ptu(e));
+        }
+        Err(e) => {
+            let _ = ptu.halt().await;
+            return Err(SweepError::Sensor(e));
+        }
+    };
+
+    // 5. Acquisition off; what is still on the line was exposed during the move.
+    let stopped = sensor.stop().await;
+    if let Err(e) = stopped {
+        return Err(SweepError::Sensor(e));
+    }
+    // Bounded even if the sensor ignored STOP.
+    let drain_until = std::time::Instant::now()
+        .checked_add(settings.timeout)
+        .unwrap_or_else(std::time::Instant::now);
+    while std::time::Instant::now() < drain_until {
+        match sensor.next_profile(settings.grace).await {
+            Ok(p) => profiles.push(p),
+            Err(sqscan_drivers::Error::Timeout { .. }) => break,
+            Err(e) => return Err(SweepError::Sensor(e)),
+        }
+    }
+
+    // A sensor that sent nothing at all failed, whatever the PTU did.
+    if profiles.is_empty() {
+        return Err(SweepError::Sensor(sqscan_drivers::Error::Timeout {
+            waiting_for: "a profile during the sweep",
+            after: started.elapsed(),
+        }));
+    }
+
+    // A move that "ended" short of the goal was halted: a cut-short sweep.
+    if (last.tilt_rad - settings.tilt_to_rad).abs() > GOAL_SLACK_RAD {
+        return Err(SweepError::PtuStopped {
+            tilt_rad: last.tilt_rad,
+            goal_rad: settings.tilt_to_rad,
+        });
+    }
+
+    // 6. The sample after the last exposure.
+    samples.push(ptu.position().await.map_err(SweepError::Ptu)?);
+
+    let sweep = assemble(&samples, &profiles, calib, settings.sensor_latency_s)?;
+    tracing::debug!(report = ?sweep.report, "sweep assembled");
+    sweep.require_profiles(settings.min_profiles)
+}
+
+fn secs(s: f64) -> Duration {
+    Duration::try_from_secs_f64(s).unwrap_or(Duration::MAX)
+}
