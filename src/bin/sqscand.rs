@@ -1,1 +1,127 @@
-fn main() {}
+//! `sqscand`: the sqscan daemon. See `docs/DAEMON.md` and `docs/PROTOCOL.md`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use clap::Parser;
+use sqscan::daemon::config::{Backend, Config, DEFAULT_CONFIG_PATH};
+use sqscan::daemon::{Daemon, notify::Notifier};
+
+#[derive(Parser)]
+#[command(
+    name = "sqscand",
+    version,
+    about = "Scan the table and answer \"where is the cup?\" over a local socket",
+    long_about = "Scan the table and answer \"where is the cup?\" over a local socket.\n\n\
+        Reads its configuration from --config, else /etc/sqscan/sqscand.toml when that exists, \
+        else runs the embedded default: the simulated scanner on scenes/fig3_table.toml with the \
+        socket at $XDG_RUNTIME_DIR/sqscand.sock (or ./sqscand.sock). Ask it with `sqscan find cup`, \
+        `sqscan status`, `sqscan watch cup`, `sqscan scan`. Logs go to stderr; SQSCAN_LOG=debug \
+        shows more."
+)]
+struct Cli {
+    /// Configuration file [default: /etc/sqscan/sqscand.toml if it exists, else the embedded
+    /// simulator configuration]
+    #[arg(long, value_name = "FILE")]
+    config: Option<PathBuf>,
+    /// Unix socket to listen on (overrides the file's server.socket)
+    #[arg(long, value_name = "PATH")]
+    socket: Option<PathBuf>,
+    /// Check the configuration (and models, scene or calibration) and exit
+    #[arg(long)]
+    check: bool,
+}
+
+fn load_config(cli: &Cli) -> Result<Config> {
+    let path = match &cli.config {
+        Some(p) => Some(p.clone()),
+        None => Some(PathBuf::from(DEFAULT_CONFIG_PATH)).filter(|p| p.exists()),
+    };
+    let mut config = match &path {
+        Some(p) => Config::from_file(p).map_err(|e| anyhow::anyhow!(e.with_causes()))?,
+        None => Config::embedded_default(),
+    };
+    if let Some(s) = &cli.socket {
+        config.socket = s.clone();
+    }
+    Ok(config)
+}
+
+fn describe(config: &Config) -> String {
+    let source = match &config.source {
+        Some(p) => p.display().to_string(),
+        None => "the embedded default (no config file)".into(),
+    };
+    let backend = match &config.backend {
+        Backend::Sim { scene, .. } => format!("the simulated scanner on {}", scene.display()),
+        Backend::Hardware(h) => format!("the PTU at {} and the sensor at {}", h.ptu_path.display(), h.sensor),
+    };
+    format!("configuration from {source}; scanning with {backend}")
+}
+
+async fn run(config: Config) -> Result<()> {
+    let notifier = Notifier::from_env();
+    tracing::info!("{}", describe(&config));
+    let tcp = config.tcp;
+    let daemon = Daemon::start(config, notifier).await?;
+    // Where to ask, on stderr (the journal under systemd), whatever the log level.
+    eprintln!(
+        "sqscand: listening on {}{}; try `sqscan --socket {} find cup`",
+        daemon.socket().display(),
+        tcp.map(|a| format!(" and tcp {a}")).unwrap_or_default(),
+        daemon.socket().display()
+    );
+    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .context("cannot install the SIGTERM handler")?;
+    tokio::select! {
+        r = tokio::signal::ctrl_c() => r.context("waiting for SIGINT")?,
+        _ = term.recv() => {}
+    }
+    tracing::info!("stopping");
+    daemon.stop().await;
+    Ok(())
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let level = std::env::var("SQSCAN_LOG")
+        .ok()
+        .and_then(|l| l.parse().ok())
+        .unwrap_or(tracing::Level::INFO);
+    tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_max_level(level)
+        .with_target(false)
+        .init();
+    let result = load_config(&cli).and_then(|config| {
+        if cli.check {
+            let models = sqscan::daemon::load_models(&config.models_dir)?;
+            sqscan::daemon::acquire::AnyBackend::from_config(&config)?;
+            println!(
+                "{}; {} models in {}",
+                describe(&config),
+                models.len(),
+                config.models_dir.display()
+            );
+            return Ok(());
+        }
+        let rt = tokio::runtime::Builder::new_multi_thread()
+            .enable_all()
+            .thread_name("sqscand")
+            .build()
+            .context("cannot start the runtime")?;
+        let r = rt.block_on(run(config));
+        // Detections still on the blocking pool are abandoned: stopping must take < 2 s.
+        rt.shutdown_timeout(Duration::from_millis(200));
+        r
+    });
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("sqscand: error: {}", format!("{e:#}").replace('\n', " "));
+            ExitCode::FAILURE
+        }
+    }
+}

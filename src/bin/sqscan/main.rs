@@ -1,7 +1,7 @@
 //! `sqscan`: the command-line tool of sqscan: simulator, model viewer, cloud inspector, offline
-//! detector and evaluator, mock devices and device bring-up (and, as it lands, the daemon's
-//! client).
+//! detector and evaluator, mock devices and device bring-up, and the daemon's client.
 
+mod client;
 mod detect;
 mod eval;
 mod files;
@@ -42,6 +42,16 @@ enum Command {
     Ptu(ptu::PtuArgs),
     /// Bring-up tool for a profile sensor: grab profiles and print their statistics
     Sensor(sensor::SensorArgs),
+    /// Ask the daemon where an object is (from a recent sweep, or the next one)
+    Find(client::FindArgs),
+    /// Ask the daemon for a sweep now; prints it when complete
+    Scan(client::ScanArgs),
+    /// Print every sweep's detections of the given objects until interrupted
+    Watch(client::WatchArgs),
+    /// The daemon's devices, last sweep, rates and faults
+    Status(client::PlainArgs),
+    /// The objects the daemon knows
+    Models(client::PlainArgs),
 }
 
 fn main() -> ExitCode {
@@ -73,6 +83,11 @@ fn main() -> ExitCode {
         Command::Mock(a) => mock::run(a, &models_dir),
         Command::Ptu(a) => ptu::run(a),
         Command::Sensor(a) => sensor::run(a),
+        Command::Find(a) => client::find(a),
+        Command::Scan(a) => client::scan(a),
+        Command::Watch(a) => client::watch(a),
+        Command::Status(a) => client::status(a),
+        Command::Models(a) => client::models(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

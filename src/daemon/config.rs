@@ -1,0 +1,599 @@
+//! The daemon's configuration file (`/etc/sqscan/sqscand.toml` by default), documented field by
+//! field in `docs/DAEMON.md`; `systemd/sqscand.toml` is a complete example.
+//!
+//! Relative paths in the file are taken relative to the directory the file is in, so a
+//! configuration and the calibration it names can move together. With no file at all the daemon
+//! runs [`Config::embedded_default`]: the simulated scanner on `scenes/fig3_table.toml`.
+
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use serde::Deserialize;
+
+use crate::spec::{SpecError, read_toml};
+
+/// Where the daemon looks for its configuration when `--config` is not given.
+pub const DEFAULT_CONFIG_PATH: &str = "/etc/sqscan/sqscand.toml";
+/// The socket file name under a runtime directory.
+pub const SOCKET_NAME: &str = "sqscand.sock";
+/// Requests longer than this are refused (and the rest of the line skipped).
+pub const MAX_REQUEST_BYTES: usize = 64 * 1024;
+
+/// The file as written.
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ConfigFile {
+    #[serde(default)]
+    server: ServerFile,
+    #[serde(default)]
+    acquisition: AcquisitionFile,
+    sim: Option<SimFile>,
+    hardware: Option<HardwareFile>,
+    #[serde(default)]
+    sweep: SweepFile,
+    #[serde(default)]
+    detect: DetectFile,
+    record: Option<RecordFile>,
+    #[serde(default)]
+    watch: WatchFile,
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct ServerFile {
+    socket: Option<PathBuf>,
+    /// Permission bits of the socket file, e.g. `0o660`.
+    socket_mode: Option<u32>,
+    /// `"127.0.0.1:2948"`: also listen on TCP. Off unless given.
+    tcp: Option<String>,
+    models_dir: Option<PathBuf>,
+    max_clients: Option<usize>,
+    /// Messages queued for one client before its watch updates are skipped.
+    client_queue: Option<usize>,
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct AcquisitionFile {
+    /// `"sim"` or `"hardware"`; default: `"hardware"` when a `[hardware]` table is given.
+    backend: Option<String>,
+    /// `"continuous"` (default) or `"on_demand"`.
+    mode: Option<String>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SimFile {
+    scene: PathBuf,
+    seed: Option<u64>,
+    /// Pace sweeps like the real rig (default true); false renders back to back.
+    realtime: Option<bool>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HardwareFile {
+    calibration: PathBuf,
+    ptu: PtuFile,
+    sensor: SensorFile,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PtuFile {
+    path: PathBuf,
+    protocol: String,
+    baud: Option<u32>,
+    /// PowerCube module ids.
+    pan_module: Option<u8>,
+    tilt_module: Option<u8>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorFile {
+    /// Serial device of the sensor, or:
+    path: Option<PathBuf>,
+    /// `host:port` of a sensor that streams over TCP.
+    tcp: Option<String>,
+    baud: Option<u32>,
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct SweepFile {
+    pan_rad: Option<f64>,
+    tilt_from_rad: Option<f64>,
+    tilt_to_rad: Option<f64>,
+    speed_rad_s: Option<f64>,
+    /// Sweep back and forth (every other sweep runs from `tilt_to` to `tilt_from`).
+    back_and_forth: Option<bool>,
+    /// A sweep with fewer kept profiles is dropped.
+    min_profiles: Option<usize>,
+    /// Pause between sweeps in continuous mode (s).
+    pause_s: Option<f64>,
+    /// Slack beyond a move's nominal duration before the PTU counts as stuck, and the longest
+    /// the sensor may stay silent while acquiring (s).
+    timeout_s: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct DetectFile {
+    seed: Option<u64>,
+    /// Detections run at once at most (each is itself parallel).
+    workers: Option<usize>,
+    max_range_m: Option<f64>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RecordFile {
+    dir: PathBuf,
+    /// Keep the newest N recordings (0: keep all).
+    keep: Option<usize>,
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct WatchFile {
+    /// Objects detected on every sweep whether or not a client asks.
+    #[serde(default)]
+    objects: Vec<String>,
+}
+
+/// Which scanner the daemon drives.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Backend {
+    /// The ray-cast simulator on a scene file.
+    Sim { scene: PathBuf, seed: u64, realtime: bool },
+    /// A PTU and a profile sensor.
+    Hardware(HardwareConfig),
+}
+
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PtuProtocol {
+    PowerCube,
+    Flir,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct HardwareConfig {
+    pub calibration: PathBuf,
+    pub ptu_path: PathBuf,
+    pub ptu_protocol: PtuProtocol,
+    pub ptu_baud: u32,
+    pub pan_module: u8,
+    pub tilt_module: u8,
+    pub sensor: SensorEndpoint,
+    pub sensor_baud: u32,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum SensorEndpoint {
+    Serial(PathBuf),
+    Tcp(String),
+}
+
+impl std::fmt::Display for SensorEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SensorEndpoint::Serial(p) => write!(f, "{}", p.display()),
+            SensorEndpoint::Tcp(a) => write!(f, "tcp://{a}"),
+        }
+    }
+}
+
+/// The sweep the daemon drives; unset angles come from the scene's rig (simulator).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepConfig {
+    pub pan_rad: Option<f64>,
+    pub tilt_from_rad: Option<f64>,
+    pub tilt_to_rad: Option<f64>,
+    pub speed_rad_s: Option<f64>,
+    pub back_and_forth: bool,
+    pub min_profiles: usize,
+    pub pause: Duration,
+    pub timeout: Duration,
+}
+
+/// The validated configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Config {
+    /// The file it came from, if any.
+    pub source: Option<PathBuf>,
+    pub socket: PathBuf,
+    pub socket_mode: u32,
+    pub tcp: Option<SocketAddr>,
+    pub models_dir: PathBuf,
+    pub max_clients: usize,
+    pub client_queue: usize,
+    pub backend: Backend,
+    /// Sweep continuously (true) or only when a client needs one.
+    pub continuous: bool,
+    pub sweep: SweepConfig,
+    pub detect_seed: u64,
+    pub detect_workers: usize,
+    pub max_range_m: Option<f64>,
+    pub record_dir: Option<PathBuf>,
+    pub record_keep: usize,
+    pub watch: Vec<String>,
+}
+
+/// The socket path when neither the file nor `--socket` names one: under `$XDG_RUNTIME_DIR`
+/// when it is set, else in the working directory.
+pub fn default_socket_path() -> PathBuf {
+    match std::env::var_os("XDG_RUNTIME_DIR") {
+        Some(d) if !d.is_empty() => PathBuf::from(d).join(SOCKET_NAME),
+        _ => PathBuf::from(SOCKET_NAME),
+    }
+}
+
+/// Where a client looks for the daemon, in order: `$SQSCAN_SOCKET`, the default path, the
+/// system service's `/run/sqscan/sqscand.sock`. The first that exists wins; the default path
+/// when none does (so the error names it).
+pub fn client_socket_candidates() -> Vec<PathBuf> {
+    let mut v = Vec::new();
+    if let Some(s) = std::env::var_os("SQSCAN_SOCKET") {
+        v.push(PathBuf::from(s));
+    }
+    v.push(default_socket_path());
+    v.push(PathBuf::from("/run/sqscan").join(SOCKET_NAME));
+    v
+}
+
+/// The scenes directory: `./scenes` when it exists, else the one in the source tree this binary
+/// was built from (as [`crate::model::default_models_dir`] does for models).
+pub fn default_scenes_dir() -> PathBuf {
+    let local = PathBuf::from("scenes");
+    if local.is_dir() {
+        return local;
+    }
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
+}
+
+fn positive(path: &Path, field: &str, v: Option<f64>) -> Result<Option<f64>, SpecError> {
+    match v {
+        Some(x) if !(x.is_finite() && x > 0.0) => {
+            Err(SpecError::invalid(path, field, format!("{x}: give a value > 0")))
+        }
+        _ => Ok(v),
+    }
+}
+
+fn finite(path: &Path, field: &str, v: Option<f64>) -> Result<Option<f64>, SpecError> {
+    match v {
+        Some(x) if !x.is_finite() => Err(SpecError::invalid(path, field, "not a finite number")),
+        _ => Ok(v),
+    }
+}
+
+impl Config {
+    /// The configuration of a machine with no file: the simulator on the Fig. 3 scene.
+    pub fn embedded_default() -> Config {
+        Config {
+            source: None,
+            socket: default_socket_path(),
+            socket_mode: 0o660,
+            tcp: None,
+            models_dir: crate::model::default_models_dir(),
+            max_clients: 1024,
+            client_queue: 64,
+            backend: Backend::Sim {
+                scene: default_scenes_dir().join("fig3_table.toml"),
+                seed: 1,
+                realtime: true,
+            },
+            continuous: true,
+            sweep: SweepConfig {
+                pan_rad: None,
+                tilt_from_rad: None,
+                tilt_to_rad: None,
+                speed_rad_s: None,
+                back_and_forth: true,
+                min_profiles: 50,
+                pause: Duration::ZERO,
+                timeout: Duration::from_secs(10),
+            },
+            detect_seed: 1,
+            detect_workers: 2,
+            max_range_m: None,
+            record_dir: None,
+            record_keep: 20,
+            watch: Vec::new(),
+        }
+    }
+
+    /// Reads and validates a file; errors name the file and the field.
+    pub fn from_file(path: &Path) -> Result<Config, SpecError> {
+        let raw: ConfigFile = read_toml(path)?;
+        Self::validate(raw, path)
+    }
+
+    /// Parses text as if it came from `path` (tests, messages).
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Config, SpecError> {
+        let raw: ConfigFile = crate::spec::parse_toml(text, path)?;
+        Self::validate(raw, path)
+    }
+
+    fn validate(raw: ConfigFile, path: &Path) -> Result<Config, SpecError> {
+        let base = path.parent().unwrap_or(Path::new("."));
+        let rel = |p: &Path| -> PathBuf { if p.is_absolute() { p.to_owned() } else { base.join(p) } };
+        let mut c = Config::embedded_default();
+        c.source = Some(path.to_owned());
+
+        let s = &raw.server;
+        if let Some(p) = &s.socket {
+            c.socket = rel(p);
+        }
+        if let Some(m) = s.socket_mode {
+            if m > 0o777 {
+                return Err(SpecError::invalid(
+                    path,
+                    "server.socket_mode",
+                    format!("{m:#o}: give permission bits like 0o660"),
+                ));
+            }
+            c.socket_mode = m;
+        }
+        if let Some(t) = &s.tcp {
+            c.tcp = Some(t.parse().map_err(|e| {
+                SpecError::invalid(
+                    path,
+                    "server.tcp",
+                    format!("{t:?}: {e}; give an address like \"127.0.0.1:2948\""),
+                )
+            })?);
+        }
+        if let Some(d) = &s.models_dir {
+            c.models_dir = rel(d);
+        }
+        if let Some(n) = s.max_clients {
+            if n == 0 {
+                return Err(SpecError::invalid(path, "server.max_clients", "give at least 1"));
+            }
+            c.max_clients = n;
+        }
+        if let Some(n) = s.client_queue {
+            if n < 4 {
+                return Err(SpecError::invalid(path, "server.client_queue", "give at least 4"));
+            }
+            c.client_queue = n;
+        }
+
+        let backend = match raw.acquisition.backend.as_deref() {
+            None if raw.hardware.is_some() => "hardware",
+            None => "sim",
+            Some(b) => b,
+        };
+        c.backend = match backend {
+            "sim" => {
+                let sim = raw.sim.as_ref();
+                Backend::Sim {
+                    scene: sim
+                        .map(|s| rel(&s.scene))
+                        .unwrap_or_else(|| default_scenes_dir().join("fig3_table.toml")),
+                    seed: sim.and_then(|s| s.seed).unwrap_or(1),
+                    realtime: sim.and_then(|s| s.realtime).unwrap_or(true),
+                }
+            }
+            "hardware" => {
+                let h = raw.hardware.as_ref().ok_or_else(|| {
+                    SpecError::invalid(path, "hardware", "backend \"hardware\" needs a [hardware] table")
+                })?;
+                let protocol = match h.ptu.protocol.as_str() {
+                    "powercube" => PtuProtocol::PowerCube,
+                    "flir" => PtuProtocol::Flir,
+                    other => {
+                        return Err(SpecError::invalid(
+                            path,
+                            "hardware.ptu.protocol",
+                            format!("{other:?}: give \"powercube\" or \"flir\""),
+                        ));
+                    }
+                };
+                let default_baud = if protocol == PtuProtocol::PowerCube {
+                    38_400
+                } else {
+                    9_600
+                };
+                let sensor = match (&h.sensor.path, &h.sensor.tcp) {
+                    (Some(p), None) => SensorEndpoint::Serial(rel(p)),
+                    (None, Some(a)) => SensorEndpoint::Tcp(a.clone()),
+                    _ => {
+                        return Err(SpecError::invalid(
+                            path,
+                            "hardware.sensor",
+                            "give exactly one of path or tcp",
+                        ));
+                    }
+                };
+                for (field, b) in [
+                    ("hardware.ptu.baud", h.ptu.baud),
+                    ("hardware.sensor.baud", h.sensor.baud),
+                ] {
+                    if b == Some(0) {
+                        return Err(SpecError::invalid(path, field, "give a baud rate > 0"));
+                    }
+                }
+                Backend::Hardware(HardwareConfig {
+                    calibration: rel(&h.calibration),
+                    ptu_path: rel(&h.ptu.path),
+                    ptu_protocol: protocol,
+                    ptu_baud: h.ptu.baud.unwrap_or(default_baud),
+                    pan_module: h.ptu.pan_module.unwrap_or(12),
+                    tilt_module: h.ptu.tilt_module.unwrap_or(11),
+                    sensor,
+                    sensor_baud: h.sensor.baud.unwrap_or(921_600),
+                })
+            }
+            other => {
+                return Err(SpecError::invalid(
+                    path,
+                    "acquisition.backend",
+                    format!("{other:?}: give \"sim\" or \"hardware\""),
+                ));
+            }
+        };
+        c.continuous = match raw.acquisition.mode.as_deref() {
+            None | Some("continuous") => true,
+            Some("on_demand") => false,
+            Some(other) => {
+                return Err(SpecError::invalid(
+                    path,
+                    "acquisition.mode",
+                    format!("{other:?}: give \"continuous\" or \"on_demand\""),
+                ));
+            }
+        };
+
+        let w = &raw.sweep;
+        c.sweep.pan_rad = finite(path, "sweep.pan_rad", w.pan_rad)?;
+        c.sweep.tilt_from_rad = finite(path, "sweep.tilt_from_rad", w.tilt_from_rad)?;
+        c.sweep.tilt_to_rad = finite(path, "sweep.tilt_to_rad", w.tilt_to_rad)?;
+        c.sweep.speed_rad_s = positive(path, "sweep.speed_rad_s", w.speed_rad_s)?;
+        if let (Some(a), Some(b)) = (c.sweep.tilt_from_rad, c.sweep.tilt_to_rad)
+            && a == b
+        {
+            return Err(SpecError::invalid(
+                path,
+                "sweep.tilt_to_rad",
+                "equals tilt_from_rad: a sweep needs a range",
+            ));
+        }
+        if matches!(c.backend, Backend::Hardware(_))
+            && (c.sweep.tilt_from_rad.is_none() || c.sweep.tilt_to_rad.is_none() || c.sweep.speed_rad_s.is_none())
+        {
+            return Err(SpecError::invalid(
+                path,
+                "sweep",
+                "the hardware backend needs tilt_from_rad, tilt_to_rad and speed_rad_s",
+            ));
+        }
+        if let Some(b) = w.back_and_forth {
+            c.sweep.back_and_forth = b;
+        }
+        if let Some(n) = w.min_profiles {
+            c.sweep.min_profiles = n.max(2);
+        }
+        if let Some(p) = finite(path, "sweep.pause_s", w.pause_s)? {
+            if p < 0.0 {
+                return Err(SpecError::invalid(path, "sweep.pause_s", "give a pause >= 0"));
+            }
+            c.sweep.pause = Duration::from_secs_f64(p);
+        }
+        if let Some(t) = positive(path, "sweep.timeout_s", w.timeout_s)? {
+            c.sweep.timeout = Duration::from_secs_f64(t);
+        }
+
+        if let Some(s) = raw.detect.seed {
+            c.detect_seed = s;
+        }
+        if let Some(n) = raw.detect.workers {
+            if n == 0 {
+                return Err(SpecError::invalid(path, "detect.workers", "give at least 1"));
+            }
+            c.detect_workers = n;
+        }
+        c.max_range_m = positive(path, "detect.max_range_m", raw.detect.max_range_m)?;
+
+        if let Some(r) = &raw.record {
+            c.record_dir = Some(rel(&r.dir));
+            c.record_keep = r.keep.unwrap_or(20);
+        }
+        c.watch = raw.watch.objects.clone();
+        Ok(c)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Config, SpecError> {
+        Config::from_toml_str(text, Path::new("/etc/sqscan/sqscand.toml"))
+    }
+
+    #[test]
+    fn empty_file_is_the_simulator() {
+        let c = parse("").unwrap();
+        assert!(matches!(c.backend, Backend::Sim { .. }));
+        assert!(c.continuous);
+        assert_eq!(c.socket_mode, 0o660);
+    }
+
+    #[test]
+    fn hardware_paths_are_relative_to_the_file() {
+        let c = parse(
+            r#"
+            [server]
+            socket = "/run/sqscan/sqscand.sock"
+            tcp = "127.0.0.1:2948"
+            [hardware]
+            calibration = "rig.toml"
+            ptu = { path = "/dev/ttyS0", protocol = "flir" }
+            sensor = { tcp = "10.0.0.2:5000" }
+            [sweep]
+            tilt_from_rad = 0.5
+            tilt_to_rad = 0.8
+            speed_rad_s = 0.1
+            [watch]
+            objects = ["cup"]
+            "#,
+        )
+        .unwrap();
+        let Backend::Hardware(h) = &c.backend else {
+            panic!("{:?}", c.backend)
+        };
+        assert_eq!(h.calibration, Path::new("/etc/sqscan/rig.toml"));
+        assert_eq!(h.ptu_protocol, PtuProtocol::Flir);
+        assert_eq!(h.ptu_baud, 9600);
+        assert_eq!(h.sensor, SensorEndpoint::Tcp("10.0.0.2:5000".into()));
+        assert_eq!(c.tcp, Some("127.0.0.1:2948".parse().unwrap()));
+        assert_eq!(c.watch, vec!["cup".to_string()]);
+    }
+
+    #[test]
+    fn errors_name_the_field() {
+        for (text, field) in [
+            ("[acquisition]\nmode = \"sometimes\"", "acquisition.mode"),
+            ("[server]\ntcp = \"localhost\"", "server.tcp"),
+            ("[server]\nsocket_mode = 0o1777", "server.socket_mode"),
+            ("[sweep]\nspeed_rad_s = -1.0", "sweep.speed_rad_s"),
+            ("[acquisition]\nbackend = \"hardware\"", "hardware"),
+            (
+                "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"visca\" }\nsensor = { path = \"s\" }",
+                "hardware.ptu.protocol",
+            ),
+            (
+                "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
+                "sweep",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{text:?}: {e}");
+            assert!(e.contains("sqscand.toml"), "{e}");
+        }
+        // Unknown keys are caught by the parser with their line.
+        let e = parse("[server]\nsokcet = \"x\"").unwrap_err().to_string();
+        assert!(e.contains("sokcet"), "{e}");
+    }
+
+    #[test]
+    fn the_shipped_example_parses() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("systemd/sqscand.toml");
+        let c = Config::from_file(&path).unwrap();
+        assert!(matches!(c.backend, Backend::Hardware(_)));
+        assert_eq!(c.socket, Path::new("/run/sqscan/sqscand.sock"));
+        assert_eq!(
+            c.watch,
+            ["bowl".to_string(), "cup".to_string()]
+                .iter()
+                .rev()
+                .cloned()
+                .collect::<Vec<_>>()
+        );
+        assert_eq!(c.record_keep, 20);
+    }
+}

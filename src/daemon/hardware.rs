@@ -1,0 +1,307 @@
+//! The hardware backend: a pan-tilt unit and a profile sensor, opened (and reopened after a
+//! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire`].
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant, SystemTime};
+
+use anyhow::{Context, Result};
+use sqscan_drivers::flir::{FlirConfig, FlirPtu};
+use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
+use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
+use sqscan_drivers::{Error as DriverError, Link, PanTilt, SerialLink};
+
+use crate::calibration::Calibration;
+use crate::sweep::{self, SweepError, SweepSettings};
+
+use super::acquire::{SweepData, SweepFailure};
+use super::config::{HardwareConfig, PtuProtocol, SensorEndpoint, SweepConfig};
+use super::state::{DeviceStatus, Shared};
+
+/// First and longest wait before reopening a device that failed.
+const BACKOFF_MIN: Duration = Duration::from_millis(250);
+const BACKOFF_MAX: Duration = Duration::from_secs(5);
+
+enum AnyPtu {
+    PowerCube(PowerCubePtu<SerialLink>),
+    Flir(FlirPtu<SerialLink>),
+}
+
+/// Any sensor link; `Sync` because the sweep future holds references to it across awaits and
+/// must be `Send`.
+pub trait SensorLink: Link + Sync {}
+impl<T: Link + Sync> SensorLink for T {}
+
+type Sensor = ProfileSensor<Box<dyn SensorLink>>;
+
+/// A device slot: the open device or when to try opening it again.
+struct Slot<T> {
+    device: Option<T>,
+    backoff: Duration,
+    next_try: Instant,
+}
+
+impl<T> Slot<T> {
+    fn new() -> Self {
+        Slot {
+            device: None,
+            backoff: BACKOFF_MIN,
+            next_try: Instant::now(),
+        }
+    }
+
+    fn failed(&mut self) {
+        self.device = None;
+        self.next_try = Instant::now() + self.backoff;
+        self.backoff = (self.backoff * 2).min(BACKOFF_MAX);
+    }
+
+    fn opened(&mut self, d: T) {
+        self.device = Some(d);
+        self.backoff = BACKOFF_MIN;
+    }
+}
+
+pub struct HardwareBackend {
+    cfg: HardwareConfig,
+    calib: Calibration,
+    settings: SweepSettings,
+    ptu: Slot<AnyPtu>,
+    sensor: Slot<Sensor>,
+}
+
+impl HardwareBackend {
+    pub fn new(cfg: &HardwareConfig, sweep_cfg: &SweepConfig) -> Result<HardwareBackend> {
+        let calib = Calibration::from_file(&cfg.calibration)
+            .map_err(|e| anyhow::anyhow!(e.with_causes()))
+            .context("loading the calibration")?;
+        let d = SweepSettings::default();
+        let settings = SweepSettings {
+            pan_rad: sweep_cfg.pan_rad.unwrap_or(d.pan_rad),
+            tilt_from_rad: sweep_cfg.tilt_from_rad.unwrap_or(d.tilt_from_rad),
+            tilt_to_rad: sweep_cfg.tilt_to_rad.unwrap_or(d.tilt_to_rad),
+            speed_rad_s: sweep_cfg.speed_rad_s.unwrap_or(d.speed_rad_s),
+            min_profiles: sweep_cfg.min_profiles,
+            timeout: sweep_cfg.timeout,
+            ..d
+        };
+        settings.validate().context("sweep settings")?;
+        Ok(HardwareBackend {
+            cfg: cfg.clone(),
+            calib,
+            settings,
+            ptu: Slot::new(),
+            sensor: Slot::new(),
+        })
+    }
+
+    pub fn devices(&self) -> Vec<DeviceStatus> {
+        let protocol = match self.cfg.ptu_protocol {
+            PtuProtocol::PowerCube => "PowerCube",
+            PtuProtocol::Flir => "PTU-D46",
+        };
+        vec![
+            DeviceStatus::new(
+                "ptu",
+                self.cfg.ptu_path.display().to_string(),
+                format!("{protocol} at {} baud", self.cfg.ptu_baud),
+            ),
+            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
+        ]
+    }
+
+    async fn open_ptu(&self) -> Result<AnyPtu, DriverError> {
+        let path: PathBuf = self.cfg.ptu_path.clone();
+        let (pan, tilt) = (self.calib.pan_axis(), self.calib.tilt_axis());
+        let mut ptu = match self.cfg.ptu_protocol {
+            PtuProtocol::PowerCube => {
+                let cfg = PowerCubeConfig {
+                    pan_module: ModuleId::new(self.cfg.pan_module).unwrap_or(PowerCubeConfig::default().pan_module),
+                    tilt_module: ModuleId::new(self.cfg.tilt_module).unwrap_or(PowerCubeConfig::default().tilt_module),
+                    baud: self.cfg.ptu_baud,
+                    pan,
+                    tilt,
+                    ..PowerCubeConfig::default()
+                };
+                AnyPtu::PowerCube(PowerCubePtu::open(&path, cfg).await?)
+            }
+            PtuProtocol::Flir => {
+                let cfg = FlirConfig {
+                    baud: self.cfg.ptu_baud,
+                    pan,
+                    tilt,
+                    ..FlirConfig::default()
+                };
+                AnyPtu::Flir(FlirPtu::open(&path, cfg).await?)
+            }
+        };
+        // A unit that lost its reference (power cycle) or latched a fault (the unplug) must be
+        // homed before it moves; one that is fine is left where it is.
+        let state = match &mut ptu {
+            AnyPtu::PowerCube(p) => p.state().await?,
+            AnyPtu::Flir(p) => p.state().await?,
+        };
+        if !(state.pan.homed && state.tilt.homed) || state.pan.fault || state.tilt.fault {
+            tracing::info!("homing the PTU on {}", path.display());
+            match &mut ptu {
+                AnyPtu::PowerCube(p) => p.home().await?,
+                AnyPtu::Flir(p) => p.home().await?,
+            };
+        }
+        Ok(ptu)
+    }
+
+    async fn open_sensor(&self) -> Result<Sensor, DriverError> {
+        let cfg = SensorConfig {
+            baud: self.cfg.sensor_baud,
+            ..SensorConfig::default()
+        };
+        Ok(match &self.cfg.sensor {
+            SensorEndpoint::Serial(p) => {
+                let link: Box<dyn SensorLink> = Box::new(sqscan_drivers::open_serial(p, cfg.baud)?);
+                ProfileSensor::new(link, cfg)
+            }
+            SensorEndpoint::Tcp(a) => {
+                let s = ProfileSensor::connect_tcp(a, cfg.clone()).await?;
+                let link: Box<dyn SensorLink> = Box::new(s.into_inner());
+                ProfileSensor::new(link, cfg)
+            }
+        })
+    }
+
+    /// Opens what is closed (respecting each device's backoff), waiting at most until the
+    /// sooner retry when a device is still down.
+    async fn ensure_open(&mut self, shared: &Shared) -> Result<(), SweepFailure> {
+        loop {
+            let now = Instant::now();
+            if self.ptu.device.is_none() && now >= self.ptu.next_try {
+                match self.open_ptu().await {
+                    Ok(p) => {
+                        self.ptu.opened(p);
+                        shared.update_device("ptu", |d| {
+                            d.connected = true;
+                            d.opens += 1;
+                        });
+                        tracing::info!("PTU open on {}", self.cfg.ptu_path.display());
+                    }
+                    Err(e) => {
+                        self.ptu.failed();
+                        note_failure(shared, "ptu", &e.to_string());
+                    }
+                }
+            }
+            if self.sensor.device.is_none() && Instant::now() >= self.sensor.next_try {
+                match self.open_sensor().await {
+                    Ok(s) => {
+                        self.sensor.opened(s);
+                        shared.update_device("sensor", |d| {
+                            d.connected = true;
+                            d.opens += 1;
+                        });
+                        tracing::info!("sensor open on {}", self.cfg.sensor);
+                    }
+                    Err(e) => {
+                        self.sensor.failed();
+                        note_failure(shared, "sensor", &e.to_string());
+                    }
+                }
+            }
+            if self.ptu.device.is_some() && self.sensor.device.is_some() {
+                return Ok(());
+            }
+            let wake = [&self.ptu.next_try, &self.sensor.next_try]
+                .into_iter()
+                .zip([self.ptu.device.is_none(), self.sensor.device.is_none()])
+                .filter(|(_, down)| *down)
+                .map(|(t, _)| *t)
+                .min()
+                .unwrap_or_else(Instant::now);
+            tokio::time::sleep_until(wake.into()).await;
+        }
+    }
+
+    pub async fn sweep(&mut self, forward: bool, shared: &Shared) -> Result<SweepData, SweepFailure> {
+        self.ensure_open(shared).await?;
+        let settings = if forward {
+            self.settings.clone()
+        } else {
+            self.settings.reversed()
+        };
+        let (Some(ptu), Some(sensor)) = (self.ptu.device.as_mut(), self.sensor.device.as_mut()) else {
+            return Err(SweepFailure {
+                message: "devices not open".into(),
+            });
+        };
+        let result = match ptu {
+            AnyPtu::PowerCube(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
+            AnyPtu::Flir(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
+        };
+        match result {
+            Ok(s) => {
+                let report = serde_json::to_value(&s.report).unwrap_or_default();
+                Ok(SweepData {
+                    started: s.start,
+                    profiles: s.profiles,
+                    columns: s.columns,
+                    cloud: s.cloud,
+                    report,
+                })
+            }
+            Err(e) => {
+                let message = e.to_string();
+                match &e {
+                    // The link is gone or the unit faulted: close it; the next sweep reopens it
+                    // (and homes it if it lost its reference).
+                    SweepError::Ptu(d) if !d.is_transient() => {
+                        self.ptu.failed();
+                        note_failure(shared, "ptu", &d.to_string());
+                    }
+                    SweepError::Ptu(d) => note_error(shared, "ptu", &d.to_string()),
+                    SweepError::PtuStopped { .. } => note_error(shared, "ptu", &message),
+                    SweepError::Sensor(d) => {
+                        // A silent or broken sensor is reopened: it may have been restarted.
+                        self.sensor.failed();
+                        note_failure(shared, "sensor", &d.to_string());
+                    }
+                    _ => {}
+                }
+                Err(SweepFailure { message })
+            }
+        }
+    }
+
+    /// Stops the unit where it is (best effort, bounded: the daemon is stopping).
+    pub async fn stop(&mut self) {
+        let halt = async {
+            match self.ptu.device.as_mut() {
+                Some(AnyPtu::PowerCube(p)) => p.halt().await,
+                Some(AnyPtu::Flir(p)) => p.halt().await,
+                None => Ok(()),
+            }
+        };
+        let _ = tokio::time::timeout(Duration::from_millis(300), halt).await;
+        if let Some(s) = self.sensor.device.as_mut() {
+            let _ = tokio::time::timeout(Duration::from_millis(200), s.stop()).await;
+        }
+    }
+}
+
+/// The device is down.
+fn note_failure(shared: &Shared, name: &str, message: &str) {
+    tracing::warn!("{name}: {message}");
+    shared.update_device(name, |d| {
+        d.connected = false;
+        d.failures += 1;
+        d.last_error = Some(message.to_string());
+        d.last_error_at = Some(SystemTime::now());
+    });
+}
+
+/// The device is up but a sweep failed on it.
+fn note_error(shared: &Shared, name: &str, message: &str) {
+    tracing::warn!("{name}: {message}");
+    shared.update_device(name, |d| {
+        d.failures += 1;
+        d.last_error = Some(message.to_string());
+        d.last_error_at = Some(SystemTime::now());
+    });
+}

@@ -1,0 +1,144 @@
+//! Recording sweeps: each as `sweep-NNNNNNNN.pcd` (organized, binary_compressed, viewpoint set)
+//! beside `sweep-NNNNNNNN.json` (id, time, the assembler's report). Both are written to a
+//! temporary name, synced, then renamed into place, so a reader (or a crash) never sees half a
+//! file; the JSON is renamed last, so a JSON on disk means its PCD is complete.
+
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use serde_json::json;
+
+use crate::cloud::{PcdData, write_pcd};
+
+use super::state::SweepEntry;
+
+/// Writes `path` through a temporary file in the same directory and a rename.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<File>) -> Result<()>) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    let name = path.file_name().and_then(|n| n.to_str()).unwrap_or("out");
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| -> Result<()> {
+        let file = File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+        let mut w = BufWriter::new(file);
+        write(&mut w)?;
+        let file = w.into_inner().map_err(|e| e.into_error()).context("flushing")?;
+        file.sync_all().context("syncing")?;
+        fs::rename(&tmp, path).with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))?;
+        // The rename is durable once the directory is synced.
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    result.with_context(|| format!("writing {}", path.display()))
+}
+
+/// The recording's file stem for a sweep id.
+pub fn stem(id: u64) -> String {
+    format!("sweep-{id:08}")
+}
+
+/// Records one sweep and prunes the directory to the newest `keep` (0 keeps all).
+pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize) -> Result<()> {
+    fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let stem = stem(entry.id);
+    write_atomic(&dir.join(format!("{stem}.pcd")), |w| {
+        write_pcd(w, &entry.cloud, PcdData::BinaryCompressed)?;
+        Ok(())
+    })?;
+    let meta = json!({
+        "id": entry.id,
+        "time": entry.time_s(),
+        "frame": "base_link",
+        "profiles": entry.profiles,
+        "columns": entry.columns,
+        "points": entry.points,
+        "cloud": format!("{stem}.pcd"),
+        "report": entry.report,
+        "release": env!("CARGO_PKG_VERSION"),
+    });
+    write_atomic(&dir.join(format!("{stem}.json")), |w| {
+        serde_json::to_writer_pretty(&mut *w, &meta)?;
+        w.write_all(b"\n")?;
+        Ok(())
+    })?;
+    if keep > 0 {
+        prune(dir, keep)?;
+    }
+    Ok(())
+}
+
+/// Removes all but the newest `keep` recordings (by id in the name), PCD and JSON together.
+fn prune(dir: &Path, keep: usize) -> Result<()> {
+    let mut ids: Vec<u64> = fs::read_dir(dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok())
+        .filter_map(|e| {
+            let name = e.file_name().into_string().ok()?;
+            name.strip_prefix("sweep-")?.strip_suffix(".json")?.parse().ok()
+        })
+        .collect();
+    ids.sort_unstable();
+    let excess = ids.len().saturating_sub(keep);
+    for id in &ids[..excess] {
+        // The JSON first: a PCD without its JSON is an unfinished recording, never the reverse.
+        for ext in ["json", "pcd"] {
+            let p: PathBuf = dir.join(format!("{}.{ext}", stem(*id)));
+            if let Err(e) = fs::remove_file(&p)
+                && e.kind() != std::io::ErrorKind::NotFound
+            {
+                return Err(e).with_context(|| format!("cannot remove {}", p.display()));
+            }
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::{PointCloud, read_cloud};
+    use std::time::Instant;
+
+    #[test]
+    fn records_atomically_and_prunes() {
+        let dir = std::env::temp_dir().join(format!("sqscan-record-{}", std::process::id()));
+        let _ = fs::remove_dir_all(&dir);
+        let mut pts = vec![[0.5f32, 0.1, 0.7]; 6];
+        pts[2] = [f32::NAN; 3];
+        for id in 1..=4 {
+            let mut cloud = PointCloud::organized(3, 2, pts.clone());
+            cloud.viewpoint = Some([0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0]);
+            let e = SweepEntry::new(id, Instant::now(), cloud, 2, 3, json!({"kept": 2}));
+            write_sweep(&dir, &e, 2).unwrap();
+        }
+        let mut names: Vec<String> = fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        names.sort();
+        assert_eq!(
+            names,
+            [
+                "sweep-00000003.json",
+                "sweep-00000003.pcd",
+                "sweep-00000004.json",
+                "sweep-00000004.pcd"
+            ]
+        );
+        let back = read_cloud(&dir.join("sweep-00000004.pcd")).unwrap();
+        assert_eq!((back.width, back.height), (3, 2));
+        assert!(back.points[2][0].is_nan());
+        assert_eq!(back.viewpoint.unwrap()[2], 1.35);
+        let meta: serde_json::Value =
+            serde_json::from_str(&fs::read_to_string(dir.join("sweep-00000004.json")).unwrap()).unwrap();
+        assert_eq!(meta["points"], 5);
+        assert_eq!(meta["report"]["kept"], 2);
+        fs::remove_dir_all(&dir).unwrap();
+    }
+}

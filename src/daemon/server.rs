@@ -1,0 +1,476 @@
+//! The socket server: JSON lines over a Unix socket (and optionally TCP), in the manner of gpsd.
+//!
+//! Each connection has a reader (requests), a writer (one task that owns the socket's write
+//! half) and a bounded queue between them. Every request runs in its own task so a `find`
+//! waiting on the next sweep does not hold up a `status` on the same connection. Replies to
+//! requests wait for room in the queue (a client that does not read only stalls itself);
+//! `watch` updates never wait: when the queue is full they are skipped and counted. A writer
+//! that cannot write for [`WRITE_TIMEOUT`] drops the client. Nothing here can block
+//! acquisition, which only publishes into a `watch` channel.
+
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result, bail};
+use serde_json::{Value, json};
+use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
+use tokio::net::{TcpListener, UnixListener};
+use tokio::sync::{Semaphore, mpsc};
+use tokio::task::JoinSet;
+
+use crate::detect::output::report_json;
+
+use super::config::MAX_REQUEST_BYTES;
+use super::protocol::{self, Command, Request, error_reply, with_id};
+use super::state::{Shared, SweepEntry, lock, round3, stopped};
+
+/// A client that cannot take a line for this long is dropped.
+pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Binds the Unix socket: refuses to take over a socket a live daemon answers on, removes a
+/// stale one, and sets the permission bits.
+pub fn bind_unix(path: &Path, mode: u32) -> Result<UnixListener> {
+    if path.exists() {
+        if std::os::unix::net::UnixStream::connect(path).is_ok() {
+            bail!("{} is in use by a running daemon", path.display());
+        }
+        std::fs::remove_file(path).with_context(|| format!("cannot remove the stale socket {}", path.display()))?;
+    }
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    let listener = UnixListener::bind(path).with_context(|| format!("cannot listen on {}", path.display()))?;
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(mode))
+        .with_context(|| format!("cannot set the mode of {}", path.display()))?;
+    Ok(listener)
+}
+
+/// Accepts clients until shutdown.
+pub async fn serve(shared: Arc<Shared>, unix: UnixListener, tcp: Option<TcpListener>, socket_path: PathBuf) {
+    let slots = Arc::new(Semaphore::new(shared.config.max_clients));
+    let mut shutdown = shared.shutdown.subscribe();
+    loop {
+        tokio::select! {
+            r = unix.accept() => match r {
+                Ok((stream, _)) => {
+                    let (rd, wr) = stream.into_split();
+                    spawn_client(&shared, &slots, rd, wr);
+                }
+                Err(e) => {
+                    tracing::warn!("accept on {}: {e}", socket_path.display());
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+            },
+            r = accept_tcp(tcp.as_ref()) => match r {
+                Ok(stream) => {
+                    let _ = stream.set_nodelay(true);
+                    let (rd, wr) = stream.into_split();
+                    spawn_client(&shared, &slots, rd, wr);
+                }
+                Err(e) => {
+                    tracing::warn!("accept on tcp: {e}");
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+            },
+            () = stopped(&mut shutdown) => break,
+        }
+    }
+}
+
+async fn accept_tcp(l: Option<&TcpListener>) -> std::io::Result<tokio::net::TcpStream> {
+    match l {
+        Some(l) => l.accept().await.map(|(s, _)| s),
+        None => std::future::pending().await,
+    }
+}
+
+fn spawn_client<R, W>(shared: &Arc<Shared>, slots: &Arc<Semaphore>, rd: R, mut wr: W)
+where
+    R: AsyncRead + Unpin + Send + 'static,
+    W: AsyncWrite + Unpin + Send + 'static,
+{
+    let shared = shared.clone();
+    let permit = slots.clone().try_acquire_owned();
+    tokio::spawn(async move {
+        let Ok(_permit) = permit else {
+            let msg = error_reply(None, &format!("too many clients (max {})", shared.config.max_clients));
+            let _ = tokio::time::timeout(Duration::from_secs(1), wr.write_all(line(&msg).as_bytes())).await;
+            return;
+        };
+        shared.stats.clients.fetch_add(1, Ordering::Relaxed);
+        shared.stats.clients_total.fetch_add(1, Ordering::Relaxed);
+        client(shared.clone(), BufReader::new(rd), wr).await;
+        shared.stats.clients.fetch_sub(1, Ordering::Relaxed);
+    });
+}
+
+fn line(v: &Value) -> String {
+    let mut s = v.to_string();
+    s.push('\n');
+    s
+}
+
+/// One line of at most [`MAX_REQUEST_BYTES`]: `Ok(Some(line))`, `Ok(None)` at end of input, or
+/// `Err(len)` for an over-long line, whose rest has been skipped up to its newline.
+async fn read_request<R: AsyncBufRead + Unpin>(
+    r: &mut R,
+    buf: &mut Vec<u8>,
+) -> std::io::Result<Option<Result<(), usize>>> {
+    buf.clear();
+    let mut too_long = 0usize;
+    loop {
+        let chunk = r.fill_buf().await?;
+        if chunk.is_empty() {
+            // End of input; a last line without its newline still counts.
+            return Ok(if buf.is_empty() && too_long == 0 {
+                None
+            } else if too_long > 0 {
+                Some(Err(too_long))
+            } else {
+                Some(Ok(()))
+            });
+        }
+        let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (chunk.len(), false),
+        };
+        if too_long == 0 && buf.len() + take <= MAX_REQUEST_BYTES + 1 {
+            buf.extend_from_slice(&chunk[..take]);
+        } else {
+            too_long += buf.len() + take;
+            buf.clear();
+        }
+        r.consume(take);
+        if done {
+            if too_long > 0 {
+                return Ok(Some(Err(too_long)));
+            }
+            while buf.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
+                buf.pop();
+            }
+            return Ok(Some(Ok(())));
+        }
+    }
+}
+
+/// A client's outbound queue.
+#[derive(Clone)]
+struct Outbox {
+    tx: mpsc::Sender<Value>,
+    shared: Arc<Shared>,
+}
+
+impl Outbox {
+    /// A reply: waits for room (only this client is held up by its own slowness).
+    async fn reply(&self, v: Value) {
+        if v["class"] == "error" {
+            self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
+        }
+        let _ = self.tx.send(v).await;
+    }
+
+    /// An unsolicited update: skipped when the client is behind.
+    fn update(&self, v: Value) {
+        if self.tx.try_send(v).is_err() {
+            self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+}
+
+async fn client<R, W>(shared: Arc<Shared>, mut rd: BufReader<R>, mut wr: W)
+where
+    R: AsyncRead + Unpin + Send + 'static,
+    W: AsyncWrite + Unpin + Send + 'static,
+{
+    let (tx, mut rx) = mpsc::channel::<Value>(shared.config.client_queue);
+    let writer = tokio::spawn(async move {
+        while let Some(v) = rx.recv().await {
+            match tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(line(&v).as_bytes())).await {
+                Ok(Ok(())) => {}
+                // Gone, or not reading: either way this client is done.
+                _ => break,
+            }
+        }
+    });
+    let out = Outbox {
+        tx,
+        shared: shared.clone(),
+    };
+    out.reply(protocol::version_reply()).await;
+    let mut tasks: JoinSet<()> = JoinSet::new();
+    let mut watch_task: Option<tokio::task::AbortHandle> = None;
+    let mut watching: Vec<String> = Vec::new();
+    let mut shutdown = shared.shutdown.subscribe();
+    let mut buf = Vec::new();
+    loop {
+        let got = tokio::select! {
+            r = read_request(&mut rd, &mut buf) => r,
+            () = stopped(&mut shutdown) => break,
+            // A dead writer means the client is gone.
+            () = closed(&out.tx) => break,
+        };
+        // Reap finished request tasks so a long-lived client does not accumulate them.
+        while tasks.try_join_next().is_some() {}
+        let req = match got {
+            Ok(None) | Err(_) => break,
+            Ok(Some(Err(len))) => {
+                out.reply(error_reply(
+                    None,
+                    &format!("request of {len} bytes is over the limit of {MAX_REQUEST_BYTES} bytes; skipped"),
+                ))
+                .await;
+                continue;
+            }
+            Ok(Some(Ok(()))) => {
+                if buf.iter().all(|b| b.is_ascii_whitespace()) {
+                    continue;
+                }
+                shared.stats.requests.fetch_add(1, Ordering::Relaxed);
+                match protocol::parse_request(&buf) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        out.reply(error_reply(e.id.as_ref(), &e.message)).await;
+                        continue;
+                    }
+                }
+            }
+        };
+        match req.command {
+            Command::Watch { ref objects } => {
+                if let Some(missing) = objects.iter().find_map(|o| shared.model(o).err()) {
+                    out.reply(error_reply(req.id.as_ref(), &missing)).await;
+                    continue;
+                }
+                if let Some(t) = watch_task.take() {
+                    t.abort();
+                }
+                set_watched(&shared, &watching, objects);
+                watching = objects.clone();
+                out.reply(with_id(
+                    json!({"class": "watch", "objects": objects, "enable": true}),
+                    req.id.as_ref(),
+                ))
+                .await;
+                watch_task = Some(tasks.spawn(watch(shared.clone(), out.clone(), objects.clone(), req.id.clone())));
+            }
+            Command::Unwatch => {
+                if let Some(t) = watch_task.take() {
+                    t.abort();
+                }
+                set_watched(&shared, &watching, &[]);
+                watching.clear();
+                out.reply(with_id(
+                    json!({"class": "watch", "objects": [], "enable": false}),
+                    req.id.as_ref(),
+                ))
+                .await;
+            }
+            _ => {
+                let (s, o) = (shared.clone(), out.clone());
+                tasks.spawn(async move {
+                    let reply = handle(&s, &req).await;
+                    o.reply(with_id(reply, req.id.as_ref())).await;
+                });
+            }
+        }
+    }
+    set_watched(&shared, &watching, &[]);
+    tasks.abort_all();
+    drop(out);
+    // Let queued replies go out (bounded by the writer's own timeout).
+    let _ = tokio::time::timeout(Duration::from_secs(1), writer).await;
+}
+
+async fn closed(tx: &mpsc::Sender<Value>) {
+    tx.closed().await
+}
+
+/// Moves this client's watch from `old` to `new` in the shared refcounts.
+fn set_watched(shared: &Shared, old: &[String], new: &[String]) {
+    let mut w = lock(&shared.watched);
+    for o in old {
+        if let Some(n) = w.get_mut(o) {
+            *n -= 1;
+            if *n == 0 {
+                w.remove(o);
+            }
+        }
+    }
+    for o in new {
+        *w.entry(o.clone()).or_insert(0) += 1;
+    }
+}
+
+/// Every sweep's detections of `objects`, until aborted.
+async fn watch(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Option<Value>) {
+    let mut rx = shared.latest.subscribe();
+    // The newest sweep so far is answered at once; then each new one.
+    rx.mark_changed();
+    if !shared.config.continuous {
+        shared.sweep_wanted.notify_one();
+    }
+    loop {
+        if rx.changed().await.is_err() {
+            return;
+        }
+        let Some(entry) = rx.borrow_and_update().clone() else {
+            continue;
+        };
+        for name in &objects {
+            let Ok(model) = shared.model(name) else { continue };
+            let det = entry.detection(&shared, model, false).await;
+            out.update(with_id(detection_reply(&entry, &det, false), id.as_ref()));
+        }
+        if !shared.config.continuous {
+            shared.sweep_wanted.notify_one();
+        }
+    }
+}
+
+/// The `detection` reply: the detector's JSON, the sweep it was made on and how old that is.
+pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool) -> Value {
+    let mut v = report_json(&det.report, all);
+    v["class"] = json!("detection");
+    v["frame"] = json!("base_link");
+    v["sweep"] = json!({
+        "id": entry.id,
+        "time": entry.time_s(),
+        "age_s": round3(entry.age().as_secs_f64()),
+        "points": entry.points,
+    });
+    v["latency_ms"] = json!(round3(det.latency.as_secs_f64() * 1e3));
+    v
+}
+
+/// Answers one request (not watch/unwatch, which change the connection).
+async fn handle(shared: &Arc<Shared>, req: &Request) -> Value {
+    match &req.command {
+        Command::Status => shared.status_json(),
+        Command::Models => models_reply(shared),
+        Command::Find {
+            object,
+            max_age_s,
+            timeout_s,
+            all,
+        } => {
+            let model = match shared.model(object) {
+                Ok(m) => m,
+                Err(e) => return error_reply(None, &e),
+            };
+            let asked = Instant::now();
+            let deadline = asked + Duration::from_secs_f64(*timeout_s);
+            let max_age = Duration::from_secs_f64(*max_age_s);
+            let fresh = |e: &SweepEntry| e.age() <= max_age || e.completed >= asked;
+            let entry = match wait_for_sweep(shared, deadline, fresh).await {
+                Ok(e) => e,
+                Err(msg) => return error_reply(None, &format!("find {object}: {msg}")),
+            };
+            let det = entry.detection(shared, model, *all).await;
+            detection_reply(&entry, &det, *all)
+        }
+        Command::Scan { timeout_s } => {
+            let asked = Instant::now();
+            let deadline = asked + Duration::from_secs_f64(*timeout_s);
+            // A sweep begun after the request: it shows the scene as it is now.
+            match wait_for_sweep(shared, deadline, |e| e.started >= asked).await {
+                Ok(e) => {
+                    let mut v = e.summary();
+                    v["class"] = json!("sweep");
+                    v
+                }
+                Err(msg) => error_reply(None, &format!("scan: {msg}")),
+            }
+        }
+        Command::Watch { .. } | Command::Unwatch => error_reply(None, "internal: watch handled by the connection"),
+    }
+}
+
+/// The newest sweep that satisfies `ok`, waiting (and asking an on-demand loop for one) until
+/// `deadline`.
+async fn wait_for_sweep(
+    shared: &Arc<Shared>,
+    deadline: Instant,
+    ok: impl Fn(&SweepEntry) -> bool,
+) -> Result<Arc<SweepEntry>, String> {
+    let mut rx = shared.latest.subscribe();
+    loop {
+        if let Some(e) = rx.borrow_and_update().clone()
+            && ok(&e)
+        {
+            return Ok(e);
+        }
+        if !shared.config.continuous {
+            shared.sweep_wanted.notify_one();
+        }
+        match tokio::time::timeout_at(deadline.into(), rx.changed()).await {
+            Ok(Ok(())) => {}
+            Ok(Err(_)) => return Err("the daemon is stopping".into()),
+            Err(_) => {
+                let trouble = shared.device_trouble();
+                let last = match shared.newest() {
+                    Some(e) => format!("the last sweep ({}) is {:.1} s old", e.id, e.age().as_secs_f64()),
+                    None => "no sweep has completed yet".into(),
+                };
+                return Err(if trouble.is_empty() {
+                    format!("no fresh sweep before the timeout; {last}")
+                } else {
+                    format!("device fault: {trouble}; {last}")
+                });
+            }
+        }
+    }
+}
+
+fn models_reply(shared: &Shared) -> Value {
+    let models: Vec<Value> = shared
+        .models
+        .values()
+        .map(|m| {
+            json!({
+                "name": m.name,
+                "parts": m.parts.iter().map(|p| json!({
+                    "name": p.name,
+                    "size_m": p.shape.a,
+                    "open": p.open,
+                    "shape": [p.shape.e1, p.shape.e2],
+                    "taper": [p.shape.kx, p.shape.ky],
+                })).collect::<Vec<_>>(),
+            })
+        })
+        .collect();
+    json!({"class": "models", "models": models})
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    async fn lines(input: &[u8]) -> Vec<Result<String, usize>> {
+        let mut r = BufReader::with_capacity(7, input);
+        let mut buf = Vec::new();
+        let mut out = Vec::new();
+        while let Some(x) = read_request(&mut r, &mut buf).await.unwrap() {
+            out.push(x.map(|()| String::from_utf8(buf.clone()).unwrap()));
+        }
+        out
+    }
+
+    #[tokio::test]
+    async fn request_lines_are_bounded() {
+        let mut input = b"{\"cmd\":\"status\"}\r\n".to_vec();
+        input.extend(vec![b'x'; MAX_REQUEST_BYTES + 10]);
+        input.extend(b"\n{\"cmd\":\"models\"}");
+        let got = lines(&input).await;
+        assert_eq!(got.len(), 3, "{got:?}");
+        assert_eq!(got[0], Ok("{\"cmd\":\"status\"}".to_string()));
+        assert_eq!(got[1], Err(MAX_REQUEST_BYTES + 11));
+        assert_eq!(got[2], Ok("{\"cmd\":\"models\"}".to_string()));
+        // Exactly at the limit is fine.
+        let mut at = vec![b' '; MAX_REQUEST_BYTES];
+        at.push(b'\n');
+        assert!(matches!(lines(&at).await[..], [Ok(_)]));
+    }
+}

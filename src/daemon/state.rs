@@ -1,0 +1,377 @@
+//! What the daemon's tasks share: the newest sweep (with the detections made on it), the
+//! devices' health, counters, and the set of objects clients watch.
+//!
+//! Sweeps are published through a `tokio::sync::watch` channel: acquisition never waits on a
+//! reader, and a reader that falls behind simply sees the newest sweep. Detections are made at
+//! most once per (sweep, object, all): every request for the same answer awaits one
+//! `OnceCell`, so 200 clients asking "find cup" cost one detection.
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime};
+
+use nalgebra::Point3;
+use serde_json::{Value, json};
+use tokio::sync::{Notify, OnceCell, Semaphore, watch};
+
+use crate::cloud::PointCloud;
+use crate::detect::{self, Params, Report};
+use crate::model::Model;
+
+use super::config::Config;
+
+/// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
+/// counters and status texts, always consistent between statements.
+pub fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// Resolves once the daemon is stopping. (Awaiting `wait_for` directly in a `select!` would
+/// hold its read guard across the other branches' awaits, making the task not `Send`.)
+pub async fn stopped(rx: &mut watch::Receiver<bool>) {
+    let _ = rx.wait_for(|s| *s).await;
+}
+
+/// One completed sweep.
+pub struct SweepEntry {
+    pub id: u64,
+    pub started: Instant,
+    pub completed: Instant,
+    pub completed_wall: SystemTime,
+    /// Organized (profiles x columns) in the base frame, NaN where nothing returned.
+    pub cloud: Arc<PointCloud>,
+    pub profiles: usize,
+    pub columns: usize,
+    pub points: usize,
+    /// The assembler's account of the sweep (profiles kept and dropped, and why).
+    pub report: Value,
+    detections: Mutex<HashMap<(String, bool), Arc<OnceCell<Arc<Detected>>>>>,
+}
+
+/// A detection made on a sweep, and when it was done.
+pub struct Detected {
+    pub report: Report,
+    /// From the sweep's completion to this detection's end: what a client waiting on the sweep
+    /// waits beyond the scan itself.
+    pub latency: Duration,
+}
+
+impl SweepEntry {
+    pub fn new(id: u64, started: Instant, cloud: PointCloud, profiles: usize, columns: usize, report: Value) -> Self {
+        let points = cloud.finite_count();
+        SweepEntry {
+            id,
+            started,
+            completed: Instant::now(),
+            completed_wall: SystemTime::now(),
+            cloud: Arc::new(cloud),
+            profiles,
+            columns,
+            points,
+            report,
+            detections: Mutex::new(HashMap::new()),
+        }
+    }
+
+    pub fn age(&self) -> Duration {
+        self.completed.elapsed()
+    }
+
+    /// Unix time of completion (s).
+    pub fn time_s(&self) -> f64 {
+        self.completed_wall
+            .duration_since(SystemTime::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0)
+    }
+
+    /// The sensor position for the detector: the cloud's viewpoint.
+    fn viewpoint(&self) -> Option<Point3<f64>> {
+        self.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]))
+    }
+
+    /// The detection of `model` on this sweep, made once however many ask; off the async
+    /// worker threads, at most `detect_workers` at a time.
+    pub async fn detection(self: &Arc<Self>, shared: &Shared, model: Arc<Model>, all: bool) -> Arc<Detected> {
+        let cell = lock(&self.detections)
+            .entry((model.name.clone(), all))
+            .or_insert_with(|| Arc::new(OnceCell::new()))
+            .clone();
+        cell.get_or_init(|| async {
+            // The semaphore is never closed, so acquire cannot fail; a detection then runs anyway.
+            let _permit = shared.detect_slots.acquire().await.ok();
+            let entry = self.clone();
+            let params = Params {
+                seed: shared.config.detect_seed ^ entry.id,
+                viewpoint: entry.viewpoint(),
+                max_range: shared.config.max_range_m,
+                all,
+                ..Params::default()
+            };
+            let started = Instant::now();
+            let job = tokio::task::spawn_blocking(move || detect::detect(&entry.cloud.points, &model, &params));
+            let report = match job.await {
+                Ok(r) => r,
+                // A panic in the detector is a bug; answer "nothing found" rather than take the
+                // daemon down, and say so in the log.
+                Err(e) => {
+                    tracing::error!("detector failed on sweep {}: {e}", self.id);
+                    Report {
+                        object: String::new(),
+                        detections: Vec::new(),
+                        plane: None,
+                        points: 0,
+                        scene_points: 0,
+                        timing: Default::default(),
+                    }
+                }
+            };
+            shared
+                .stats
+                .record_detection(started.elapsed(), self.completed.elapsed());
+            Arc::new(Detected {
+                latency: self.completed.elapsed(),
+                report,
+            })
+        })
+        .await
+        .clone()
+    }
+
+    /// The sweep as the `scan` reply and `status` show it.
+    pub fn summary(&self) -> Value {
+        json!({
+            "id": self.id,
+            "time": self.time_s(),
+            "age_s": round3(self.age().as_secs_f64()),
+            "duration_s": round3(self.completed.duration_since(self.started).as_secs_f64()),
+            "profiles": self.profiles,
+            "columns": self.columns,
+            "points": self.points,
+            "report": self.report,
+        })
+    }
+}
+
+pub fn round3(x: f64) -> f64 {
+    (x * 1e3).round() / 1e3
+}
+
+/// Health of one device (or of the simulator).
+#[derive(Debug, Clone)]
+pub struct DeviceStatus {
+    pub name: &'static str,
+    /// Device path, address or scene file.
+    pub path: String,
+    pub kind: String,
+    pub connected: bool,
+    pub last_error: Option<String>,
+    pub last_error_at: Option<SystemTime>,
+    /// Times the device was (re)opened.
+    pub opens: u64,
+    pub failures: u64,
+}
+
+impl DeviceStatus {
+    pub fn new(name: &'static str, path: String, kind: String) -> Self {
+        DeviceStatus {
+            name,
+            path,
+            kind,
+            connected: false,
+            last_error: None,
+            last_error_at: None,
+            opens: 0,
+            failures: 0,
+        }
+    }
+
+    fn json(&self) -> Value {
+        json!({
+            "name": self.name,
+            "path": self.path,
+            "kind": self.kind,
+            "state": if self.connected { "ok" } else if self.last_error.is_some() { "fault" } else { "closed" },
+            "last_error": self.last_error,
+            "last_error_time": self.last_error_at.and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok()).map(|d| d.as_secs_f64()),
+            "opens": self.opens,
+            "failures": self.failures,
+        })
+    }
+}
+
+/// Running figures for `status`.
+#[derive(Default)]
+pub struct Stats {
+    pub sweeps_completed: AtomicU64,
+    pub sweeps_dropped: AtomicU64,
+    pub requests: AtomicU64,
+    pub errors_sent: AtomicU64,
+    pub watch_skipped: AtomicU64,
+    pub clients: AtomicUsize,
+    pub clients_total: AtomicU64,
+    detections: Mutex<DetectionTimes>,
+    /// The newest faults, newest last.
+    pub faults: Mutex<VecDeque<(SystemTime, String)>>,
+    sweep_periods: Mutex<VecDeque<f64>>,
+}
+
+#[derive(Default)]
+struct DetectionTimes {
+    count: u64,
+    /// Recent detection run times and sweep-to-answer latencies (s).
+    run: VecDeque<f64>,
+    latency: VecDeque<f64>,
+}
+
+const RECENT: usize = 64;
+
+fn push_recent(q: &mut VecDeque<f64>, x: f64) {
+    if q.len() == RECENT {
+        q.pop_front();
+    }
+    q.push_back(x);
+}
+
+fn median(q: &VecDeque<f64>) -> Option<f64> {
+    if q.is_empty() {
+        return None;
+    }
+    let mut v: Vec<f64> = q.iter().copied().collect();
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}
+
+impl Stats {
+    pub fn record_detection(&self, run: Duration, latency: Duration) {
+        let mut d = lock(&self.detections);
+        d.count += 1;
+        push_recent(&mut d.run, run.as_secs_f64());
+        push_recent(&mut d.latency, latency.as_secs_f64());
+    }
+
+    pub fn record_fault(&self, message: String) {
+        let mut f = lock(&self.faults);
+        if f.len() == 16 {
+            f.pop_front();
+        }
+        f.push_back((SystemTime::now(), message));
+    }
+
+    pub fn record_sweep_period(&self, period: f64) {
+        push_recent(&mut lock(&self.sweep_periods), period);
+    }
+}
+
+/// Everything the tasks share.
+pub struct Shared {
+    pub config: Config,
+    pub models: BTreeMap<String, Arc<Model>>,
+    /// The newest completed sweep.
+    pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
+    /// Wakes an on-demand acquisition loop.
+    pub sweep_wanted: Notify,
+    pub devices: Mutex<Vec<DeviceStatus>>,
+    pub stats: Stats,
+    /// Objects watched by clients, with how many watch each.
+    pub watched: Mutex<BTreeMap<String, usize>>,
+    pub detect_slots: Semaphore,
+    pub started: Instant,
+    /// Turns true when the daemon is stopping.
+    pub shutdown: watch::Sender<bool>,
+}
+
+impl Shared {
+    pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>) -> Shared {
+        let workers = config.detect_workers;
+        Shared {
+            config,
+            models,
+            latest: watch::channel(None).0,
+            sweep_wanted: Notify::new(),
+            devices: Mutex::new(Vec::new()),
+            stats: Stats::default(),
+            watched: Mutex::new(BTreeMap::new()),
+            detect_slots: Semaphore::new(workers),
+            started: Instant::now(),
+            shutdown: watch::channel(false).0,
+        }
+    }
+
+    pub fn newest(&self) -> Option<Arc<SweepEntry>> {
+        self.latest.borrow().clone()
+    }
+
+    /// A model by name, or an error naming the known ones.
+    pub fn model(&self, name: &str) -> Result<Arc<Model>, String> {
+        self.models.get(name).cloned().ok_or_else(|| {
+            let known: Vec<&str> = self.models.keys().map(String::as_str).collect();
+            format!("unknown object {name:?}; known objects: {}", known.join(", "))
+        })
+    }
+
+    pub fn update_device(&self, name: &str, f: impl FnOnce(&mut DeviceStatus)) {
+        if let Some(d) = lock(&self.devices).iter_mut().find(|d| d.name == name) {
+            f(d);
+        }
+    }
+
+    /// One line on what is wrong with the devices, for error replies ("" when all is well).
+    pub fn device_trouble(&self) -> String {
+        lock(&self.devices)
+            .iter()
+            .filter(|d| !d.connected)
+            .map(|d| match &d.last_error {
+                Some(e) => format!("{} {} is down: {e}", d.name, d.path),
+                None => format!("{} {} is not open yet", d.name, d.path),
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    pub fn is_stopping(&self) -> bool {
+        *self.shutdown.borrow()
+    }
+
+    pub fn status_json(&self) -> Value {
+        let s = &self.stats;
+        let det = lock(&s.detections);
+        let periods = lock(&s.sweep_periods);
+        let sweep_rate = median(&periods).filter(|p| *p > 0.0).map(|p| round3(60.0 / p));
+        json!({
+            "class": "status",
+            "release": env!("CARGO_PKG_VERSION"),
+            "uptime_s": round3(self.started.elapsed().as_secs_f64()),
+            "backend": match &self.config.backend {
+                super::config::Backend::Sim { .. } => "sim",
+                super::config::Backend::Hardware(_) => "hardware",
+            },
+            "mode": if self.config.continuous { "continuous" } else { "on_demand" },
+            "devices": lock(&self.devices).iter().map(DeviceStatus::json).collect::<Vec<_>>(),
+            "last_sweep": self.newest().map(|e| e.summary()),
+            "sweeps": {
+                "completed": s.sweeps_completed.load(Ordering::Relaxed),
+                "dropped": s.sweeps_dropped.load(Ordering::Relaxed),
+                "per_minute": sweep_rate,
+            },
+            "detections": {
+                "count": det.count,
+                "median_run_ms": median(&det.run).map(|x| round3(x * 1e3)),
+                "median_latency_ms": median(&det.latency).map(|x| round3(x * 1e3)),
+            },
+            "clients": {
+                "connected": s.clients.load(Ordering::Relaxed),
+                "total": s.clients_total.load(Ordering::Relaxed),
+                "requests": s.requests.load(Ordering::Relaxed),
+                "errors": s.errors_sent.load(Ordering::Relaxed),
+                "watch_updates_skipped": s.watch_skipped.load(Ordering::Relaxed),
+            },
+            "watched": lock(&self.watched).keys().cloned().chain(self.config.watch.iter().cloned()).collect::<std::collections::BTreeSet<_>>(),
+            "faults": lock(&s.faults).iter().map(|(t, m)| json!({
+                "time": t.duration_since(SystemTime::UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or(0.0),
+                "message": m,
+            })).collect::<Vec<_>>(),
+        })
+    }
+}

@@ -1,0 +1,414 @@
+//! End to end: the `sqscand` binary as a separate process, asked over its Unix socket as a
+//! client on the robot would, on the embedded simulator and on mock devices on ptys (the mock rig
+//! as a separate `sqscan mock rig` process, so the daemon opens them exactly like hardware).
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::{UnixDatagram, UnixStream};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use nalgebra::{Point3, Quaternion, UnitQuaternion, Vector3};
+use serde_json::{Value, json};
+use sqscan::eval::{Symmetry, truth_pose};
+use sqscan::model::Model;
+use sqscan::sim::Scene;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sqscan-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A child process killed when the test ends, however it ends.
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn wait_for(what: &str, timeout: Duration, mut ok: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !ok() {
+        assert!(t0.elapsed() < timeout, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Starts `sqscand --config` on `config` text written into `dir`; returns once the socket
+/// answers.
+fn start_daemon(dir: &Path, config: &str, env: &[(&str, &str)]) -> (Proc, PathBuf) {
+    let cfg = dir.join("sqscand.toml");
+    std::fs::write(&cfg, config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_sqscand"));
+    cmd.arg("--config")
+        .arg(&cfg)
+        .arg("--socket")
+        .arg(&socket)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
+        .env_remove("NOTIFY_SOCKET")
+        .env_remove("WATCHDOG_USEC");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    let child = Proc(cmd.spawn().unwrap());
+    wait_for("the daemon's socket", Duration::from_secs(30), || {
+        UnixStream::connect(&socket).is_ok()
+    });
+    (child, socket)
+}
+
+fn log(dir: &Path) -> String {
+    std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default()
+}
+
+struct Client {
+    r: BufReader<UnixStream>,
+    w: UnixStream,
+}
+
+impl Client {
+    fn connect(socket: &Path) -> Client {
+        let s = UnixStream::connect(socket).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(90))).unwrap();
+        let w = s.try_clone().unwrap();
+        let mut c = Client {
+            r: BufReader::new(s),
+            w,
+        };
+        let hello = c.read();
+        assert_eq!(hello["class"], "version", "{hello}");
+        assert_eq!(hello["proto_major"], 1);
+        c
+    }
+    fn send_raw(&mut self, bytes: &[u8]) {
+        self.w.write_all(bytes).unwrap();
+    }
+    fn send(&mut self, v: &Value) {
+        self.send_raw(format!("{v}\n").as_bytes());
+    }
+    fn read(&mut self) -> Value {
+        let mut line = String::new();
+        let n = self.r.read_line(&mut line).unwrap();
+        assert!(n > 0, "the daemon closed the connection");
+        serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
+    }
+    fn ask(&mut self, v: Value) -> Value {
+        self.send(&v);
+        self.read()
+    }
+}
+
+fn v3(v: &Value) -> Vector3<f64> {
+    Vector3::new(v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+}
+
+/// The detection's pose against the scene's truth: (position error m, rotation error deg modulo
+/// the model's symmetries).
+fn pose_error(reply: &Value, scene: &Path, object: &str) -> (f64, f64) {
+    let scene = Scene::from_file(scene, &root().join("models")).unwrap();
+    let model = Model::load(object, &root().join("models")).unwrap();
+    let (_, truth) = truth_pose(&scene, &model).unwrap();
+    let pose = &reply["pose"];
+    let p = v3(&pose["position"]);
+    let q = &pose["orientation"];
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(
+        q[3].as_f64().unwrap(),
+        q[0].as_f64().unwrap(),
+        q[1].as_f64().unwrap(),
+        q[2].as_f64().unwrap(),
+    ));
+    let dp = (Point3::from(p) - Point3::from(truth.translation.vector)).norm();
+    let dr = Symmetry::of(&model).rotation_error(&q, &truth.rotation).to_degrees();
+    (dp, dr)
+}
+
+const SIM_FAST: &str = r#"
+[sim]
+scene = "SCENE"
+seed = 3
+realtime = false
+[sweep]
+pause_s = 0.3
+"#;
+
+fn sim_config() -> String {
+    SIM_FAST.replace("SCENE", root().join("scenes/fig3_table.toml").to_str().unwrap())
+}
+
+#[test]
+fn simulated_backend_finds_the_cup_and_answers_every_request() {
+    let dir = tmpdir("sim");
+    let (_d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    let mut c = Client::connect(&socket);
+
+    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":2.0,"timeout_s":30,"id":"q1"}));
+    assert_eq!(r["class"], "detection", "{r}");
+    assert_eq!(r["id"], "q1");
+    assert_eq!(r["found"], true, "{r}");
+    assert!(r["sweep"]["id"].as_u64().unwrap() >= 1);
+    let (dp, dr) = pose_error(&r, &root().join("scenes/fig3_table.toml"), "cup");
+    assert!(dp < 0.010 && dr < 10.0, "cup off by {dp} m, {dr} deg: {r}");
+    // Reported standing up (z along the table normal), not upside down.
+    let q = &r["pose"]["orientation"];
+    let q = UnitQuaternion::from_quaternion(Quaternion::new(
+        q[3].as_f64().unwrap(),
+        q[0].as_f64().unwrap(),
+        q[1].as_f64().unwrap(),
+        q[2].as_f64().unwrap(),
+    ));
+    assert!((q * Vector3::z()).z > 0.95, "{r}");
+
+    // Not there: a clear "not found", not the most similar thing.
+    let r = c.ask(json!({"cmd":"find","object":"mug","timeout_s":30}));
+    assert_eq!(r["class"], "detection", "{r}");
+    assert_eq!(r["found"], false, "{r}");
+
+    // Bad requests get errors naming what was wrong, and the connection keeps serving.
+    let r = c.ask(json!({"cmd":"find","object":"teapot"}));
+    assert_eq!(r["class"], "error");
+    assert!(
+        r["message"].as_str().unwrap().contains("unknown object \"teapot\""),
+        "{r}"
+    );
+    c.send_raw(b"{\"cmd\": \"find\", \"object\n");
+    let r = c.read();
+    assert_eq!(r["class"], "error");
+    assert!(r["message"].as_str().unwrap().contains("malformed JSON"), "{r}");
+    c.send_raw(b"\x00\xff garbage \x01\n");
+    assert_eq!(c.read()["class"], "error");
+    let mut big = vec![b'x'; 100 * 1024];
+    big.push(b'\n');
+    c.send_raw(&big);
+    let r = c.read();
+    assert!(r["message"].as_str().unwrap().contains("over the limit"), "{r}");
+    let r = c.ask(json!({"cmd":"status"}));
+    assert_eq!(r["class"], "status", "{r}");
+    assert_eq!(r["devices"][0]["state"], "ok", "{r}");
+    assert!(r["sweeps"]["completed"].as_u64().unwrap() >= 1);
+    let r = c.ask(json!({"cmd":"models"}));
+    assert!(
+        r["models"].as_array().unwrap().iter().any(|m| m["name"] == "cup"),
+        "{r}"
+    );
+
+    // scan: a sweep begun after the request.
+    let before = c.ask(json!({"cmd":"status"}))["last_sweep"]["id"].as_u64().unwrap_or(0);
+    let r = c.ask(json!({"cmd":"scan","timeout_s":30}));
+    assert_eq!(r["class"], "sweep", "{r}");
+    assert!(r["id"].as_u64().unwrap() > before, "{r}");
+    assert!(r["points"].as_u64().unwrap() > 30_000, "{r}");
+
+    // watch: one detection a sweep for each object, from successive sweeps.
+    let r = c.ask(json!({"cmd":"watch","objects":["bowl","cup"]}));
+    assert_eq!(r["class"], "watch", "{r}");
+    let mut seen: Vec<(u64, String)> = Vec::new();
+    while seen.len() < 6 {
+        let r = c.read();
+        assert_eq!(r["class"], "detection", "{r}");
+        assert_eq!(r["found"], true, "{r}");
+        seen.push((
+            r["sweep"]["id"].as_u64().unwrap(),
+            r["object"].as_str().unwrap().to_string(),
+        ));
+    }
+    let sweeps: std::collections::BTreeSet<u64> = seen.iter().map(|s| s.0).collect();
+    assert!(sweeps.len() >= 3, "{seen:?}");
+    assert!(seen.iter().any(|s| s.1 == "bowl") && seen.iter().any(|s| s.1 == "cup"));
+}
+
+#[test]
+fn two_hundred_clients_at_once_each_get_their_answer() {
+    let dir = tmpdir("many");
+    let (_d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    // Wait for a first sweep so the rush is answered from it (and from the next ones).
+    let mut c = Client::connect(&socket);
+    assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
+    let t0 = Instant::now();
+    let handles: Vec<_> = (0..200)
+        .map(|i| {
+            let socket = socket.clone();
+            std::thread::spawn(move || {
+                let mut c = Client::connect(&socket);
+                let object = ["cup", "bowl"][i % 2];
+                let r = c.ask(json!({"cmd":"find","object":object,"max_age_s":5.0,"timeout_s":60,"id":i}));
+                (i, r)
+            })
+        })
+        .collect();
+    for h in handles {
+        let (i, r) = h.join().unwrap();
+        assert_eq!(r["class"], "detection", "client {i}: {r}");
+        assert_eq!(r["id"], i, "{r}");
+        assert_eq!(r["found"], true, "client {i}: {r}");
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    eprintln!("200 clients answered in {secs:.2} s");
+    let s = c.ask(json!({"cmd":"status"}));
+    assert!(s["clients"]["total"].as_u64().unwrap() >= 201, "{s}");
+}
+
+#[test]
+fn systemd_hears_ready_watchdog_and_a_clean_stop() {
+    let dir = tmpdir("notify");
+    let notify_path = dir.join("notify.sock");
+    let sock = UnixDatagram::bind(&notify_path).unwrap();
+    sock.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let (mut d, socket) = start_daemon(
+        &dir,
+        &sim_config(),
+        &[
+            ("NOTIFY_SOCKET", notify_path.to_str().unwrap()),
+            ("WATCHDOG_USEC", "400000"),
+        ],
+    );
+    let mut got: Vec<String> = Vec::new();
+    let mut buf = [0u8; 4096];
+    let t0 = Instant::now();
+    while !(got.iter().any(|m| m == "READY=1")
+        && got.iter().filter(|m| *m == "WATCHDOG=1").count() >= 2
+        && got.iter().any(|m| m.starts_with("STATUS=sweep")))
+    {
+        assert!(t0.elapsed() < Duration::from_secs(30), "{got:?}");
+        let n = sock.recv(&mut buf).unwrap();
+        got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
+    }
+    // SIGTERM: gone within 2 s, STOPPING=1 sent, socket removed.
+    let t = Instant::now();
+    unsafe_kill(d.0.id(), 15);
+    let status = loop {
+        if let Some(s) = d.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(2), "still running 2 s after SIGTERM");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}: {}", log(&dir));
+    assert!(!socket.exists());
+    sock.set_read_timeout(Some(Duration::from_millis(500))).unwrap();
+    let mut stopping = false;
+    while let Ok(n) = sock.recv(&mut buf) {
+        stopping |= &buf[..n] == b"STOPPING=1";
+    }
+    assert!(stopping, "{got:?}");
+}
+
+fn unsafe_kill(pid: u32, sig: i32) {
+    // SAFETY: kill(2) on our own child's pid.
+    let r = unsafe { libc::kill(pid as i32, sig) };
+    assert_eq!(r, 0);
+}
+
+/// `sqscan mock rig` in its own process; returns once both links exist.
+fn start_rig(dir: &Path, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
+    let ptu = dir.join("ptu");
+    let sensor = dir.join("sensor");
+    let child = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .args(["mock", "rig", "--protocol", "powercube", "--scene"])
+        .arg(root().join("scenes/fig3_table.toml"))
+        .arg("--ptu-link")
+        .arg(&ptu)
+        .arg("--sensor-link")
+        .arg(&sensor)
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("rig.log")).unwrap())
+        .spawn()
+        .unwrap();
+    let child = Proc(child);
+    wait_for("the rig's links", Duration::from_secs(30), || {
+        ptu.exists() && sensor.exists()
+    });
+    (child, ptu, sensor)
+}
+
+fn hardware_config(ptu: &Path, sensor: &Path) -> String {
+    format!(
+        r#"
+[hardware]
+calibration = "{}"
+ptu = {{ path = "{}", protocol = "powercube" }}
+sensor = {{ path = "{}" }}
+[sweep]
+tilt_from_rad = 0.49
+tilt_to_rad = 0.84
+speed_rad_s = 0.12
+timeout_s = 5.0
+"#,
+        root().join("calibration/sim_rig.toml").display(),
+        ptu.display(),
+        sensor.display()
+    )
+}
+
+#[test]
+fn mock_devices_on_ptys_find_the_cup() {
+    let dir = tmpdir("rig");
+    let (_rig, ptu, sensor) = start_rig(&dir, &[]);
+    let (_d, socket) = start_daemon(&dir, &hardware_config(&ptu, &sensor), &[]);
+    let mut c = Client::connect(&socket);
+    let r = c.ask(json!({"cmd":"find","object":"cup","timeout_s":60}));
+    assert_eq!(r["class"], "detection", "{r}\n{}", log(&dir));
+    assert_eq!(r["found"], true, "{r}");
+    let (dp, dr) = pose_error(&r, &root().join("scenes/fig3_table.toml"), "cup");
+    assert!(dp < 0.010 && dr < 10.0, "cup off by {dp} m, {dr} deg: {r}");
+    let s = c.ask(json!({"cmd":"status"}));
+    let devices = s["devices"].as_array().unwrap();
+    assert!(devices.iter().all(|d| d["state"] == "ok"), "{s}");
+}
+
+#[test]
+fn an_unplugged_ptu_shows_drops_the_sweep_and_comes_back() {
+    let dir = tmpdir("unplug");
+    // The PowerCube driver exchanges ~100 telegrams a second while sweeping: unplug a second or
+    // so into the first sweep, plug back in 3 s later.
+    let (_rig, ptu, sensor) = start_rig(&dir, &["--disconnect-after", "400", "--ptu-replug-after", "3"]);
+    let (_d, socket) = start_daemon(&dir, &hardware_config(&ptu, &sensor), &[]);
+    let mut c = Client::connect(&socket);
+    // The fault shows in status: the PTU down (or back up, with a failure counted) and a
+    // dropped sweep.
+    let t0 = Instant::now();
+    let status = loop {
+        let s = c.ask(json!({"cmd":"status"}));
+        if s["sweeps"]["dropped"].as_u64().unwrap() >= 1 {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "no dropped sweep: {s}\n{}",
+            log(&dir)
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let ptu_status = &status["devices"][0];
+    assert_eq!(ptu_status["name"], "ptu");
+    assert!(ptu_status["failures"].as_u64().unwrap() >= 1, "{status}");
+    assert!(ptu_status["last_error"].is_string(), "{status}");
+    assert!(
+        status["faults"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|f| f["message"].as_str().unwrap().contains("PTU")),
+        "{status}"
+    );
+    // Back: a fresh find answers from a sweep made after the replug.
+    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":90}));
+    assert_eq!(r["class"], "detection", "{r}\n{}", log(&dir));
+    assert_eq!(r["found"], true, "{r}");
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["devices"][0]["state"], "ok", "{s}");
+    assert!(s["devices"][0]["opens"].as_u64().unwrap() >= 2, "{s}");
+}
