@@ -20,6 +20,9 @@ use super::state::{DeviceStatus, Shared, SweepEntry, lock, stopped};
 /// A sweep as a backend delivers it.
 pub struct SweepData {
     pub started: Instant,
+    /// When the last profile was exposed (hardware) or the sweep rendered (simulator): where
+    /// sweep-to-answer latency starts.
+    pub last_profile: Instant,
     /// Organized, base frame, NaN = no return; `viewpoint` set to the sensor at mid-sweep.
     pub cloud: PointCloud,
     pub profiles: usize,
@@ -104,6 +107,7 @@ impl SimBackend {
         });
         Ok(SweepData {
             started,
+            last_profile: Instant::now(),
             profiles: sweep.profiles,
             columns: sweep.columns,
             cloud: sweep.cloud,
@@ -171,14 +175,16 @@ pub async fn run(shared: Arc<Shared>, mut backend: AnyBackend) {
         };
         match result {
             Ok(data) => {
-                let entry = Arc::new(SweepEntry::new(
+                let mut entry = SweepEntry::new(
                     next_id,
                     data.started,
                     data.cloud,
                     data.profiles,
                     data.columns,
                     data.report,
-                ));
+                );
+                entry.last_profile = data.last_profile;
+                let entry = Arc::new(entry);
                 next_id += 1;
                 shared.stats.sweeps_completed.fetch_add(1, Ordering::Relaxed);
                 if let Some(prev) = last_completed {

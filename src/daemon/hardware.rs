@@ -238,8 +238,10 @@ impl HardwareBackend {
         match result {
             Ok(s) => {
                 let report = serde_json::to_value(&s.report).unwrap_or_default();
+                let last = s.stamp_s.last().copied().unwrap_or(0.0).max(0.0);
                 Ok(SweepData {
                     started: s.start,
+                    last_profile: s.start + Duration::from_secs_f64(last),
                     profiles: s.profiles,
                     columns: s.columns,
                     cloud: s.cloud,

@@ -38,6 +38,8 @@ pub struct SweepEntry {
     pub id: u64,
     pub started: Instant,
     pub completed: Instant,
+    /// The last profile's exposure (see `acquire::SweepData::last_profile`).
+    pub last_profile: Instant,
     pub completed_wall: SystemTime,
     /// Organized (profiles x columns) in the base frame, NaN where nothing returned.
     pub cloud: Arc<PointCloud>,
@@ -52,8 +54,8 @@ pub struct SweepEntry {
 /// A detection made on a sweep, and when it was done.
 pub struct Detected {
     pub report: Report,
-    /// From the sweep's completion to this detection's end: what a client waiting on the sweep
-    /// waits beyond the scan itself.
+    /// From the sweep's last profile to this detection's end: what a client waiting on the
+    /// sweep waits beyond the scan itself (assembly, queueing, detection).
     pub latency: Duration,
 }
 
@@ -64,6 +66,7 @@ impl SweepEntry {
             id,
             started,
             completed: Instant::now(),
+            last_profile: Instant::now(),
             completed_wall: SystemTime::now(),
             cloud: Arc::new(cloud),
             profiles,
@@ -127,13 +130,9 @@ impl SweepEntry {
                     }
                 }
             };
-            shared
-                .stats
-                .record_detection(started.elapsed(), self.completed.elapsed());
-            Arc::new(Detected {
-                latency: self.completed.elapsed(),
-                report,
-            })
+            let latency = self.last_profile.elapsed();
+            shared.stats.record_detection(started.elapsed(), latency);
+            Arc::new(Detected { latency, report })
         })
         .await
         .clone()

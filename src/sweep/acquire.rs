@@ -108,8 +108,12 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
     let drain_until = std::time::Instant::now()
         .checked_add(settings.timeout)
         .unwrap_or_else(std::time::Instant::now);
+    // A frame still on its way arrives within about one profile period of the last: wait three
+    // observed periods (bounded by `grace`) rather than always the whole grace, which would add
+    // to every sweep's latency.
+    let quiet = drain_quiet(&profiles, settings.grace);
     while std::time::Instant::now() < drain_until {
-        match sensor.next_profile(settings.grace).await {
+        match sensor.next_profile(quiet).await {
             Ok(p) => profiles.push(p),
             Err(sqscan_drivers::Error::Timeout { .. }) => break,
             Err(e) => return Err(SweepError::Sensor(e)),
@@ -142,4 +146,19 @@ pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
 
 fn secs(s: f64) -> Duration {
     Duration::try_from_secs_f64(s).unwrap_or(Duration::MAX)
+}
+
+/// How long the line must stay quiet after STOP: three median inter-arrival periods of the
+/// profiles so far, at least 10 ms, at most `grace` (all of `grace` when there are too few
+/// profiles to tell the rate).
+fn drain_quiet(profiles: &[ReceivedProfile], grace: Duration) -> Duration {
+    let mut gaps: Vec<Duration> = profiles
+        .windows(2)
+        .map(|w| w[1].received.saturating_duration_since(w[0].received))
+        .collect();
+    if gaps.len() < 8 {
+        return grace;
+    }
+    gaps.sort_unstable();
+    (gaps[gaps.len() / 2] * 3).clamp(Duration::from_millis(10), grace)
 }
