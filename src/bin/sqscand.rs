@@ -68,7 +68,7 @@ async fn run(config: Config) -> Result<()> {
     let daemon = Daemon::start(config, notifier).await?;
     // Where to ask, on stderr (the journal under systemd), whatever the log level.
     eprintln!(
-        "sqscand: listening on {}{}; try `sqscan --socket {} find cup`",
+        "sqscand: listening on {}{}; try `sqscan find cup --socket {}`",
         daemon.socket().display(),
         tcp.map(|a| format!(" and tcp {a}")).unwrap_or_default(),
         daemon.socket().display()
