@@ -412,3 +412,77 @@ fn an_unplugged_ptu_shows_drops_the_sweep_and_comes_back() {
     assert_eq!(s["devices"][0]["state"], "ok", "{s}");
     assert!(s["devices"][0]["opens"].as_u64().unwrap() >= 2, "{s}");
 }
+
+#[test]
+fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
+    let dir = tmpdir("ondemand");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let config = format!(
+        "{}\n[acquisition]\nmode = \"on_demand\"\n[server]\ntcp = \"127.0.0.1:{port}\"\n[record]\ndir = \"rec\"\nkeep = 2\n",
+        sim_config()
+    );
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    let mut c = Client::connect(&socket);
+    // Nothing is swept until someone needs it.
+    std::thread::sleep(Duration::from_millis(800));
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["mode"], "on_demand");
+    assert_eq!(s["sweeps"]["completed"], 0, "{s}");
+    // find asks for a sweep; so does scan; each is recorded.
+    let r = c.ask(json!({"cmd":"find","object":"bowl","timeout_s":30}));
+    assert_eq!(r["found"], true, "{r}");
+    for _ in 0..2 {
+        assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
+    }
+    let s = c.ask(json!({"cmd":"status"}));
+    let done = s["sweeps"]["completed"].as_u64().unwrap();
+    assert!((3..=4).contains(&done), "on demand made {done} sweeps: {s}");
+    // The newest two recordings, complete (the JSON is renamed last), no temporary files left.
+    let rec = dir.join("rec");
+    wait_for("the recordings", Duration::from_secs(10), || {
+        std::fs::read_dir(&rec).map(|d| d.count() == 4).unwrap_or(false)
+    });
+    let mut names: Vec<String> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert!(
+        names.iter().all(|n| n.starts_with("sweep-") && !n.contains("tmp")),
+        "{names:?}"
+    );
+    let newest = names
+        .last()
+        .unwrap()
+        .trim_end_matches(".pcd")
+        .trim_end_matches(".json")
+        .to_string();
+    let meta: Value =
+        serde_json::from_str(&std::fs::read_to_string(rec.join(format!("{newest}.json"))).unwrap()).unwrap();
+    let cloud = sqscan::cloud::read_cloud(&rec.join(format!("{newest}.pcd"))).unwrap();
+    assert_eq!(cloud.finite_count() as u64, meta["points"].as_u64().unwrap());
+    assert_eq!((cloud.width, cloud.height), (256, 150));
+    assert!(cloud.viewpoint.is_some());
+
+    // The same protocol over TCP.
+    let tcp = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    tcp.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut w = tcp.try_clone().unwrap();
+    let mut r = BufReader::new(tcp);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap();
+    assert!(line.contains("\"class\":\"version\""), "{line}");
+    w.write_all(b"{\"cmd\":\"models\",\"id\":5}\n").unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    let v: Value = serde_json::from_str(&line).unwrap();
+    assert_eq!(
+        (v["class"].as_str(), v["id"].as_u64()),
+        (Some("models"), Some(5)),
+        "{v}"
+    );
+}

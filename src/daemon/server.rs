@@ -473,4 +473,22 @@ mod tests {
         at.push(b'\n');
         assert!(matches!(lines(&at).await[..], [Ok(_)]));
     }
+
+    #[tokio::test]
+    async fn watch_updates_to_a_full_queue_are_skipped_not_waited_for() {
+        let config = crate::daemon::config::Config::embedded_default();
+        let shared = Arc::new(Shared::new(config, Default::default()));
+        let (tx, mut rx) = mpsc::channel(2);
+        let out = Outbox {
+            tx,
+            shared: shared.clone(),
+        };
+        for k in 0..5 {
+            // Returns at once even though nobody reads.
+            out.update(json!({"class": "detection", "k": k}));
+        }
+        assert_eq!(shared.stats.watch_skipped.load(Ordering::Relaxed), 3);
+        assert_eq!(rx.recv().await.unwrap()["k"], 0);
+        assert_eq!(rx.recv().await.unwrap()["k"], 1);
+    }
 }
