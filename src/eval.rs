@@ -3,9 +3,9 @@
 
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
+use crate::sim::{self, Scene};
 pub use crate::symmetry::Symmetry;
 use crate::symmetry::same_shape;
-use crate::sim::{self, Scene};
 use nalgebra::{Isometry3, Point3};
 use std::f64::consts::PI;
 
@@ -96,5 +96,4 @@ mod tests {
     fn model(name: &str) -> Model {
         Model::load(name, &Path::new(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
     }
-
 }

@@ -65,7 +65,7 @@ fn number(obj: &Map<String, Value>, key: &str, default: f64, id: &Option<Value>)
         None | Some(Value::Null) => Ok(default),
         Some(Value::Number(n)) => {
             let x = n.as_f64().unwrap_or(f64::NAN);
-            if x.is_finite() && x >= 0.0 && x <= MAX_TIMEOUT_S {
+            if (0.0..=MAX_TIMEOUT_S).contains(&x) {
                 Ok(x)
             } else {
                 Err(err(

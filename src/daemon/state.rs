@@ -48,8 +48,11 @@ pub struct SweepEntry {
     pub points: usize,
     /// The assembler's account of the sweep (profiles kept and dropped, and why).
     pub report: Value,
-    detections: Mutex<HashMap<(String, bool), Arc<OnceCell<Arc<Detected>>>>>,
+    detections: Mutex<HashMap<(String, bool), DetectionCell>>,
 }
+
+/// One detection of a sweep, made by whoever asks first and awaited by the rest.
+type DetectionCell = Arc<OnceCell<Arc<Detected>>>;
 
 /// A detection made on a sweep, and when it was done.
 pub struct Detected {

@@ -115,7 +115,9 @@ impl PlacedSuperquadric {
     pub fn lowest_z(&self) -> f64 {
         const GRID: usize = 24;
         let z = |face: usize, u: f64, v: f64| {
-            let q = self.shape.cube_surface_point(face, u.clamp(-1.0, 1.0), v.clamp(-1.0, 1.0));
+            let q = self
+                .shape
+                .cube_surface_point(face, u.clamp(-1.0, 1.0), v.clamp(-1.0, 1.0));
             self.pose.transform_point(&Point3::from(q)).z
         };
         let mut seeds: Vec<(f64, usize, f64, f64)> = Vec::with_capacity(6 * (GRID + 1) * (GRID + 1));
@@ -134,7 +136,16 @@ impl PlacedSuperquadric {
             let mut step = 2.0 / GRID as f64;
             while step > 1e-7 {
                 let mut moved = false;
-                for (du, dv) in [(1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0), (1.0, 1.0), (-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0)] {
+                for (du, dv) in [
+                    (1.0, 0.0),
+                    (-1.0, 0.0),
+                    (0.0, 1.0),
+                    (0.0, -1.0),
+                    (1.0, 1.0),
+                    (-1.0, -1.0),
+                    (1.0, -1.0),
+                    (-1.0, 1.0),
+                ] {
                     let (un, vn) = ((u + du * step).clamp(-1.0, 1.0), (v + dv * step).clamp(-1.0, 1.0));
                     let zn = z(face, un, vn);
                     if zn < zb {

@@ -376,7 +376,12 @@ fn lowest_z_matches_dense_sampling() {
         Superquadric::new([0.03, 0.02, 0.05], 1.6, 0.4, -0.5, 0.3).unwrap(),
     ];
     for (k, shape) in shapes.iter().enumerate() {
-        for (r, p, y) in [(0.0, 0.0, 0.0), (0.4, 1.2, -0.3), (1.5707963, 0.0, 0.7), (2.8, -0.5, 2.0)] {
+        for (r, p, y) in [
+            (0.0, 0.0, 0.0),
+            (0.4, 1.2, -0.3),
+            (1.5707963, 0.0, 0.7),
+            (2.8, -0.5, 2.0),
+        ] {
             let placed = PlacedSuperquadric::new(
                 *shape,
                 Isometry3::from_parts(
@@ -391,8 +396,14 @@ fn lowest_z_matches_dense_sampling() {
                 .fold(f64::INFINITY, f64::min);
             let fast = placed.lowest_z();
             // Never above a surface point, and below the densest sample by less than its spacing.
-            assert!(fast <= dense + 1e-9, "shape {k} rpy {r},{p},{y}: {fast} above sampled {dense}");
-            assert!(dense - fast < shape.min_size() / 40.0, "shape {k} rpy {r},{p},{y}: {fast} vs {dense}");
+            assert!(
+                fast <= dense + 1e-9,
+                "shape {k} rpy {r},{p},{y}: {fast} above sampled {dense}"
+            );
+            assert!(
+                dense - fast < shape.min_size() / 40.0,
+                "shape {k} rpy {r},{p},{y}: {fast} vs {dense}"
+            );
         }
     }
 }
