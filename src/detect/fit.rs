@@ -5,7 +5,7 @@
 //! parameters, so the normal equations are a 6x6 system built in one pass over the points
 //! (no n x 6 Jacobian matrix is stored), the pose is updated on the manifold (a local rotation
 //! vector, see `PlacedSuperquadric::residual_pose_jacobian`), and a body of revolution simply
-//! drops its unobservable spin. `benches/fit.rs` measures it.
+//! drops its unobservable spin. `benches/lm.rs` compares it with the crate (BENCHMARKS.md).
 
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Matrix6, Point3, Vector6};

@@ -36,7 +36,7 @@ impl Superquadric {
             out: &mut out,
         };
         for face in 0..6 {
-            walk.cell(face, -1.0, -1.0, 2.0, 0);
+            walk.cell(face, -1.0, -1.0, 2.0, 0, None);
         }
         out
     }
@@ -63,18 +63,39 @@ struct Walk<'a> {
 }
 
 impl Walk<'_> {
-    fn cell(&mut self, face: usize, u0: f64, v0: f64, size: f64, depth: u32) {
+    /// Visit a cell. `known` carries its corners `[p00, p10, p11, p01]` and centre when the parent
+    /// already evaluated them (a split shares the parent's corners, edge midpoints and centre with
+    /// its children, so each split costs 8 surface points instead of 20). The cell coordinates
+    /// are dyadic, so a point reached through different parents is the same to the last bit.
+    fn cell(
+        &mut self,
+        face: usize,
+        u0: f64,
+        v0: f64,
+        size: f64,
+        depth: u32,
+        known: Option<([Vector3<f64>; 4], Vector3<f64>)>,
+    ) {
         let sq = self.sq;
         let half = 0.5 * size;
         if depth < MIN_DEPTH {
-            self.children(face, u0, v0, half, depth);
+            self.cell(face, u0, v0, half, depth + 1, None);
+            self.cell(face, u0 + half, v0, half, depth + 1, None);
+            self.cell(face, u0 + half, v0 + half, half, depth + 1, None);
+            self.cell(face, u0, v0 + half, half, depth + 1, None);
             return;
         }
-        let p00 = sq.cube_surface_point(face, u0, v0);
-        let p10 = sq.cube_surface_point(face, u0 + size, v0);
-        let p11 = sq.cube_surface_point(face, u0 + size, v0 + size);
-        let p01 = sq.cube_surface_point(face, u0, v0 + size);
-        let c = sq.cube_surface_point(face, u0 + half, v0 + half);
+        let ([p00, p10, p11, p01], c) = known.unwrap_or_else(|| {
+            (
+                [
+                    sq.cube_surface_point(face, u0, v0),
+                    sq.cube_surface_point(face, u0 + size, v0),
+                    sq.cube_surface_point(face, u0 + size, v0 + size),
+                    sq.cube_surface_point(face, u0, v0 + size),
+                ],
+                sq.cube_surface_point(face, u0 + half, v0 + half),
+            )
+        });
         // Four triangles fanned about the centre follow a curved patch better than two.
         let area = 0.5
             * ((p00 - c).cross(&(p10 - c)).norm()
@@ -82,7 +103,39 @@ impl Walk<'_> {
                 + (p11 - c).cross(&(p01 - c)).norm()
                 + (p01 - c).cross(&(p00 - c)).norm());
         if area > 0.5 * self.share && depth < MAX_DEPTH {
-            self.children(face, u0, v0, half, depth);
+            // Serpentine order keeps consecutive cells adjacent, which spreads the diffused error.
+            let q = 0.5 * half;
+            let m0 = sq.cube_surface_point(face, u0 + half, v0);
+            let m1 = sq.cube_surface_point(face, u0 + size, v0 + half);
+            let m2 = sq.cube_surface_point(face, u0 + half, v0 + size);
+            let m3 = sq.cube_surface_point(face, u0, v0 + half);
+            let centre = |u: f64, v: f64| sq.cube_surface_point(face, u + q, v + q);
+            let d = depth + 1;
+            self.cell(face, u0, v0, half, d, Some(([p00, m0, c, m3], centre(u0, v0))));
+            self.cell(
+                face,
+                u0 + half,
+                v0,
+                half,
+                d,
+                Some(([m0, p10, m1, c], centre(u0 + half, v0))),
+            );
+            self.cell(
+                face,
+                u0 + half,
+                v0 + half,
+                half,
+                d,
+                Some(([c, m1, p11, m2], centre(u0 + half, v0 + half))),
+            );
+            self.cell(
+                face,
+                u0,
+                v0 + half,
+                half,
+                d,
+                Some(([m3, c, m2, p01], centre(u0, v0 + half))),
+            );
             return;
         }
         self.acc += area;
@@ -92,14 +145,6 @@ impl Walk<'_> {
             // points into the next cells.
             self.acc = (self.acc - self.share).min(self.share);
         }
-    }
-
-    fn children(&mut self, face: usize, u0: f64, v0: f64, half: f64, depth: u32) {
-        // Serpentine order keeps consecutive cells adjacent, which spreads the diffused error.
-        self.cell(face, u0, v0, half, depth + 1);
-        self.cell(face, u0 + half, v0, half, depth + 1);
-        self.cell(face, u0 + half, v0 + half, half, depth + 1);
-        self.cell(face, u0, v0 + half, half, depth + 1);
     }
 }
 
