@@ -13,7 +13,7 @@
 //! crate is a dev-dependency with its own nalgebra (`nalgebra-034`): the problem is copied into
 //! that nalgebra's matrices, which is the conversion any use of the crate here would need.
 //!
-//! `cargo bench --bench lm -- --noplot` prints an accuracy table first (final cost, pose error,
+//! `cargo bench --bench lm --features lm-bench -- --noplot` prints an accuracy table first (final cost, pose error,
 //! iterations; computed once, outside the timing), then criterion's time for a batch of fits.
 
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
