@@ -601,10 +601,15 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     };
     if let Some(plane) = &report.plane {
         // Report the equivalent pose that stands on the plane (see `Symmetry::canonical_up`).
-        let symmetry = crate::symmetry::Symmetry::of(model);
+        // The symmetry search samples the model, so it is done only for a pose that leans
+        // away from the plane's normal.
         let up = plane.normal;
+        let mut symmetry = None;
         for d in &mut report.detections {
-            d.pose.rotation = symmetry.canonical_up(&d.pose.rotation, &up);
+            if (d.pose.rotation * Vector3::z()).dot(&up) < 0.0 {
+                let s = symmetry.get_or_insert_with(|| crate::symmetry::Symmetry::of(model));
+                d.pose.rotation = s.canonical_up(&d.pose.rotation, &up);
+            }
         }
     }
     report.timing.search_ms = search_ms;
