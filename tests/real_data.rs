@@ -3,10 +3,6 @@
 //! mug and bowl models (sized from these scans), must land on a labelled mug or bowl: its centre
 //! within 4 cm of the centre of that object's labelled points. These are camera-frame clouds from
 //! a Kinect-type sensor: nothing of our rig is assumed (the viewpoint is the camera origin).
-//!
-//! Not here yet, because it does not pass yet (BENCHMARKS.md has the measurements): the mug of
-//! test64 (the detector's mug hypothesis there is accepted, but the vote prefers a capped
-//! cylindrical container of nearly the mug's size at the rear).
 
 use nalgebra::{Point3, Vector3};
 use sqscan::cloud::{FieldData, PointCloud, read_cloud};
@@ -83,6 +79,35 @@ fn mug_in_learn33_lands_on_a_labelled_mug() {
 #[test]
 fn mug_in_test34_lands_on_a_labelled_mug() {
     lands_on("test34.pcd", "mug", &[5, 6]);
+}
+
+/// test64's mug stands among canisters and cartons: the mug model also fits one end of a capped
+/// canister twice its height, and did better there (fit and lid points) until the check for a
+/// wall continuing past an open part's ends (`verify::beyond_the_ends`). Over search seeds 0-4
+/// the detector lands on the labelled mug in 4 (BENCHMARKS.md); once it settles on a tilted
+/// lookalike. The test asks for the default seed and for a majority of the five.
+#[test]
+fn mug_in_test64_lands_on_the_labelled_mug() {
+    lands_on("test64.pcd", "mug", &[3]);
+    let cloud = read_cloud(&data("test64.pcd")).unwrap();
+    let targets = centroids(&cloud, &[3]);
+    let mug = model("mug");
+    let hits = (0..5u64)
+        .filter(|&seed| {
+            let params = Params {
+                seed,
+                viewpoint: Some(Point3::origin()),
+                ..Params::default()
+            };
+            let report = detect(&cloud.points, &mug, &params);
+            let d = report
+                .best_found()
+                .map(|d| (targets[0].1 - Point3::from(d.pose.translation.vector)).norm());
+            eprintln!("test64 mug, seed {seed}: {d:?} m from the labelled mug's centre");
+            d.is_some_and(|d| d < 0.04)
+        })
+        .count();
+    assert!(hits >= 3, "the mug in test64 found in {hits} of 5 seeds");
 }
 
 #[test]

@@ -141,6 +141,7 @@ pub fn score(
             })
             .count()
     };
+    let shell_points = shell_points + beyond_the_ends(space, placed, samples, tolerance);
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
         (ss / surface_points as f64).sqrt()
@@ -160,6 +161,52 @@ pub fn score(
         inside_points,
         shell_points,
     }
+}
+
+/// For an open container (a mug, a bowl), the points that continue its side wall past either
+/// end: on the wall's extension (within `tolerance` of the end cross-section, widened along the
+/// axis) from a margin beyond the rim or the base out to half the part's height. The model's
+/// height is the container's whole extent, so data there means a taller object of the same
+/// girth: a mug model fitted to a capped canister twice its height explains one end of it and
+/// leaves the rest here (mOSD test64), while a real mug has empty space above its rim and the
+/// removed table below its base. The margin (a fifth of the height, at least 1 cm) lets a real
+/// container be somewhat taller than its model, and keeps a supporting surface under the base
+/// (a book under a mug) out: that lies at the base's height, not below it.
+fn beyond_the_ends(
+    space: &SearchSpace<'_>,
+    placed: &PlacedSuperquadric,
+    samples: &SurfaceSamples,
+    tolerance: f64,
+) -> usize {
+    if !samples.open {
+        return 0;
+    }
+    let shape = &placed.shape;
+    let (a1, a2, a3) = (shape.a[0], shape.a[1], shape.a[2]);
+    let margin = (0.2 * a3).max(0.01);
+    let reach = 1.5 * a3;
+    if reach <= a3 + margin {
+        return 0;
+    }
+    let centre = Point3::from(placed.pose.translation.vector);
+    let mut count = 0usize;
+    space
+        .grid
+        .for_each_within(space.points, &centre, (a1.max(a2) + tolerance).hypot(reach), |k| {
+            let q = placed.to_local(&space.points[k]);
+            let beyond = q.z.abs() - a3;
+            if !(beyond > margin && q.z.abs() <= reach) {
+                return;
+            }
+            // The end's cross-section, extended along the axis.
+            let end = shape.untaper(&nalgebra::Vector3::new(q.x, q.y, a3.copysign(q.z)));
+            let e = 2.0 / shape.e2;
+            let rho = ((end.x.abs() / a1).powf(e) + (end.y.abs() / a2).powf(e)).powf(shape.e2 / 2.0);
+            if ((rho - 1.0) * a1.min(a2)).abs() < tolerance {
+                count += 1;
+            }
+        });
+    count
 }
 
 /// A shape's surface samples with their outward normals, in the shape's frame, spaced for the
