@@ -141,7 +141,8 @@ pub fn score(
             })
             .count()
     };
-    let shell_points = shell_points + beyond_the_ends(space, placed, samples, tolerance);
+    let shell_points =
+        shell_points + beyond_the_ends(space, placed, band + super::search::approximation_tolerance(shape));
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
         (ss / surface_points as f64).sqrt()
@@ -172,15 +173,7 @@ pub fn score(
 /// removed table below its base. The margin (a fifth of the height, at least 1 cm) lets a real
 /// container be somewhat taller than its model, and keeps a supporting surface under the base
 /// (a book under a mug) out: that lies at the base's height, not below it.
-fn beyond_the_ends(
-    space: &SearchSpace<'_>,
-    placed: &PlacedSuperquadric,
-    samples: &SurfaceSamples,
-    tolerance: f64,
-) -> usize {
-    if !samples.open {
-        return 0;
-    }
+fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, tolerance: f64) -> usize {
     let shape = &placed.shape;
     let (a1, a2, a3) = (shape.a[0], shape.a[1], shape.a[2]);
     let margin = (0.2 * a3).max(0.01);
