@@ -36,3 +36,6 @@ row fig3_table cup_body --absent
 row fig4_tools mallet_head --absent
 row fig4_tools mallet_shaft --absent
 row fig4_tools mallet --absent
+# The single mallet parts with nothing of their shape left on the table (see the scene's header).
+row fig4_no_lookalikes mallet_head --absent
+row fig4_no_lookalikes mallet_shaft --absent
