@@ -27,6 +27,9 @@ use super::config::MAX_REQUEST_BYTES;
 use super::protocol::{self, Command, Request, error_reply, with_id};
 use super::state::{Shared, SweepEntry, lock, round3, stopped};
 
+/// Requests of one client in progress at most (beyond them its next line is not read yet).
+pub const MAX_IN_FLIGHT: usize = 64;
+
 /// A client that cannot take a line for this long is dropped.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 
@@ -212,8 +215,16 @@ where
             // A dead writer means the client is gone.
             () = closed(&out.tx) => break,
         };
-        // Reap finished request tasks so a long-lived client does not accumulate them.
+        // Reap finished request tasks so a long-lived client does not accumulate them, and stop
+        // reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading its
+        // replies): backpressure on that client alone. Its writer's timeout ends it if it never
+        // reads again.
         while tasks.try_join_next().is_some() {}
+        while tasks.len() > MAX_IN_FLIGHT {
+            if tasks.join_next().await.is_none() {
+                break;
+            }
+        }
         let req = match got {
             Ok(None) | Err(_) => break,
             Ok(Some(Err(len))) => {
