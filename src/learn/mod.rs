@@ -12,6 +12,8 @@
 //!    table with one of its axes vertical).
 //! 3. [`model_toml`]: the result as a model file that `sqscan detect` takes as it is.
 
+pub mod simulated;
+
 use crate::detect::grid::voxel_subsample;
 use crate::detect::plane::{Plane, remove_dominant_plane};
 use crate::geometry::{EPSILON_MAX, EPSILON_MIN, PlacedSuperquadric, Superquadric};
@@ -237,9 +239,9 @@ impl State {
 /// What the residuals are computed against.
 struct Problem<'a> {
     points: &'a [Point3<f64>],
-    /// The up direction (the plane normal) when the points are mirrored through the vertical
-    /// axis of the centre.
-    mirror_up: Option<Vector3<f64>>,
+    /// Points the sensor saw through: samples along the rays to scene points beyond the
+    /// object, which must lie outside the surface (free space).
+    free: &'a [Point3<f64>],
     /// The supporting plane when the bottom must touch it, and the weight of that residual.
     support: Option<(Plane, f64)>,
     cost: Cost,
@@ -293,25 +295,19 @@ impl Problem<'_> {
         }
     }
 
-    /// Residuals: the points, their mirrored twins, then the support gap.
+    /// Residuals: the points, then the support gap.
     fn residuals(&self, s: &State, out: &mut Vec<f64>) {
         out.clear();
         let placed = s.placed();
         out.extend(self.points.iter().map(|p| self.point_residual(&placed, p)));
-        if let Some(u) = &self.mirror_up {
-            out.extend(
-                self.points
-                    .iter()
-                    .map(|p| self.point_residual(&placed, &turn_half(p, &s.t, u))),
-            );
-        }
+        out.extend(self.free.iter().map(|p| self.point_residual(&placed, p).min(0.0)));
         if let Some((plane, w)) = &self.support {
             out.push(w * bottom_gap(&placed, plane));
         }
     }
 
     fn len(&self) -> usize {
-        self.points.len() * if self.mirror_up.is_some() { 2 } else { 1 } + usize::from(self.support.is_some())
+        self.points.len() + self.free.len() + usize::from(self.support.is_some())
     }
 }
 
@@ -446,8 +442,7 @@ fn robust_fit(problem: &Problem, start: State, rounds: usize, iterations: usize,
     for round in 0..rounds {
         if round > 0 {
             problem.residuals(&s, &mut r);
-            let np = problem.points.len();
-            let mut abs: Vec<f64> = r[..np].iter().map(|v| v.abs()).collect();
+            let mut abs: Vec<f64> = r[..problem.points.len()].iter().map(|v| v.abs()).collect();
             delta = (2.0 * 1.4826 * median(&mut abs)).max(min_delta);
             for (w, v) in weights.iter_mut().zip(&r) {
                 *w = huber_weight(*v, delta);
@@ -534,7 +529,7 @@ fn start_state(
         if let Some(view) = (centre - v.coords).try_normalize(1e-9) {
             let d = rot.inverse() * view;
             for k in 0..3 {
-                c[k] += 0.5 * d[k] * a[k];
+                c[k] += 0.3 * d[k] * a[k];
             }
         }
     }
@@ -551,6 +546,7 @@ fn start_state(
 /// stands on (normal towards the object), `up`: the up direction when there is no plane.
 pub fn fit_superquadric(
     all_points: &[Point3<f64>],
+    free_points: &[Point3<f64>],
     plane: Option<&Plane>,
     params: &LearnParams,
 ) -> Result<Recovered, LearnError> {
@@ -565,12 +561,6 @@ pub fn fit_superquadric(
         plane.map(|p| (*p, (points.len() as f64 / 4.0).sqrt()))
     } else {
         None
-    };
-    let problem_mirror = Problem {
-        points: &points,
-        mirror_up: if params.mirror { up } else { None },
-        support,
-        cost: params.cost,
     };
     let (centroid, axes) = moments(&points);
     let mut starts: Vec<(String, State)> = Vec::new();
@@ -594,26 +584,82 @@ pub fn fit_superquadric(
             ));
         }
     }
-    // A noise floor for the Huber threshold: a fraction of the object's size, at least 1 mm.
+    // A noise floor for the Huber threshold: 1 mm.
     let min_delta = 0.001;
+    // Stage A: the visible points (and the support plane) decide the centre: the mirrored points
+    // cannot, since their union with the visible ones is symmetric about whatever centre they
+    // were mirrored through.
+    let problem_visible = Problem {
+        points: &points,
+        free: &[],
+        support,
+        cost: params.cost,
+    };
     let results: Vec<(String, State, f64)> = starts
         .into_par_iter()
         .map(|(name, s0)| {
-            let (s, _) = robust_fit(&problem_mirror, s0, 4, 25, min_delta);
-            let score = score(&problem_mirror, &s);
+            let (s, _) = robust_fit(&problem_visible, s0, 4, 25, min_delta);
+            let score = score(&problem_visible, &s);
             (name, s, score)
         })
         .collect();
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+        }
+    }
     let (name, best, _) = results
         .into_iter()
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .expect("at least one start");
-    // Polish the winner.
-    let (best, delta) = robust_fit(&problem_mirror, best, 3, 60, min_delta);
+    // Stage B: the visible points plus their twins turned 180 degrees about the vertical axis
+    // through the stage-A centre (fixed), which fixes the hidden back half.
+    // Stage B: free space. The sensor saw the scene beyond the object along rays that pass by
+    // it: the surface must not cross them. Without this nothing stops the hidden back of a flat
+    // top (a cylinder's disc, a book's cover) from growing: the points on a face say where its
+    // plane is, not where it ends.
+    let free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, &best.t, 1.3 * best.shape().bounding_radius()),
+        None => Vec::new(),
+    };
+    let best = if free.is_empty() {
+        best
+    } else {
+        let problem = Problem {
+            points: &points,
+            free: &free,
+            support,
+            cost: params.cost,
+        };
+        robust_fit(&problem, best, 3, 40, min_delta).0
+    };
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        eprintln!(
+            "stage B ({} free samples): {} t {:?}",
+            free.len(),
+            best.shape(),
+            best.t.as_slice()
+        );
+    }
+    let (best, delta) = match (params.mirror, up) {
+        (true, Some(u)) => {
+            let c = best.t;
+            let mut both = points.clone();
+            both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
+            let problem = Problem {
+                points: &both,
+                free: &free,
+                support,
+                cost: params.cost,
+            };
+            robust_fit(&problem, best, 3, 40, min_delta)
+        }
+        _ => robust_fit(&problem_visible, best, 2, 40, min_delta),
+    };
     let mut r = Vec::new();
     let vis = Problem {
         points: &points,
-        mirror_up: None,
+        free: &[],
         support: None,
         cost: params.cost,
     };
@@ -634,6 +680,47 @@ pub fn fit_superquadric(
         open,
         start: name,
     })
+}
+
+/// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
+/// the object), inside the sphere `(centre, radius)`, spaced `radius / 10`; at most 300 rays.
+fn free_space_samples(v: &Point3<f64>, others: &[Point3<f64>], centre: &Vector3<f64>, radius: f64) -> Vec<Point3<f64>> {
+    let c = Point3::from(*centre);
+    let rays: Vec<&Point3<f64>> = others
+        .iter()
+        .filter(|q| {
+            let d = *q - v;
+            let len = d.norm();
+            if len < 1e-9 {
+                return false;
+            }
+            let u = d / len;
+            let s = (c - v).dot(&u).clamp(0.0, len);
+            ((v + u * s) - c).norm() < radius && (**q - c).norm() > 0.5 * radius.min(0.02)
+        })
+        .collect();
+    let step = (rays.len() / 300).max(1);
+    let spacing = radius / 10.0;
+    let mut out = Vec::new();
+    for q in rays.into_iter().step_by(step) {
+        let d = q - v;
+        let len = d.norm();
+        let u = d / len;
+        let s0 = (c - v).dot(&u);
+        let h2 = radius * radius - ((v + u * s0) - c).norm_squared();
+        if h2 <= 0.0 {
+            continue;
+        }
+        let h = h2.sqrt();
+        // Stop 5 mm short of the seen point: it may touch the object (the table at its foot).
+        let (a, b) = ((s0 - h).max(0.0), (s0 + h).min(len - 0.005));
+        let mut s = a;
+        while s < b {
+            out.push(v + u * s);
+            s += spacing;
+        }
+    }
+    out
 }
 
 /// The comparable score of a start: Huber loss with a fixed 3 mm threshold over every residual.
@@ -667,16 +754,23 @@ pub fn subsample(points: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
     }
 }
 
-/// An open container: over 15 % of the points lie beyond the centre as seen from the sensor
-/// (a closed convex solid shows none there) and the z axis is the one along the view's far side.
+/// An open container: over 10 % of the points are seen from inside, with the outward normal of
+/// the fitted surface at them facing away from the sensor (a closed solid shows only surfaces
+/// that face it).
 fn is_open(placed: &PlacedSuperquadric, points: &[Point3<f64>], viewpoint: Option<&Point3<f64>>) -> bool {
     let Some(v) = viewpoint else { return false };
-    let c = placed.pose.translation.vector;
-    let Some(view) = (c - v.coords).try_normalize(1e-9) else {
-        return false;
-    };
-    let far = points.iter().filter(|p| (p.coords - c).dot(&view) > 0.0).count();
-    far as f64 > 0.15 * points.len() as f64
+    let inside_seen = points
+        .iter()
+        .filter(|p| {
+            let g = placed.shape.residual_grad(&placed.to_local(p)).grad;
+            let n = placed.pose.rotation * g;
+            match (n.try_normalize(1e-12), (v - *p).try_normalize(1e-12)) {
+                (Some(n), Some(to_sensor)) => n.dot(&to_sensor) < -0.2,
+                _ => false,
+            }
+        })
+        .count();
+    inside_seen as f64 > 0.10 * points.len() as f64
 }
 
 /// Put the z axis up when it is within 30 degrees of up (tapers change sign with it), so an open
@@ -719,12 +813,30 @@ pub fn learn(points: &[Point3<f64>], params: &LearnParams) -> Result<Learned, Le
         }
     };
     let object: Vec<Point3<f64>> = segmentation.object.iter().map(|&i| points[i]).collect();
-    let rec = fit_superquadric(&object, segmentation.plane.as_ref(), params)?;
+    let free = others_near(&points, &segmentation.object, 0.4);
+    let rec = fit_superquadric(&object, &free, segmentation.plane.as_ref(), params)?;
     Ok(Learned {
         object_points: object.len(),
         segmentation,
         parts: vec![rec],
     })
+}
+
+/// The points that are not the object's, within `radius` of its centroid, subsampled to 4 mm.
+pub fn others_near(points: &[Point3<f64>], object: &[usize], radius: f64) -> Vec<Point3<f64>> {
+    if object.is_empty() {
+        return Vec::new();
+    }
+    let c = object.iter().fold(Vector3::zeros(), |a, &i| a + points[i].coords) / object.len() as f64;
+    let mut is_object = vec![false; points.len()];
+    for &i in object {
+        is_object[i] = true;
+    }
+    let near: Vec<Point3<f64>> = (0..points.len())
+        .filter(|&i| !is_object[i] && (points[i].coords - c).norm() < radius)
+        .map(|i| points[i])
+        .collect();
+    voxel_subsample(&near, 0.004).into_iter().map(|i| near[i]).collect()
 }
 
 /// Provenance written into the model file's comment block.
@@ -828,7 +940,7 @@ mod tests {
             viewpoint: Some(view),
             ..Default::default()
         };
-        let r = fit_superquadric(&pts, Some(&plane), &params).unwrap();
+        let r = fit_superquadric(&pts, &[], Some(&plane), &params).unwrap();
         let sq = r.placed.shape;
         let (a, b) = if (sq.a[0] - 0.05).abs() < (sq.a[1] - 0.05).abs() {
             (sq.a[0], sq.a[1])
