@@ -29,6 +29,9 @@ const NP: usize = 13;
 type Mat = SMatrix<f64, NP, NP>;
 type Vect = SVector<f64, NP>;
 
+/// Weight of a free-space violation against a point residual.
+const FREE_WEIGHT: f64 = 3.0;
+
 /// Largest taper the fit may use (the model format allows 0.99; a learned taper near it would be
 /// a degenerate cone).
 const TAPER_BOUND: f64 = 0.9;
@@ -132,13 +135,14 @@ pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
         }
     };
     let clusters = clusters(points, &kept, params.cluster_voxel);
-    // Standing on the plane: the cluster's lowest point is within 3 cm of it.
+    // Standing on the plane: the cluster's lowest seen point is within 6 cm of it (a bowl hides
+    // its foot under its rim).
     let on_plane = |c: &Vec<usize>| match &plane {
         Some(pl) => {
             c.iter()
                 .map(|&i| pl.signed_distance(&points[i]))
                 .fold(f64::INFINITY, f64::min)
-                < 0.03
+                < 0.06
         }
         None => true,
     };
@@ -300,7 +304,11 @@ impl Problem<'_> {
         out.clear();
         let placed = s.placed();
         out.extend(self.points.iter().map(|p| self.point_residual(&placed, p)));
-        out.extend(self.free.iter().map(|p| self.point_residual(&placed, p).min(0.0)));
+        out.extend(
+            self.free
+                .iter()
+                .map(|p| FREE_WEIGHT * self.point_residual(&placed, p).min(0.0)),
+        );
         if let Some((plane, w)) = &self.support {
             out.push(w * bottom_gap(&placed, plane));
         }
@@ -595,11 +603,26 @@ pub fn fit_superquadric(
         support,
         cost: params.cost,
     };
+    // Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
+    // surface must not cross them. Without this nothing stops the hidden back of a flat top (a
+    // cylinder's disc, a book's cover) from growing: the points on a face say where its plane
+    // is, not where it ends. Samples around the points' bounding sphere, the same for every start.
+    let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
+    let free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, &centroid, 1.5 * extent),
+        None => Vec::new(),
+    };
+    let problem_free = Problem {
+        points: &points,
+        free: &free,
+        support,
+        cost: params.cost,
+    };
     let results: Vec<(String, State, f64)> = starts
         .into_par_iter()
         .map(|(name, s0)| {
             let (s, _) = robust_fit(&problem_visible, s0, 4, 25, min_delta);
-            let score = score(&problem_visible, &s);
+            let score = score(&problem_free, &s);
             (name, s, score)
         })
         .collect();
@@ -608,39 +631,56 @@ pub fn fit_superquadric(
             eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
         }
     }
+    // Stage B: the best three starts again with free space.
+    let mut results = results;
+    results.sort_by(|a, b| a.2.total_cmp(&b.2));
+    // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
+    // through its opening are not free space.
+    let open_top = match (params.viewpoint, up) {
+        (Some(v), Some(u)) => unseen_top(&results[0].1.placed(), &points, &v, &u),
+        _ => false,
+    };
+    let free: Vec<Point3<f64>> = if open_top {
+        let top = results[0].1.placed();
+        drop_rays_through_top(&free, &top)
+    } else {
+        free
+    };
+    let problem_free = Problem {
+        points: &points,
+        free: &free,
+        support,
+        cost: params.cost,
+    };
+    results.truncate(3);
+    let results: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(name, s0, _)| {
+            let s = if free.is_empty() {
+                s0
+            } else {
+                robust_fit(&problem_free, s0, 3, 40, min_delta).0
+            };
+            let score = score(&problem_free, &s);
+            (name, s, score)
+        })
+        .collect();
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!(
+                "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+                free.len(),
+                s.shape(),
+                s.t.as_slice()
+            );
+        }
+    }
     let (name, best, _) = results
         .into_iter()
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .expect("at least one start");
-    // Stage B: the visible points plus their twins turned 180 degrees about the vertical axis
-    // through the stage-A centre (fixed), which fixes the hidden back half.
-    // Stage B: free space. The sensor saw the scene beyond the object along rays that pass by
-    // it: the surface must not cross them. Without this nothing stops the hidden back of a flat
-    // top (a cylinder's disc, a book's cover) from growing: the points on a face say where its
-    // plane is, not where it ends.
-    let free = match params.viewpoint {
-        Some(v) => free_space_samples(&v, free_points, &best.t, 1.3 * best.shape().bounding_radius()),
-        None => Vec::new(),
-    };
-    let best = if free.is_empty() {
-        best
-    } else {
-        let problem = Problem {
-            points: &points,
-            free: &free,
-            support,
-            cost: params.cost,
-        };
-        robust_fit(&problem, best, 3, 40, min_delta).0
-    };
-    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-        eprintln!(
-            "stage B ({} free samples): {} t {:?}",
-            free.len(),
-            best.shape(),
-            best.t.as_slice()
-        );
-    }
+    // Stage C: the visible points plus their twins turned 180 degrees about the vertical axis
+    // through the stage-B centre (fixed), which fixes the hidden back half.
     let (best, delta) = match (params.mirror, up) {
         (true, Some(u)) => {
             let c = best.t;
@@ -669,7 +709,7 @@ pub fn fit_superquadric(
     let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
     let median_abs = median(&mut abs);
     let mut placed = best.placed();
-    let open = is_open(&placed, &points, params.viewpoint.as_ref());
+    let open = open_top || is_open(&placed, &points, params.viewpoint.as_ref());
     canonicalise(&mut placed, up.as_ref());
     Ok(Recovered {
         placed,
@@ -683,7 +723,8 @@ pub fn fit_superquadric(
 }
 
 /// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
-/// the object), inside the sphere `(centre, radius)`, spaced `radius / 10`; at most 300 rays.
+/// the object), inside the sphere `(centre, radius)`, spaced `radius / 10` (at most 6 mm); at most
+/// 300 rays.
 fn free_space_samples(v: &Point3<f64>, others: &[Point3<f64>], centre: &Vector3<f64>, radius: f64) -> Vec<Point3<f64>> {
     let c = Point3::from(*centre);
     let rays: Vec<&Point3<f64>> = others
@@ -700,7 +741,7 @@ fn free_space_samples(v: &Point3<f64>, others: &[Point3<f64>], centre: &Vector3<
         })
         .collect();
     let step = (rays.len() / 300).max(1);
-    let spacing = radius / 10.0;
+    let spacing = (radius / 10.0).min(0.006);
     let mut out = Vec::new();
     for q in rays.into_iter().step_by(step) {
         let d = q - v;
@@ -721,6 +762,38 @@ fn free_space_samples(v: &Point3<f64>, others: &[Point3<f64>], centre: &Vector3<
         }
     }
     out
+}
+
+/// The sensor is above the top of an upright shape, yet fewer than 2 % of the points lie on the
+/// inner half of its top (a closed top in view shows plenty).
+fn unseen_top(placed: &PlacedSuperquadric, points: &[Point3<f64>], v: &Point3<f64>, up: &Vector3<f64>) -> bool {
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(up).abs() < 0.9 {
+        return false;
+    }
+    let a = placed.shape.a;
+    let sign = z.dot(up).signum();
+    let lv = placed.to_local(v);
+    if sign * lv.z < a[2] {
+        return false;
+    }
+    let on_top = points
+        .iter()
+        .filter(|p| {
+            let q = placed.to_local(p);
+            sign * q.z > 0.7 * a[2] && (q.x / a[0]).powi(2) + (q.y / a[1]).powi(2) < 0.5
+        })
+        .count();
+    on_top * 50 < points.len()
+}
+
+/// Free-space samples less those in or near `placed` (the inside of an open container, seen
+/// through its opening, and its rim).
+fn drop_rays_through_top(free: &[Point3<f64>], placed: &PlacedSuperquadric) -> Vec<Point3<f64>> {
+    free.iter()
+        .filter(|p| placed.shape.inside_outside(&placed.to_local(p)) > 1.5)
+        .copied()
+        .collect()
 }
 
 /// The comparable score of a start: Huber loss with a fixed 3 mm threshold over every residual.
@@ -813,12 +886,60 @@ pub fn learn(points: &[Point3<f64>], params: &LearnParams) -> Result<Learned, Le
         }
     };
     let object: Vec<Point3<f64>> = segmentation.object.iter().map(|&i| points[i]).collect();
-    let free = others_near(&points, &segmentation.object, 0.4);
+    let mut free = others_near(&points, &segmentation.object, 0.4);
+    if let Some(pl) = &segmentation.plane {
+        // An open container's inside bottom lies in the plane band and went with the table; the
+        // sensor saw it through the opening, so rays to it are not free space.
+        let hull = footprint(&object, &pl.normal);
+        let (u, v) = crate::detect::plane::orthonormal_basis(&pl.normal);
+        free.retain(|p| !inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))));
+    }
     let rec = fit_superquadric(&object, &free, segmentation.plane.as_ref(), params)?;
     Ok(Learned {
         object_points: object.len(),
         segmentation,
         parts: vec![rec],
+    })
+}
+
+/// The convex hull (counter-clockwise) of the points projected on the plane across `normal`, in
+/// the basis of [`crate::detect::plane::orthonormal_basis`].
+pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64)> {
+    let (u, v) = crate::detect::plane::orthonormal_basis(normal);
+    let mut pts: Vec<(f64, f64)> = points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect();
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Whether a point lies inside a counter-clockwise convex polygon.
+pub fn inside_convex(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
+    if hull.len() < 3 {
+        return false;
+    }
+    (0..hull.len()).all(|i| {
+        let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+        (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0) >= 0.0
     })
 }
 
