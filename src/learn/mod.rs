@@ -870,12 +870,12 @@ pub struct Learned {
 
 /// Segment (unless `params.segment` is false) and recover one superquadric.
 pub fn learn(points: &[Point3<f64>], params: &LearnParams) -> Result<Learned, LearnError> {
-    let points: Vec<Point3<f64>> = match (params.max_range, params.viewpoint) {
-        (Some(r), v) => {
-            let v = v.unwrap_or_else(Point3::origin);
+    let points: Vec<Point3<f64>> = match params.max_range {
+        Some(r) => {
+            let v = params.viewpoint.unwrap_or_else(Point3::origin);
             points.iter().filter(|p| (*p - v).norm() <= r).copied().collect()
         }
-        _ => points.to_vec(),
+        None => points.to_vec(),
     };
     let segmentation = if params.segment {
         segment(&points, params)
@@ -885,8 +885,18 @@ pub fn learn(points: &[Point3<f64>], params: &LearnParams) -> Result<Learned, Le
             object: (0..points.len()).collect(),
         }
     };
+    learn_segmented(&points, segmentation, params)
+}
+
+/// Recover one superquadric from given object points (`segmentation.object` indexes `points`;
+/// the other points serve as free space).
+pub fn learn_segmented(
+    points: &[Point3<f64>],
+    segmentation: Segmentation,
+    params: &LearnParams,
+) -> Result<Learned, LearnError> {
     let object: Vec<Point3<f64>> = segmentation.object.iter().map(|&i| points[i]).collect();
-    let mut free = others_near(&points, &segmentation.object, 0.4);
+    let mut free = others_near(points, &segmentation.object, 0.4);
     if let Some(pl) = &segmentation.plane {
         // An open container's inside bottom lies in the plane band and went with the table; the
         // sensor saw it through the opening, so rays to it are not free space.
