@@ -66,6 +66,10 @@ pub struct LearnParams {
     pub mirror: bool,
     /// Use the support plane as a residual (the bottom touches it).
     pub support: bool,
+    /// Add free space just outside the silhouette of the points as seen from the viewpoint
+    /// (for clouds segmented beforehand, with a known single viewpoint; off by default: a
+    /// scanner that moves during the sweep has no single viewpoint).
+    pub silhouette: bool,
     pub cost: Cost,
     /// At most this many points go into the fit (voxel subsampling).
     pub max_points: usize,
@@ -84,6 +88,7 @@ impl Default for LearnParams {
             plane: None,
             mirror: true,
             support: true,
+            silhouette: false,
             cost: Cost::Radial,
             max_points: 1200,
             cluster_voxel: 0.01,
@@ -330,8 +335,20 @@ fn median(v: &mut [f64]) -> f64 {
 #[inline]
 fn huber_weight(r: f64, delta: f64) -> f64 {
     let a = r.abs();
-    if a <= delta { 1.0 } else { delta / a }
+    if a <= delta {
+        1.0
+    } else if a <= OUTLIER_DELTAS * delta {
+        delta / a
+    } else {
+        // Redescending, as EMS's uniform outlier component: a point this far off is no evidence
+        // about the surface at all (Huber alone lets a few stereo strays 20 cm behind a can pull
+        // its hidden back out to them).
+        0.0
+    }
 }
+
+/// Residuals beyond this many Huber thresholds get no weight.
+const OUTLIER_DELTAS: f64 = 5.0;
 
 #[inline]
 fn huber(r: f64, delta: f64) -> f64 {
@@ -561,7 +578,18 @@ pub fn fit_superquadric(
     if all_points.len() < MIN_POINTS {
         return Err(LearnError::TooFewPoints(all_points.len()));
     }
-    let points = subsample(all_points, params.max_points);
+    // Strays: isolated points, then everything not connected to the largest cluster (a few
+    // stereo outliers 25 cm behind a can are a cluster of their own).
+    let kept = remove_stray_points(all_points, 0.01, 4);
+    let idx: Vec<usize> = (0..kept.len()).collect();
+    let kept: Vec<Point3<f64>> = clusters(&kept, &idx, 0.01)
+        .first()
+        .map(|c| c.iter().map(|&i| kept[i]).collect())
+        .unwrap_or_default();
+    if kept.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(kept.len()));
+    }
+    let points = subsample(&kept, params.max_points);
     let up = plane
         .map(|p| p.normal)
         .or(params.up.and_then(|u| u.try_normalize(1e-12)));
@@ -608,10 +636,17 @@ pub fn fit_superquadric(
     // cylinder's disc, a book's cover) from growing: the points on a face say where its plane
     // is, not where it ends. Samples around the points' bounding sphere, the same for every start.
     let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
-    let free = match params.viewpoint {
+    let mut free = match params.viewpoint {
         Some(v) => free_space_samples(&v, free_points, &centroid, 1.5 * extent),
         None => Vec::new(),
     };
+    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
+        free.extend(silhouette_samples(&v, &points, &centroid, 1.5 * extent, 0.004));
+    }
+    if let Some(pl) = plane {
+        // Below the table nothing was seen: no free space there.
+        free.retain(|p| pl.signed_distance(p) > 0.003);
+    }
     let problem_free = Problem {
         points: &points,
         free: &free,
@@ -812,6 +847,21 @@ fn score(problem: &Problem, s: &State) -> f64 {
         .sum()
 }
 
+/// The points with at least `min_neighbours` others within `radius` (a radius outlier filter:
+/// stereo and edge strays are isolated).
+pub fn remove_stray_points(points: &[Point3<f64>], radius: f64, min_neighbours: usize) -> Vec<Point3<f64>> {
+    let grid = crate::detect::grid::Grid::new(points, radius);
+    points
+        .iter()
+        .filter(|p| {
+            let mut n = 0usize;
+            grid.for_each_within(points, p, radius, |_| n += 1);
+            n > min_neighbours
+        })
+        .copied()
+        .collect()
+}
+
 /// Voxel-subsample to at most `max` points.
 pub fn subsample(points: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
     if points.len() <= max {
@@ -916,7 +966,11 @@ pub fn learn_segmented(
 /// the basis of [`crate::detect::plane::orthonormal_basis`].
 pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64)> {
     let (u, v) = crate::detect::plane::orthonormal_basis(normal);
-    let mut pts: Vec<(f64, f64)> = points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect();
+    hull2d(points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect())
+}
+
+/// The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain).
+pub fn hull2d(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
     pts.dedup();
     if pts.len() < 3 {
@@ -940,6 +994,70 @@ pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64
         hull.pop();
     }
     hull
+}
+
+/// Free-space samples along rays just outside the object's silhouette as the sensor saw it: the
+/// convex hull of the points in the image (perspective coordinates about the view axis), grown
+/// by `margin` metres at the object's range. The sensor saw the whole silhouette, so nothing of
+/// the object lies on these rays, even when the cloud holds nothing behind them (a cloud
+/// segmented beforehand).
+fn silhouette_samples(
+    v: &Point3<f64>,
+    object: &[Point3<f64>],
+    centroid: &Vector3<f64>,
+    radius: f64,
+    margin: f64,
+) -> Vec<Point3<f64>> {
+    let Some(w) = (centroid - v.coords).try_normalize(1e-9) else {
+        return Vec::new();
+    };
+    let (u1, u2) = crate::detect::plane::orthonormal_basis(&w);
+    let depth = (centroid - v.coords).norm();
+    let proj: Vec<(f64, f64)> = object
+        .iter()
+        .filter_map(|p| {
+            let d = p - v;
+            let z = d.dot(&w);
+            (z > 1e-6).then(|| (d.dot(&u1) / z, d.dot(&u2) / z))
+        })
+        .collect();
+    let hull = hull2d(proj);
+    if hull.len() < 3 {
+        return Vec::new();
+    }
+    let n = hull.len() as f64;
+    let hc = hull.iter().fold((0.0, 0.0), |a, h| (a.0 + h.0 / n, a.1 + h.1 / n));
+    let grow = margin / depth;
+    let grown: Vec<(f64, f64)> = hull
+        .iter()
+        .map(|h| {
+            let (dx, dy) = (h.0 - hc.0, h.1 - hc.1);
+            let l = (dx * dx + dy * dy).sqrt().max(1e-12);
+            (h.0 + grow * dx / l, h.1 + grow * dy / l)
+        })
+        .collect();
+    let step = 0.004 / depth;
+    let spacing = (radius / 10.0).min(0.006);
+    let mut out = Vec::new();
+    for i in 0..grown.len() {
+        let (a, b) = (grown[i], grown[(i + 1) % grown.len()]);
+        let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        let k = (len / step).ceil().max(1.0) as usize;
+        for j in 0..k {
+            let t = j as f64 / k as f64;
+            let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            let dir = (w + u1 * x + u2 * y).normalize();
+            let s0 = (centroid - v.coords).dot(&dir);
+            let mut s = s0 - radius;
+            while s < s0 + radius {
+                if s > 0.0 {
+                    out.push(v + dir * s);
+                }
+                s += spacing;
+            }
+        }
+    }
+    out
 }
 
 /// Whether a point lies inside a counter-clockwise convex polygon.

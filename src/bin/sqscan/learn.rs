@@ -57,6 +57,10 @@ pub struct LearnArgs {
     /// Do not add the visible points mirrored through the vertical axis
     #[arg(long)]
     no_mirror: bool,
+    /// Free space just outside the points' silhouette seen from the viewpoint (segmented clouds
+    /// from a camera with a known position)
+    #[arg(long)]
+    silhouette: bool,
     /// Residual minimised
     #[arg(long, value_enum, default_value = "radial")]
     cost: CostArg,
@@ -72,6 +76,7 @@ pub struct LearnArgs {
 pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     let mut params = LearnParams {
         mirror: !a.no_mirror,
+        silhouette: a.silhouette,
         cost: match a.cost {
             CostArg::Radial => Cost::Radial,
             CostArg::Solina => Cost::Solina,
