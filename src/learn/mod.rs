@@ -472,8 +472,9 @@ fn robust_fit(problem: &Problem, start: State, rounds: usize, iterations: usize,
             for (w, v) in weights.iter_mut().zip(&r) {
                 *w = huber_weight(*v, delta);
             }
-            if problem.support.is_some() {
-                weights[n - 1] = 1.0;
+            // The support term is not data: always full weight.
+            for w in weights.iter_mut().skip(problem.points.len() + problem.free.len()) {
+                *w = 1.0;
             }
         }
         s = lm(problem, s, &weights, iterations);
@@ -619,6 +620,17 @@ pub fn fit_superquadric(
                 start_state(&points, rot, params.viewpoint.as_ref(), e),
             ));
         }
+        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
+        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
+        if zn == "up" {
+            for k in [0.3, -0.3] {
+                for e in [(1.0, 1.0), (0.3, 1.0)] {
+                    let mut s = start_state(&points, rot, params.viewpoint.as_ref(), e);
+                    s.k = [k, k];
+                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
+                }
+            }
+        }
     }
     // A noise floor for the Huber threshold: 1 mm.
     let min_delta = 0.001;
@@ -647,37 +659,24 @@ pub fn fit_superquadric(
         // Below the table nothing was seen: no free space there.
         free.retain(|p| pl.signed_distance(p) > 0.003);
     }
-    let problem_free = Problem {
-        points: &points,
-        free: &free,
-        support,
-        cost: params.cost,
-    };
-    let results: Vec<(String, State, f64)> = starts
+    // Stage A1: every start on the visible points (and the support plane).
+    let results: Vec<(String, State)> = starts
         .into_par_iter()
-        .map(|(name, s0)| {
-            let (s, _) = robust_fit(&problem_visible, s0, 4, 25, min_delta);
-            let score = score(&problem_free, &s);
-            (name, s, score)
-        })
+        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, min_delta).0))
         .collect();
-    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-        for (n, s, sc) in &results {
-            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
-        }
-    }
-    // Stage B: the best three starts again with free space.
-    let mut results = results;
-    results.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let best_visible = results
+        .iter()
+        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
+        .map(|r| r.1)
+        .expect("at least one start");
     // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
     // through its opening are not free space.
     let open_top = match (params.viewpoint, up) {
-        (Some(v), Some(u)) => unseen_top(&results[0].1.placed(), &points, &v, &u),
+        (Some(v), Some(u)) => unseen_top(&best_visible.placed(), &points, &v, &u),
         _ => false,
     };
     let free: Vec<Point3<f64>> = if open_top {
-        let top = results[0].1.placed();
-        drop_rays_through_top(&free, &top)
+        drop_rays_through_top(&free, &best_visible.placed())
     } else {
         free
     };
@@ -687,6 +686,35 @@ pub fn fit_superquadric(
         support,
         cost: params.cost,
     };
+    // Stage A2: every start again with a thinned free space (at most 1500 samples), which is
+    // what keeps a start from keeping a skirt or a back where the sensor saw through.
+    let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
+    let problem_coarse = Problem {
+        points: &points,
+        free: &coarse,
+        support,
+        cost: params.cost,
+    };
+    let results: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(name, s0)| {
+            let s = if coarse.is_empty() {
+                s0
+            } else {
+                robust_fit(&problem_coarse, s0, 2, 20, min_delta).0
+            };
+            let score = score(&problem_free, &s);
+            (name, s, score)
+        })
+        .collect();
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+        }
+    }
+    // Stage B: the best three starts again with all of the free space.
+    let mut results = results;
+    results.sort_by(|a, b| a.2.total_cmp(&b.2));
     results.truncate(3);
     let results: Vec<(String, State, f64)> = results
         .into_par_iter()
@@ -1135,8 +1163,45 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     s.push_str(&format!("name = {name:?}\n"));
     s.push_str(&format!("description = {:?}\n", format!("Learned from {}", prov.input)));
     let r = &learned.parts[0];
-    s.push_str(&part_toml("body", &r.placed.shape, r.open, None));
+    let shape = match snap_revolution(&r.placed.shape) {
+        Some(snapped) => {
+            let f = &r.placed.shape;
+            s.push_str(&format!(
+                "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
+                f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
+            ));
+            snapped
+        }
+        None => r.placed.shape,
+    };
+    // Tapers below 0.05 are noise of one view; an untapered part keeps its z -> -z symmetry.
+    let mut shape = shape;
+    if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
+        shape.kx = 0.0;
+        shape.ky = 0.0;
+    }
+    s.push_str(&part_toml("body", &shape, r.open, None));
     s
+}
+
+/// A learned shape that is a body of revolution to within what one view can tell (x and y
+/// sizes within 10 %, e2 within 0.1 of 1, tapers within 0.05 of each other) made exactly one, so
+/// the detector fits it with 5 degrees of freedom and scores it modulo its spin. `None` when it
+/// is not.
+pub fn snap_revolution(sq: &Superquadric) -> Option<Superquadric> {
+    let (a1, a2) = (sq.a[0], sq.a[1]);
+    let close = (a1 - a2).abs() <= 0.10 * a1.max(a2) && (sq.e2 - 1.0).abs() <= 0.1 && (sq.kx - sq.ky).abs() <= 0.05;
+    close.then(|| {
+        let a = 0.5 * (a1 + a2);
+        let k = 0.5 * (sq.kx + sq.ky);
+        Superquadric {
+            a: [a, a, sq.a[2]],
+            e1: sq.e1,
+            e2: 1.0,
+            kx: k,
+            ky: k,
+        }
+    })
 }
 
 /// One `[[part]]` table.
