@@ -1162,26 +1162,125 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     }
     s.push_str(&format!("name = {name:?}\n"));
     s.push_str(&format!("description = {:?}\n", format!("Learned from {}", prov.input)));
-    let r = &learned.parts[0];
-    let shape = match snap_revolution(&r.placed.shape) {
-        Some(snapped) => {
-            let f = &r.placed.shape;
-            s.push_str(&format!(
-                "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
-                f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
-            ));
-            snapped
-        }
-        None => r.placed.shape,
-    };
-    // Tapers below 0.05 are noise of one view; an untapered part keeps its z -> -z symmetry.
-    let mut shape = shape;
-    if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
-        shape.kx = 0.0;
-        shape.ky = 0.0;
+    let written: Vec<Superquadric> = learned
+        .parts
+        .iter()
+        .map(|r| {
+            let shape = match snap_revolution(&r.placed.shape) {
+                Some(snapped) => {
+                    let f = &r.placed.shape;
+                    s.push_str(&format!(
+                        "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
+                        f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
+                    ));
+                    snapped
+                }
+                None => r.placed.shape,
+            };
+            // Tapers below 0.05 are noise of one view; an untapered part keeps its z -> -z
+            // symmetry.
+            let mut shape = shape;
+            if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
+                shape.kx = 0.0;
+                shape.ky = 0.0;
+            }
+            shape
+        })
+        .collect();
+    // The object frame is the first part's frame; further parts are posed in it and connected
+    // to it (the detector votes on the angle between the z axes and the centre distance).
+    let base = learned.parts[0].placed.pose;
+    for (i, (r, shape)) in learned.parts.iter().zip(&written).enumerate() {
+        let name = if i == 0 { "body".to_string() } else { format!("part{i}") };
+        let pose = (i > 0).then(|| base.inverse() * r.placed.pose);
+        s.push_str(&part_toml(&name, shape, r.open && i == 0, pose.as_ref()));
     }
-    s.push_str(&part_toml("body", &shape, r.open, None));
+    for (i, r) in learned.parts.iter().enumerate().skip(1) {
+        let za = base.rotation * Vector3::z();
+        let zb = r.placed.pose.rotation * Vector3::z();
+        let signed = written[0].is_tapered() && written[i].is_tapered();
+        let angle = crate::model::axis_angle(&za, &zb, signed);
+        let distance = (r.placed.pose.translation.vector - base.translation.vector).norm();
+        s.push_str(&format!(
+            "\n[[connection]]\nparts = [\"body\", \"part{i}\"]\nangle_deg = {:.3}\ndistance = {:.5}\n",
+            angle.to_degrees(),
+            distance
+        ));
+    }
     s
+}
+
+/// Further parts (recover-and-select, simplified): the object points the parts found so far do
+/// not explain (more than 5 Huber thresholds outside every part, the points the robust fit gave
+/// no weight), clustered; the largest cluster of at least 30 points gets its own superquadric.
+/// Stops early when nothing is left to explain.
+pub fn learn_parts(
+    points: &[Point3<f64>],
+    segmentation: Segmentation,
+    params: &LearnParams,
+    parts: usize,
+) -> Result<Learned, LearnError> {
+    let mut learned = learn_segmented(points, segmentation, params)?;
+    let object: Vec<Point3<f64>> = learned.segmentation.object.iter().map(|&i| points[i]).collect();
+    let part_params = LearnParams {
+        mirror: false,
+        support: false,
+        ..params.clone()
+    };
+    // The points no part explains well (more than 3 median residuals, at least 4 mm, outside).
+    let unexplained_by = |found: &[Recovered], among: &[Point3<f64>]| -> Vec<Point3<f64>> {
+        among
+            .iter()
+            .filter(|p| {
+                found.iter().all(|r| {
+                    let q = r.placed.to_local(p);
+                    let d = r.placed.shape.radial_distance(&q);
+                    r.placed.shape.inside_outside(&q) > 1.0 && d > (3.0 * r.median_abs).max(0.004)
+                })
+            })
+            .copied()
+            .collect()
+    };
+    let largest = |pts: &[Point3<f64>]| -> Vec<Point3<f64>> {
+        let idx: Vec<usize> = (0..pts.len()).collect();
+        clusters(pts, &idx, 0.01)
+            .into_iter()
+            .next()
+            .map(|c| c.iter().map(|&i| pts[i]).collect())
+            .unwrap_or_default()
+    };
+    while learned.parts.len() < parts {
+        let mut part_points = largest(&unexplained_by(&learned.parts, &object));
+        if part_points.len() < MIN_POINTS {
+            break;
+        }
+        // Alternate (recover and select, twice): the first part refitted without the new part's
+        // points (a handle pulls a body fit sideways), then the new part's points taken again.
+        for _ in 0..2 {
+            let rest: Vec<Point3<f64>> = object
+                .iter()
+                .filter(|p| !part_points.iter().any(|q| (*q - **p).norm() < 1e-9))
+                .copied()
+                .collect();
+            let free = others_near(points, &learned.segmentation.object, 0.4);
+            let first = fit_superquadric(&rest, &free, learned.segmentation.plane.as_ref(), params)?;
+            let mut found = learned.parts.clone();
+            found[0] = first;
+            let again = largest(&unexplained_by(&found, &object));
+            learned.parts = found;
+            if again.len() < MIN_POINTS {
+                break;
+            }
+            part_points = again;
+        }
+        if part_points.len() < MIN_POINTS {
+            break;
+        }
+        let mut r = fit_superquadric(&part_points, &[], None, &part_params)?;
+        r.open = false;
+        learned.parts.push(r);
+    }
+    Ok(learned)
 }
 
 /// A learned shape that is a body of revolution to within what one view can tell (x and y

@@ -139,16 +139,24 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             object.len(),
             table.len()
         );
-        learn::learn_segmented(&points, Segmentation { plane, object }, &params)?
+        learn::learn_parts(&points, Segmentation { plane, object }, &params, a.parts as usize)?
     } else if a.segmented {
         params.segment = false;
         selection = format!("all {} finite points (segmented input)", points.len());
-        learn::learn(&points, &params)?
+        let segmentation = Segmentation {
+            plane: None,
+            object: (0..points.len()).collect(),
+        };
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
     } else {
-        learn::learn(&points, &params)?
+        let segmentation = learn::segment(&points, &params);
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
     };
-    if a.parts > 1 {
-        bail!("--parts {}: compound learning is not implemented yet", a.parts);
+    if learned.parts.len() < a.parts as usize {
+        eprintln!(
+            "sqscan learn: only {} part(s): nothing else left that the first explains badly",
+            learned.parts.len()
+        );
     }
     let command: Vec<String> = std::env::args().collect();
     let prov = Provenance {
