@@ -130,3 +130,48 @@ fn learned_mug_lands_on_a_mug_in_test34() {
     );
     assert!(d[0].min(d[1]) < 0.04, "{d:?}");
 }
+
+/// `--parts 2` on a simulated scan of the paper's cup with its handle in view (yaw 120 deg):
+/// a body near 38 x 38 x 48 mm and a second part where the handle is, connected at about
+/// 90 deg and 50 mm (the shipped cup's connectivity), written as a compound model that loads.
+#[test]
+fn two_parts_from_a_cup_with_its_handle_in_view() {
+    use nalgebra::Point3;
+    use sqscan::learn::{learn_parts, model_toml, segment, simulated::scene_toml};
+    use sqscan::sim::{self, Scene};
+    let cup = model("cup");
+    let text = scene_toml(&cup.source, [0.85, 0.05], [0.0, 0.0, 120.0]);
+    let scene = Scene::from_toml_str(&text, std::path::Path::new("cup.toml"), std::path::Path::new("models")).unwrap();
+    let sweep = sim::simulate(&scene, 7);
+    let points: Vec<Point3<f64>> = sweep
+        .cloud
+        .points
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    let params = LearnParams {
+        viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])),
+        ..LearnParams::default()
+    };
+    let seg = segment(&points, &params);
+    let learned = learn_parts(&points, seg, &params, 2).unwrap();
+    assert_eq!(learned.parts.len(), 2);
+    let text = model_toml("learned_cup", &learned, &Default::default());
+    let m = Model::from_toml_str(&text, std::path::Path::new("learned_cup.toml")).unwrap();
+    let body = m.parts[0].shape;
+    eprintln!("{text}");
+    let mut a = [body.a[0], body.a[1]];
+    a.sort_by(f64::total_cmp);
+    assert!(
+        (a[0] - 0.038).abs() < 0.005 && (a[1] - 0.038).abs() < 0.005 && (body.a[2] - 0.048).abs() < 0.005,
+        "body {body}"
+    );
+    let c = &m.connections[0];
+    assert!((c.distance - 0.050).abs() < 0.01, "centre distance {}", c.distance);
+    assert!(
+        (c.angle.to_degrees() - 90.0).abs() < 10.0,
+        "angle {}",
+        c.angle.to_degrees()
+    );
+}
