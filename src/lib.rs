@@ -23,6 +23,7 @@ pub mod daemon;
 pub mod detect;
 pub mod eval;
 pub mod geometry;
+pub mod learn;
 pub mod mock;
 pub mod model;
 pub mod pose;

@@ -28,6 +28,10 @@ pub struct EvalArgs {
     /// Remove the object from the scene and count false "found" answers
     #[arg(long)]
     absent: bool,
+    /// The scene object the model is (its pose is the truth) [default: the object of the same
+    /// model, else the one with the model's first part's shape]; for a learned model
+    #[arg(long, value_name = "NAME")]
+    truth_object: Option<String>,
     /// Print one JSON object instead of a table
     #[arg(long)]
     json: bool,
@@ -39,7 +43,19 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     }
     let scene = Scene::from_file(&a.scene, models_dir)?;
     let model = Model::load(&a.model, models_dir)?;
-    let Some((object, truth)) = eval::truth_pose(&scene, &model) else {
+    let by_name = a
+        .truth_object
+        .as_ref()
+        .map(|n| {
+            scene
+                .objects
+                .iter()
+                .find(|o| &o.name == n)
+                .map(|o| (o.name.clone(), o.pose))
+                .ok_or_else(|| anyhow::anyhow!("--truth-object: the scene has no object {n:?}"))
+        })
+        .transpose()?;
+    let Some((object, truth)) = by_name.or_else(|| eval::truth_pose(&scene, &model)) else {
         bail!(
             "{}: no object of model {:?} (or with its first part's shape) in the scene",
             a.scene.display(),

@@ -5,6 +5,7 @@ mod client;
 mod detect;
 mod eval;
 mod files;
+mod learn;
 mod mock;
 mod ptu;
 mod sensor;
@@ -34,6 +35,8 @@ enum Command {
     Info(files::InfoArgs),
     /// Find an object in a point cloud file; prints one JSON object
     Detect(detect::DetectArgs),
+    /// Learn a model by showing the object: recover its superquadric from one scan
+    Learn(learn::LearnArgs),
     /// Measure detection rate, false "found" rate, time and pose error on simulated sweeps
     Eval(eval::EvalArgs),
     /// Run mock devices on pseudo-terminals (use their paths like hardware)
@@ -80,6 +83,7 @@ fn main() -> ExitCode {
         Command::Info(a) => files::info(a),
         Command::Detect(a) => detect::detect(a, &models_dir),
         Command::Eval(a) => eval::eval(a, &models_dir),
+        Command::Learn(a) => learn::run(a, &models_dir),
         Command::Mock(a) => mock::run(a, &models_dir),
         Command::Ptu(a) => ptu::run(a),
         Command::Sensor(a) => sensor::run(a),

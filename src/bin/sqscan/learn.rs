@@ -1,0 +1,232 @@
+//! `sqscan learn`: learn a model by showing the object (issue #6): recover its superquadric(s)
+//! from one scan and write a model file that `sqscan detect` takes as it is.
+
+use crate::detect::parse_point;
+use crate::write_atomic;
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use nalgebra::Point3;
+use serde_json::json;
+use sqscan::cloud::{self, FieldData};
+use sqscan::detect::plane::remove_dominant_plane;
+use sqscan::learn::{self, Cost, LearnParams, Provenance, Segmentation};
+use sqscan::model::Model;
+use std::path::{Path, PathBuf};
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum CostArg {
+    /// Radial Euclidean distance (m)
+    Radial,
+    /// Paper eq. 2 with Solina's volume factor sqrt(a1 a2 a3)
+    Solina,
+}
+
+#[derive(Args)]
+pub struct LearnArgs {
+    /// Point cloud file (.pcd, .ply, or text with x y z per line)
+    #[arg(long, required_unless_present = "simulate")]
+    cloud: Option<PathBuf>,
+    /// Name of the learned model
+    #[arg(long, required_unless_present = "simulate")]
+    name: Option<String>,
+    /// Superquadric parts (1, 2 or 3)
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]
+    parts: u8,
+    /// Model file to write [default: MODELS_DIR/NAME.toml]
+    #[arg(long, value_name = "FILE.toml")]
+    out: Option<PathBuf>,
+    /// Replace an existing model file
+    #[arg(long)]
+    force: bool,
+    /// Use the points labelled as object N (mOSD labels: label >= 20 and label / 10 == N); the
+    /// table is fitted to the points labelled 1-9
+    #[arg(long, value_name = "N")]
+    label: Option<u32>,
+    /// The cloud holds the object only (already segmented): no plane removal, no clustering
+    #[arg(long)]
+    segmented: bool,
+    /// Sensor position "x,y,z" [default: the file's VIEWPOINT, else the origin]
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    viewpoint: Option<Point3<f64>>,
+    /// Up direction "x,y,z" when there is no supporting plane in the cloud
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point)]
+    up: Option<Point3<f64>>,
+    /// Ignore points farther than this from the viewpoint (m)
+    #[arg(long, value_name = "M")]
+    max_range: Option<f64>,
+    /// Do not add the visible points mirrored through the vertical axis
+    #[arg(long)]
+    no_mirror: bool,
+    /// Free space just outside the points' silhouette seen from the viewpoint (segmented clouds
+    /// from a camera with a known position)
+    #[arg(long)]
+    silhouette: bool,
+    /// Residual minimised
+    #[arg(long, value_enum, default_value = "radial")]
+    cost: CostArg,
+    /// Instead of a cloud: simulate the named shipped model alone on the table (fig3 rig, 2 mm
+    /// noise), learn it and print the errors against the truth as JSON
+    #[arg(long, value_name = "MODEL")]
+    simulate: Option<String>,
+    /// Noise seed of --simulate
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
+    let mut params = LearnParams {
+        mirror: !a.no_mirror,
+        silhouette: a.silhouette,
+        cost: match a.cost {
+            CostArg::Radial => Cost::Radial,
+            CostArg::Solina => Cost::Solina,
+        },
+        up: a.up.map(|p| p.coords),
+        max_range: a.max_range,
+        ..LearnParams::default()
+    };
+    if let Some(m) = &a.simulate {
+        return simulate(m, a.seed, &params, models_dir);
+    }
+    let (Some(cloud_path), Some(name)) = (a.cloud.as_ref(), a.name.as_ref()) else {
+        bail!("give --cloud and --name");
+    };
+    if name.is_empty() || name.chars().any(|c| c.is_whitespace()) {
+        bail!("--name {name:?}: give one word");
+    }
+    let out = a.out.clone().unwrap_or_else(|| models_dir.join(format!("{name}.toml")));
+    if out.exists() && !a.force {
+        bail!("{} exists; give --force to replace it", out.display());
+    }
+    let cloud = cloud::read_cloud(cloud_path)?;
+    let file_viewpoint = cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+    params.viewpoint = a.viewpoint.or(file_viewpoint).or(Some(Point3::origin()));
+    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
+    let mut labels: Vec<u32> = Vec::new();
+    let label_field = match cloud.field("label").map(|f| &f.data) {
+        Some(FieldData::U32(l)) => Some(l),
+        _ => None,
+    };
+    for (i, p) in cloud.points.iter().enumerate() {
+        if p.iter().all(|v| v.is_finite()) {
+            let q = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            if let Some(r) = a.max_range {
+                if (q - params.viewpoint.unwrap()).norm() > r {
+                    continue;
+                }
+            }
+            points.push(q);
+            if let Some(l) = label_field {
+                labels.push(l[i]);
+            }
+        }
+    }
+    let mut selection = format!("{} finite points", points.len());
+    let learned = if let Some(n) = a.label {
+        if label_field.is_none() {
+            bail!("--label: {} has no uint label field", cloud_path.display());
+        }
+        let object: Vec<usize> = (0..points.len())
+            .filter(|&i| labels[i] >= 20 && labels[i] / 10 == n)
+            .collect();
+        let table: Vec<Point3<f64>> = (0..points.len())
+            .filter(|&i| (1..=9).contains(&labels[i]))
+            .map(|i| points[i])
+            .collect();
+        let plane = remove_dominant_plane(&table, false, params.viewpoint).plane;
+        selection = format!(
+            "the {} points labelled object {n} (label / 10 == {n}); plane from the {} points labelled 1-9",
+            object.len(),
+            table.len()
+        );
+        learn::learn_parts(&points, Segmentation { plane, object }, &params, a.parts as usize)?
+    } else if a.segmented {
+        params.segment = false;
+        selection = format!("all {} finite points (segmented input)", points.len());
+        let segmentation = Segmentation {
+            plane: None,
+            object: (0..points.len()).collect(),
+        };
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
+    } else {
+        let segmentation = learn::segment(&points, &params);
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
+    };
+    if learned.parts.len() < a.parts as usize {
+        eprintln!(
+            "sqscan learn: only {} part(s): nothing else left that the first explains badly",
+            learned.parts.len()
+        );
+    }
+    let command: Vec<String> = std::env::args().collect();
+    let prov = Provenance {
+        input: cloud_path.display().to_string(),
+        selection,
+        command: command.join(" "),
+    };
+    let text = learn::model_toml(name, &learned, &prov);
+    // What we write must load.
+    let model = Model::from_toml_str(&text, &out).context("the learned model does not load")?;
+    write_atomic(&out, |w| {
+        use std::io::Write;
+        w.write_all(text.as_bytes())?;
+        Ok(())
+    })?;
+    let parts: Vec<serde_json::Value> = learned
+        .parts
+        .iter()
+        .map(|r| {
+            let s = &r.placed.shape;
+            json!({
+                "a": s.a, "e1": s.e1, "e2": s.e2, "kx": s.kx, "ky": s.ky, "open": r.open,
+                "pose": sqscan::pose::PoseJson::from(&r.placed.pose),
+                "rms_m": r.rms, "median_abs_m": r.median_abs, "inlier_share": r.inlier_share,
+                "fitted_points": r.fitted_points, "start": r.start,
+            })
+        })
+        .collect();
+    println!(
+        "{}",
+        json!({
+            "model": model.name,
+            "out": out.display().to_string(),
+            "object_points": learned.object_points,
+            "plane": learned.segmentation.plane.map(|p| p.coefficients()),
+            "parts": parts,
+        })
+    );
+    Ok(())
+}
+
+fn simulate(model_name: &str, seed: u64, params: &LearnParams, models_dir: &Path) -> Result<()> {
+    let model = Model::load(model_name, models_dir)?;
+    if model.parts.len() != 1 {
+        bail!(
+            "--simulate: {} has {} parts; give a single-part model",
+            model.name,
+            model.parts.len()
+        );
+    }
+    let t = learn::simulated::learn_simulated(&model, None, seed, params)?;
+    let r = &t.learned.parts[0];
+    let sq = |s: &sqscan::geometry::Superquadric| json!({"a": s.a, "e1": s.e1, "e2": s.e2, "kx": s.kx, "ky": s.ky});
+    println!(
+        "{}",
+        json!({
+            "model": model.name,
+            "seed": seed,
+            "truth": sq(&t.truth.shape),
+            "learned": sq(&r.placed.shape),
+            "open": r.open,
+            "errors": t.errors,
+            "max_size_error_m": t.errors.max_size_error(),
+            "max_exponent_error": t.errors.max_exponent_error(),
+            "within_tolerance": t.errors.max_size_error() < 0.005 && t.errors.max_exponent_error() < 0.1,
+            "scan_points": t.points,
+            "object_points": t.learned.object_points,
+            "rms_m": r.rms,
+            "seconds": t.seconds,
+        })
+    );
+    Ok(())
+}

@@ -1,0 +1,1370 @@
+//! Learning a model by showing the object: full superquadric recovery from a single-view scan
+//! (issue #6). See `docs/LEARN.md` for the method and its choices.
+//!
+//! 1. [`segment`]: remove the supporting plane and keep the largest connected cluster standing on
+//!    it (a voxel flood fill).
+//! 2. [`fit_superquadric`]: Levenberg-Marquardt over all 13 parameters (a1 a2 a3, e1 e2, kx ky, 3
+//!    rotation, 3 translation) from several starts (the plane normal and the three moment axes as
+//!    the z axis, three shape-exponent pairs), with Huber weights re-estimated from the residuals
+//!    (iteratively reweighted), the support plane as a residual (the bottom must touch the plane)
+//!    and the visible points mirrored through the vertical axis of the current centre (the
+//!    180-degree turn about the up direction is a symmetry of any superquadric that rests on a
+//!    table with one of its axes vertical).
+//! 3. [`model_toml`]: the result as a model file that `sqscan detect` takes as it is.
+
+pub mod simulated;
+
+use crate::detect::grid::voxel_subsample;
+use crate::detect::plane::{Plane, remove_dominant_plane};
+use crate::geometry::{EPSILON_MAX, EPSILON_MIN, PlacedSuperquadric, Superquadric};
+use nalgebra::{
+    Isometry3, Matrix3, Point3, Rotation3, SMatrix, SVector, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
+};
+use rayon::prelude::*;
+use std::collections::{HashMap, VecDeque};
+
+/// Parameters of the fit: ln a1..a3, e1, e2, kx, ky, rotation vector (local, about the current
+/// orientation), translation.
+const NP: usize = 13;
+type Mat = SMatrix<f64, NP, NP>;
+type Vect = SVector<f64, NP>;
+
+/// Weight of a free-space violation against a point residual.
+const FREE_WEIGHT: f64 = 3.0;
+
+/// Largest taper the fit may use (the model format allows 0.99; a learned taper near it would be
+/// a degenerate cone).
+const TAPER_BOUND: f64 = 0.9;
+/// Smallest and largest half-size (m).
+const SIZE_MIN: f64 = 0.001;
+const SIZE_MAX: f64 = 1.0;
+
+/// Which residual the LM minimises.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Cost {
+    /// The radial Euclidean distance `|p| |F^(-e1/2) - 1|` (METHOD_NOTES): in metres, so the
+    /// inlier weighting has a physical scale, and unbiased towards larger or smaller shapes.
+    Radial,
+    /// Paper eq. (2) with Solina's volume factor: `sqrt(a1 a2 a3) (F^e1 - 1)`.
+    Solina,
+}
+
+/// Options of [`learn`].
+#[derive(Debug, Clone)]
+pub struct LearnParams {
+    /// Where the sensor was (orients the plane normal, places the first centre behind the
+    /// visible surface, decides whether the object is open).
+    pub viewpoint: Option<Point3<f64>>,
+    /// The up direction when no supporting plane is found or given.
+    pub up: Option<Vector3<f64>>,
+    /// Remove the dominant plane and pick the largest cluster on it; false: all points are the
+    /// object (already segmented).
+    pub segment: bool,
+    /// A known supporting plane (normal towards the object), e.g. from labelled table points.
+    pub plane: Option<Plane>,
+    /// Add the visible points turned 180 degrees about the vertical axis through the centre.
+    pub mirror: bool,
+    /// Use the support plane as a residual (the bottom touches it).
+    pub support: bool,
+    /// Add free space just outside the silhouette of the points as seen from the viewpoint
+    /// (for clouds segmented beforehand, with a known single viewpoint; off by default: a
+    /// scanner that moves during the sweep has no single viewpoint).
+    pub silhouette: bool,
+    pub cost: Cost,
+    /// At most this many points go into the fit (voxel subsampling).
+    pub max_points: usize,
+    /// Voxel of the cluster flood fill (m).
+    pub cluster_voxel: f64,
+    /// Drop points farther than this from the viewpoint (m).
+    pub max_range: Option<f64>,
+}
+
+impl Default for LearnParams {
+    fn default() -> Self {
+        LearnParams {
+            viewpoint: None,
+            up: None,
+            segment: true,
+            plane: None,
+            mirror: true,
+            support: true,
+            silhouette: false,
+            cost: Cost::Radial,
+            max_points: 1200,
+            cluster_voxel: 0.01,
+            max_range: None,
+        }
+    }
+}
+
+/// The object's points and the plane it stands on.
+#[derive(Debug, Clone)]
+pub struct Segmentation {
+    /// Normal pointing to the object's side.
+    pub plane: Option<Plane>,
+    /// Indices of the object's points in the input.
+    pub object: Vec<usize>,
+}
+
+/// A recovered superquadric.
+#[derive(Debug, Clone)]
+pub struct Recovered {
+    pub placed: PlacedSuperquadric,
+    /// RMS of the residual over the inliers (m for [`Cost::Radial`]).
+    pub rms: f64,
+    /// Median absolute residual over all the fitted (visible) points.
+    pub median_abs: f64,
+    /// Share of the fitted points with Huber weight 1 at the end.
+    pub inlier_share: f64,
+    /// Points that went into the fit (after subsampling).
+    pub fitted_points: usize,
+    /// An open container: many points were seen on the far side of the centre, which a closed
+    /// solid hides.
+    pub open: bool,
+    /// Which start won.
+    pub start: String,
+}
+
+/// Remove the supporting plane and keep the largest connected cluster standing on it.
+pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
+    let (plane, kept): (Option<Plane>, Vec<usize>) = match params.plane {
+        Some(pl) => {
+            let kept = (0..points.len())
+                .filter(|&i| pl.signed_distance(&points[i]) > 0.004)
+                .collect();
+            (Some(pl), kept)
+        }
+        None => {
+            let r = remove_dominant_plane(points, false, params.viewpoint);
+            (r.plane, r.kept)
+        }
+    };
+    let clusters = clusters(points, &kept, params.cluster_voxel);
+    // Standing on the plane: the cluster's lowest seen point is within 6 cm of it (a bowl hides
+    // its foot under its rim).
+    let on_plane = |c: &Vec<usize>| match &plane {
+        Some(pl) => {
+            c.iter()
+                .map(|&i| pl.signed_distance(&points[i]))
+                .fold(f64::INFINITY, f64::min)
+                < 0.06
+        }
+        None => true,
+    };
+    let best = clusters
+        .iter()
+        .filter(|c| on_plane(c))
+        .max_by_key(|c| c.len())
+        .or_else(|| clusters.iter().max_by_key(|c| c.len()))
+        .cloned()
+        .unwrap_or_default();
+    Segmentation { plane, object: best }
+}
+
+/// Connected clusters of the points `idx` (26-neighbourhood of voxels of side `voxel`), largest
+/// first.
+pub fn clusters(points: &[Point3<f64>], idx: &[usize], voxel: f64) -> Vec<Vec<usize>> {
+    let key = |p: &Point3<f64>| [0, 1, 2].map(|k| (p[k] / voxel).floor() as i64);
+    let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+    for &i in idx {
+        cells.entry(key(&points[i])).or_default().push(i);
+    }
+    let mut label: HashMap<[i64; 3], usize> = HashMap::with_capacity(cells.len());
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    let mut keys: Vec<[i64; 3]> = cells.keys().copied().collect();
+    keys.sort();
+    for start in keys {
+        if label.contains_key(&start) {
+            continue;
+        }
+        let id = out.len();
+        let mut members = Vec::new();
+        let mut queue = VecDeque::from([start]);
+        label.insert(start, id);
+        while let Some(c) = queue.pop_front() {
+            members.extend_from_slice(&cells[&c]);
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dz in -1..=1 {
+                        let n = [c[0] + dx, c[1] + dy, c[2] + dz];
+                        if cells.contains_key(&n) && !label.contains_key(&n) {
+                            label.insert(n, id);
+                            queue.push_back(n);
+                        }
+                    }
+                }
+            }
+        }
+        out.push(members);
+    }
+    out.sort_by_key(|c| std::cmp::Reverse(c.len()));
+    out
+}
+
+/// The fit's state: shape parameters and pose.
+#[derive(Debug, Clone, Copy)]
+struct State {
+    ln_a: [f64; 3],
+    e: [f64; 2],
+    k: [f64; 2],
+    rot: UnitQuaternion<f64>,
+    t: Vector3<f64>,
+}
+
+impl State {
+    fn shape(&self) -> Superquadric {
+        Superquadric {
+            a: self.ln_a.map(f64::exp),
+            e1: self.e[0],
+            e2: self.e[1],
+            kx: self.k[0],
+            ky: self.k[1],
+        }
+    }
+
+    fn placed(&self) -> PlacedSuperquadric {
+        PlacedSuperquadric::new(
+            self.shape(),
+            Isometry3::from_parts(Translation3::from(self.t), self.rot),
+        )
+    }
+
+    /// The state moved by `d` (rotation as a local rotation vector), clamped to the bounds.
+    fn step(&self, d: &Vect) -> State {
+        let mut s = *self;
+        for k in 0..3 {
+            s.ln_a[k] = (s.ln_a[k] + d[k]).clamp(SIZE_MIN.ln(), SIZE_MAX.ln());
+        }
+        for k in 0..2 {
+            s.e[k] = (s.e[k] + d[3 + k]).clamp(EPSILON_MIN, EPSILON_MAX);
+            s.k[k] = (s.k[k] + d[5 + k]).clamp(-TAPER_BOUND, TAPER_BOUND);
+        }
+        s.rot = self.rot * UnitQuaternion::from_scaled_axis(Vector3::new(d[7], d[8], d[9]));
+        s.t += Vector3::new(d[10], d[11], d[12]);
+        s
+    }
+}
+
+/// What the residuals are computed against.
+struct Problem<'a> {
+    points: &'a [Point3<f64>],
+    /// Points the sensor saw through: samples along the rays to scene points beyond the
+    /// object, which must lie outside the surface (free space).
+    free: &'a [Point3<f64>],
+    /// The supporting plane when the bottom must touch it, and the weight of that residual.
+    support: Option<(Plane, f64)>,
+    cost: Cost,
+}
+
+/// Fixed parametric angles for the lowest point: the poles, the equator and every 15 degrees.
+fn surface_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
+    let spow = |c: f64, e: f64| c.signum() * c.abs().powf(e);
+    (0..=12).flat_map(move |i| {
+        let eta = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
+        (0..24).map(move |j| {
+            let om = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * j as f64 / 24.0;
+            let (ce, se) = (eta.cos(), eta.sin());
+            let p = Vector3::new(
+                sq.a[0] * spow(ce, sq.e1) * spow(om.cos(), sq.e2),
+                sq.a[1] * spow(ce, sq.e1) * spow(om.sin(), sq.e2),
+                sq.a[2] * spow(se, sq.e1),
+            );
+            sq.taper(&p)
+        })
+    })
+}
+
+/// The lowest signed distance of the surface above a plane.
+fn bottom_gap(placed: &PlacedSuperquadric, plane: &Plane) -> f64 {
+    surface_samples(&placed.shape)
+        .map(|q| plane.signed_distance(&placed.pose.transform_point(&Point3::from(q))))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// 180-degree turn of `p` about the line through `c` along unit `u`.
+#[inline]
+fn turn_half(p: &Point3<f64>, c: &Vector3<f64>, u: &Vector3<f64>) -> Point3<f64> {
+    let d = p.coords - c;
+    Point3::from(c + 2.0 * u * u.dot(&d) - d)
+}
+
+impl Problem<'_> {
+    fn point_residual(&self, placed: &PlacedSuperquadric, p: &Point3<f64>) -> f64 {
+        let q = placed.to_local(p);
+        match self.cost {
+            Cost::Radial => {
+                let d = placed.shape.radial_distance(&q);
+                // Signed: negative inside, so the Jacobian has no kink on the surface.
+                if placed.shape.inside_outside(&q) < 1.0 { -d } else { d }
+            }
+            Cost::Solina => {
+                let a = placed.shape.a;
+                (a[0] * a[1] * a[2]).sqrt() * placed.shape.residual(&q)
+            }
+        }
+    }
+
+    /// Residuals: the points, then the support gap.
+    fn residuals(&self, s: &State, out: &mut Vec<f64>) {
+        out.clear();
+        let placed = s.placed();
+        out.extend(self.points.iter().map(|p| self.point_residual(&placed, p)));
+        out.extend(
+            self.free
+                .iter()
+                .map(|p| FREE_WEIGHT * self.point_residual(&placed, p).min(0.0)),
+        );
+        if let Some((plane, w)) = &self.support {
+            out.push(w * bottom_gap(&placed, plane));
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.points.len() + self.free.len() + usize::from(self.support.is_some())
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
+}
+
+#[inline]
+fn huber_weight(r: f64, delta: f64) -> f64 {
+    let a = r.abs();
+    if a <= delta {
+        1.0
+    } else if a <= OUTLIER_DELTAS * delta {
+        delta / a
+    } else {
+        // Redescending, as EMS's uniform outlier component: a point this far off is no evidence
+        // about the surface at all (Huber alone lets a few stereo strays 20 cm behind a can pull
+        // its hidden back out to them).
+        0.0
+    }
+}
+
+/// Residuals beyond this many Huber thresholds get no weight.
+const OUTLIER_DELTAS: f64 = 5.0;
+
+#[inline]
+fn huber(r: f64, delta: f64) -> f64 {
+    let a = r.abs();
+    if a <= delta {
+        0.5 * r * r
+    } else {
+        delta * (a - 0.5 * delta)
+    }
+}
+
+/// Finite-difference steps of the parameters.
+const STEPS: [f64; NP] = [
+    1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-7, 1e-7, 1e-7,
+];
+
+/// Weighted LM with a forward-difference Jacobian, bounds by projection.
+fn lm(problem: &Problem, start: State, weights: &[f64], iterations: usize) -> State {
+    let n = problem.len();
+    let mut s = start;
+    let mut r0 = Vec::with_capacity(n);
+    let mut r1 = Vec::with_capacity(n);
+    let cost_of = |r: &[f64]| r.iter().zip(weights).map(|(r, w)| w * r * r).sum::<f64>();
+    problem.residuals(&s, &mut r0);
+    let mut cost = cost_of(&r0);
+    let mut lambda = 1e-3;
+    let mut jac = vec![[0.0; NP]; n];
+    let mut fresh = false;
+    for _ in 0..iterations {
+        if !fresh {
+            for k in 0..NP {
+                let mut d = Vect::zeros();
+                d[k] = STEPS[k];
+                let sk = s.step(&d);
+                // A parameter at its bound steps inwards.
+                let (sk, h) = if sk_param(&sk, k) == sk_param(&s, k) {
+                    d[k] = -STEPS[k];
+                    (s.step(&d), -STEPS[k])
+                } else {
+                    (sk, STEPS[k])
+                };
+                problem.residuals(&sk, &mut r1);
+                for i in 0..n {
+                    jac[i][k] = (r1[i] - r0[i]) / h;
+                }
+            }
+            fresh = true;
+        }
+        let mut h = Mat::zeros();
+        let mut g = Vect::zeros();
+        for i in 0..n {
+            let w = weights[i];
+            if w == 0.0 || !r0[i].is_finite() {
+                continue;
+            }
+            let j = Vect::from_column_slice(&jac[i]);
+            if j.iter().any(|v| !v.is_finite()) {
+                continue;
+            }
+            h.ger(w, &j, &j, 1.0);
+            g += j * (w * r0[i]);
+        }
+        let mut accepted = false;
+        while lambda < 1e10 {
+            let mut a = h;
+            for k in 0..NP {
+                a[(k, k)] += lambda * (h[(k, k)] + 1e-9 * h.trace() / NP as f64 + 1e-12);
+            }
+            let Some(ch) = a.cholesky() else {
+                lambda *= 10.0;
+                continue;
+            };
+            let d = ch.solve(&(-g));
+            let cand = s.step(&d);
+            problem.residuals(&cand, &mut r1);
+            let c1 = cost_of(&r1);
+            if c1.is_finite() && c1 < cost {
+                let rel = (cost - c1) / cost.max(1e-300);
+                s = cand;
+                std::mem::swap(&mut r0, &mut r1);
+                cost = c1;
+                lambda = (lambda * 0.2).max(1e-9);
+                accepted = true;
+                fresh = false;
+                if rel < 1e-7 {
+                    return s;
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    s
+}
+
+fn sk_param(s: &State, k: usize) -> f64 {
+    match k {
+        0..=2 => s.ln_a[k],
+        3 | 4 => s.e[k - 3],
+        5 | 6 => s.k[k - 5],
+        _ => f64::NAN, // rotation and translation have no bounds (NaN never compares equal)
+    }
+}
+
+/// IRLS around LM: Huber weights from the robust spread of the residuals, re-estimated each round.
+/// Returns the state, the final Huber threshold and the residuals.
+fn robust_fit(problem: &Problem, start: State, rounds: usize, iterations: usize, min_delta: f64) -> (State, f64) {
+    let n = problem.len();
+    let mut s = start;
+    let mut weights = vec![1.0; n];
+    let mut r = Vec::with_capacity(n);
+    let mut delta = f64::INFINITY;
+    for round in 0..rounds {
+        if round > 0 {
+            problem.residuals(&s, &mut r);
+            let mut abs: Vec<f64> = r[..problem.points.len()].iter().map(|v| v.abs()).collect();
+            delta = (2.0 * 1.4826 * median(&mut abs)).max(min_delta);
+            for (w, v) in weights.iter_mut().zip(&r) {
+                *w = huber_weight(*v, delta);
+            }
+            // The support term is not data: always full weight.
+            for w in weights.iter_mut().skip(problem.points.len() + problem.free.len()) {
+                *w = 1.0;
+            }
+        }
+        s = lm(problem, s, &weights, iterations);
+    }
+    (s, delta)
+}
+
+/// Point sets with fewer points than this are refused.
+pub const MIN_POINTS: usize = 30;
+
+/// Why a recovery failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LearnError {
+    #[error("only {0} object points (need at least {MIN_POINTS})")]
+    TooFewPoints(usize),
+}
+
+/// The centroid and the covariance's eigenvectors (columns, by decreasing variance).
+fn moments(points: &[Point3<f64>]) -> (Vector3<f64>, [Vector3<f64>; 3]) {
+    let n = points.len() as f64;
+    let c = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
+    let mut cov = Matrix3::zeros();
+    for p in points {
+        let d = p.coords - c;
+        cov += d * d.transpose();
+    }
+    let eig = SymmetricEigen::new(cov / n);
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    (c, order.map(|k| eig.eigenvectors.column(k).into_owned()))
+}
+
+/// A right-handed frame with z along `z` and x along the major moment direction across it.
+fn frame_with_z(points: &[Point3<f64>], centroid: &Vector3<f64>, z: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let z = z.normalize();
+    let helper = if z.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = z.cross(&helper).normalize();
+    let v = z.cross(&u);
+    let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
+    for p in points {
+        let d = p.coords - centroid;
+        let (a, b) = (d.dot(&u), d.dot(&v));
+        suu += a * a;
+        suv += a * b;
+        svv += b * b;
+    }
+    let angle = 0.5 * (2.0 * suv).atan2(suu - svv);
+    let x = u * angle.cos() + v * angle.sin();
+    let y = z.cross(&x);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[x, y, z]))
+}
+
+/// Start sizes and centre from the extents of the points in a frame (2-98 percent), the centre
+/// pushed away from the sensor by half the sizes along the view (only the front half is seen).
+fn start_state(
+    points: &[Point3<f64>],
+    rot: UnitQuaternion<f64>,
+    viewpoint: Option<&Point3<f64>>,
+    e: (f64, f64),
+) -> State {
+    let local: Vec<Vector3<f64>> = points.iter().map(|p| rot.inverse() * p.coords).collect();
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    for k in 0..3 {
+        let mut v: Vec<f64> = local.iter().map(|q| q[k]).collect();
+        v.sort_by(f64::total_cmp);
+        lo[k] = v[(v.len() as f64 * 0.02) as usize];
+        hi[k] = v[((v.len() as f64 * 0.98) as usize).min(v.len() - 1)];
+    }
+    let mut a = [0.0; 3];
+    let mut c = Vector3::zeros();
+    for k in 0..3 {
+        a[k] = (0.5 * (hi[k] - lo[k])).clamp(0.003, SIZE_MAX);
+        c[k] = 0.5 * (hi[k] + lo[k]);
+    }
+    if let Some(v) = viewpoint {
+        let centre = rot * c;
+        if let Some(view) = (centre - v.coords).try_normalize(1e-9) {
+            let d = rot.inverse() * view;
+            for k in 0..3 {
+                c[k] += 0.3 * d[k] * a[k];
+            }
+        }
+    }
+    State {
+        ln_a: a.map(f64::ln),
+        e: [e.0, e.1],
+        k: [0.0, 0.0],
+        rot,
+        t: rot * c,
+    }
+}
+
+/// Recover one superquadric from the points of a single view. `plane`: the surface the object
+/// stands on (normal towards the object), `up`: the up direction when there is no plane.
+pub fn fit_superquadric(
+    all_points: &[Point3<f64>],
+    free_points: &[Point3<f64>],
+    plane: Option<&Plane>,
+    params: &LearnParams,
+) -> Result<Recovered, LearnError> {
+    if all_points.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(all_points.len()));
+    }
+    // Strays: isolated points, then everything not connected to the largest cluster (a few
+    // stereo outliers 25 cm behind a can are a cluster of their own).
+    let kept = remove_stray_points(all_points, 0.01, 4);
+    let idx: Vec<usize> = (0..kept.len()).collect();
+    let kept: Vec<Point3<f64>> = clusters(&kept, &idx, 0.01)
+        .first()
+        .map(|c| c.iter().map(|&i| kept[i]).collect())
+        .unwrap_or_default();
+    if kept.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(kept.len()));
+    }
+    let points = subsample(&kept, params.max_points);
+    let up = plane
+        .map(|p| p.normal)
+        .or(params.up.and_then(|u| u.try_normalize(1e-12)));
+    let support = if params.support {
+        plane.map(|p| (*p, (points.len() as f64 / 4.0).sqrt()))
+    } else {
+        None
+    };
+    let (centroid, axes) = moments(&points);
+    let mut starts: Vec<(String, State)> = Vec::new();
+    let mut zs: Vec<(String, Vector3<f64>)> = Vec::new();
+    if let Some(u) = up {
+        zs.push(("up".into(), u));
+    }
+    for (k, a) in axes.iter().enumerate() {
+        // A moment axis within 15 degrees of up duplicates the up start.
+        if up.is_some_and(|u| a.dot(&u).abs() > 0.966) {
+            continue;
+        }
+        zs.push((format!("moment{k}"), *a));
+    }
+    for (zn, z) in &zs {
+        let rot = frame_with_z(&points, &centroid, z);
+        for e in [(1.0, 1.0), (0.3, 1.0), (0.3, 0.3)] {
+            starts.push((
+                format!("z={zn} e=({},{})", e.0, e.1),
+                start_state(&points, rot, params.viewpoint.as_ref(), e),
+            ));
+        }
+        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
+        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
+        if zn == "up" {
+            for k in [0.3, -0.3] {
+                for e in [(1.0, 1.0), (0.3, 1.0)] {
+                    let mut s = start_state(&points, rot, params.viewpoint.as_ref(), e);
+                    s.k = [k, k];
+                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
+                }
+            }
+        }
+    }
+    // A noise floor for the Huber threshold: 1 mm.
+    let min_delta = 0.001;
+    // Stage A: the visible points (and the support plane) decide the centre: the mirrored points
+    // cannot, since their union with the visible ones is symmetric about whatever centre they
+    // were mirrored through.
+    let problem_visible = Problem {
+        points: &points,
+        free: &[],
+        support,
+        cost: params.cost,
+    };
+    // Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
+    // surface must not cross them. Without this nothing stops the hidden back of a flat top (a
+    // cylinder's disc, a book's cover) from growing: the points on a face say where its plane
+    // is, not where it ends. Samples around the points' bounding sphere, the same for every start.
+    let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
+    let mut free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, &centroid, 1.5 * extent),
+        None => Vec::new(),
+    };
+    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
+        free.extend(silhouette_samples(&v, &points, &centroid, 1.5 * extent, 0.004));
+    }
+    if let Some(pl) = plane {
+        // Below the table nothing was seen: no free space there.
+        free.retain(|p| pl.signed_distance(p) > 0.003);
+    }
+    // Stage A1: every start on the visible points (and the support plane).
+    let results: Vec<(String, State)> = starts
+        .into_par_iter()
+        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, min_delta).0))
+        .collect();
+    let best_visible = results
+        .iter()
+        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
+        .map(|r| r.1)
+        .expect("at least one start");
+    // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
+    // through its opening are not free space.
+    let open_top = match (params.viewpoint, up) {
+        (Some(v), Some(u)) => unseen_top(&best_visible.placed(), &points, &v, &u),
+        _ => false,
+    };
+    let free: Vec<Point3<f64>> = if open_top {
+        drop_rays_through_top(&free, &best_visible.placed())
+    } else {
+        free
+    };
+    let problem_free = Problem {
+        points: &points,
+        free: &free,
+        support,
+        cost: params.cost,
+    };
+    // Stage A2: every start again with a thinned free space (at most 1500 samples), which is
+    // what keeps a start from keeping a skirt or a back where the sensor saw through.
+    let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
+    let problem_coarse = Problem {
+        points: &points,
+        free: &coarse,
+        support,
+        cost: params.cost,
+    };
+    let results: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(name, s0)| {
+            let s = if coarse.is_empty() {
+                s0
+            } else {
+                robust_fit(&problem_coarse, s0, 2, 20, min_delta).0
+            };
+            let score = score(&problem_free, &s);
+            (name, s, score)
+        })
+        .collect();
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+        }
+    }
+    // Stage B: the best three starts again with all of the free space.
+    let mut results = results;
+    results.sort_by(|a, b| a.2.total_cmp(&b.2));
+    results.truncate(3);
+    let results: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(name, s0, _)| {
+            let s = if free.is_empty() {
+                s0
+            } else {
+                robust_fit(&problem_free, s0, 3, 40, min_delta).0
+            };
+            let score = score(&problem_free, &s);
+            (name, s, score)
+        })
+        .collect();
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!(
+                "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+                free.len(),
+                s.shape(),
+                s.t.as_slice()
+            );
+        }
+    }
+    let (name, best, _) = results
+        .into_iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .expect("at least one start");
+    // Stage C: the visible points plus their twins turned 180 degrees about the vertical axis
+    // through the stage-B centre (fixed), which fixes the hidden back half.
+    let (best, delta) = match (params.mirror, up) {
+        (true, Some(u)) => {
+            let c = best.t;
+            let mut both = points.clone();
+            both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
+            let problem = Problem {
+                points: &both,
+                free: &free,
+                support,
+                cost: params.cost,
+            };
+            robust_fit(&problem, best, 3, 40, min_delta)
+        }
+        _ => robust_fit(&problem_visible, best, 2, 40, min_delta),
+    };
+    let mut r = Vec::new();
+    let vis = Problem {
+        points: &points,
+        free: &[],
+        support: None,
+        cost: params.cost,
+    };
+    vis.residuals(&best, &mut r);
+    let inliers: Vec<f64> = r.iter().copied().filter(|v| v.abs() <= delta).collect();
+    let rms = (inliers.iter().map(|v| v * v).sum::<f64>() / inliers.len().max(1) as f64).sqrt();
+    let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
+    let median_abs = median(&mut abs);
+    let mut placed = best.placed();
+    let open = open_top || is_open(&placed, &points, params.viewpoint.as_ref());
+    canonicalise(&mut placed, up.as_ref());
+    Ok(Recovered {
+        placed,
+        rms,
+        median_abs,
+        inlier_share: inliers.len() as f64 / r.len().max(1) as f64,
+        fitted_points: points.len(),
+        open,
+        start: name,
+    })
+}
+
+/// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
+/// the object), inside the sphere `(centre, radius)`, spaced `radius / 10` (at most 6 mm); at most
+/// 300 rays.
+fn free_space_samples(v: &Point3<f64>, others: &[Point3<f64>], centre: &Vector3<f64>, radius: f64) -> Vec<Point3<f64>> {
+    let c = Point3::from(*centre);
+    let rays: Vec<&Point3<f64>> = others
+        .iter()
+        .filter(|q| {
+            let d = *q - v;
+            let len = d.norm();
+            if len < 1e-9 {
+                return false;
+            }
+            let u = d / len;
+            let s = (c - v).dot(&u).clamp(0.0, len);
+            ((v + u * s) - c).norm() < radius && (**q - c).norm() > 0.5 * radius.min(0.02)
+        })
+        .collect();
+    let step = (rays.len() / 300).max(1);
+    let spacing = (radius / 10.0).min(0.006);
+    let mut out = Vec::new();
+    for q in rays.into_iter().step_by(step) {
+        let d = q - v;
+        let len = d.norm();
+        let u = d / len;
+        let s0 = (c - v).dot(&u);
+        let h2 = radius * radius - ((v + u * s0) - c).norm_squared();
+        if h2 <= 0.0 {
+            continue;
+        }
+        let h = h2.sqrt();
+        // Stop 5 mm short of the seen point: it may touch the object (the table at its foot).
+        let (a, b) = ((s0 - h).max(0.0), (s0 + h).min(len - 0.005));
+        let mut s = a;
+        while s < b {
+            out.push(v + u * s);
+            s += spacing;
+        }
+    }
+    out
+}
+
+/// The sensor is above the top of an upright shape, yet fewer than 2 % of the points lie on the
+/// inner half of its top (a closed top in view shows plenty).
+fn unseen_top(placed: &PlacedSuperquadric, points: &[Point3<f64>], v: &Point3<f64>, up: &Vector3<f64>) -> bool {
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(up).abs() < 0.9 {
+        return false;
+    }
+    let a = placed.shape.a;
+    let sign = z.dot(up).signum();
+    let lv = placed.to_local(v);
+    if sign * lv.z < a[2] {
+        return false;
+    }
+    let on_top = points
+        .iter()
+        .filter(|p| {
+            let q = placed.to_local(p);
+            sign * q.z > 0.7 * a[2] && (q.x / a[0]).powi(2) + (q.y / a[1]).powi(2) < 0.5
+        })
+        .count();
+    on_top * 50 < points.len()
+}
+
+/// Free-space samples less those in or near `placed` (the inside of an open container, seen
+/// through its opening, and its rim).
+fn drop_rays_through_top(free: &[Point3<f64>], placed: &PlacedSuperquadric) -> Vec<Point3<f64>> {
+    free.iter()
+        .filter(|p| placed.shape.inside_outside(&placed.to_local(p)) > 1.5)
+        .copied()
+        .collect()
+}
+
+/// The comparable score of a start: Huber loss with a fixed 3 mm threshold over every residual.
+fn score(problem: &Problem, s: &State) -> f64 {
+    let mut r = Vec::new();
+    problem.residuals(s, &mut r);
+    let delta = match problem.cost {
+        Cost::Radial => 0.003,
+        Cost::Solina => {
+            let a = s.shape().a;
+            0.05 * (a[0] * a[1] * a[2]).sqrt()
+        }
+    };
+    r.iter()
+        .map(|v| if v.is_finite() { huber(*v, delta) } else { 1.0 })
+        .sum()
+}
+
+/// The points with at least `min_neighbours` others within `radius` (a radius outlier filter:
+/// stereo and edge strays are isolated).
+pub fn remove_stray_points(points: &[Point3<f64>], radius: f64, min_neighbours: usize) -> Vec<Point3<f64>> {
+    let grid = crate::detect::grid::Grid::new(points, radius);
+    points
+        .iter()
+        .filter(|p| {
+            let mut n = 0usize;
+            grid.for_each_within(points, p, radius, |_| n += 1);
+            n > min_neighbours
+        })
+        .copied()
+        .collect()
+}
+
+/// Voxel-subsample to at most `max` points.
+pub fn subsample(points: &[Point3<f64>], max: usize) -> Vec<Point3<f64>> {
+    if points.len() <= max {
+        return points.to_vec();
+    }
+    let mut voxel = 0.002;
+    loop {
+        let idx = voxel_subsample(points, voxel);
+        if idx.len() <= max {
+            return idx.into_iter().map(|i| points[i]).collect();
+        }
+        voxel *= 1.25;
+    }
+}
+
+/// An open container: over 10 % of the points are seen from inside, with the outward normal of
+/// the fitted surface at them facing away from the sensor (a closed solid shows only surfaces
+/// that face it).
+fn is_open(placed: &PlacedSuperquadric, points: &[Point3<f64>], viewpoint: Option<&Point3<f64>>) -> bool {
+    let Some(v) = viewpoint else { return false };
+    let inside_seen = points
+        .iter()
+        .filter(|p| {
+            let g = placed.shape.residual_grad(&placed.to_local(p)).grad;
+            let n = placed.pose.rotation * g;
+            match (n.try_normalize(1e-12), (v - *p).try_normalize(1e-12)) {
+                (Some(n), Some(to_sensor)) => n.dot(&to_sensor) < -0.2,
+                _ => false,
+            }
+        })
+        .count();
+    inside_seen as f64 > 0.10 * points.len() as f64
+}
+
+/// Put the z axis up when it is within 30 degrees of up (tapers change sign with it), so an open
+/// container opens upwards; for a body of revolution pick x along the frame's x.
+fn canonicalise(placed: &mut PlacedSuperquadric, up: Option<&Vector3<f64>>) {
+    let Some(u) = up else { return };
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(u) < -0.866 {
+        // Turn 180 degrees about the local x axis: z -> -z, y -> -y; the taper flips sign.
+        placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+        placed.shape.kx = -placed.shape.kx;
+        placed.shape.ky = -placed.shape.ky;
+    }
+}
+
+/// Everything [`learn`] found.
+#[derive(Debug, Clone)]
+pub struct Learned {
+    pub segmentation: Segmentation,
+    pub parts: Vec<Recovered>,
+    /// Points of the object (before subsampling).
+    pub object_points: usize,
+}
+
+/// Segment (unless `params.segment` is false) and recover one superquadric.
+pub fn learn(points: &[Point3<f64>], params: &LearnParams) -> Result<Learned, LearnError> {
+    let points: Vec<Point3<f64>> = match params.max_range {
+        Some(r) => {
+            let v = params.viewpoint.unwrap_or_else(Point3::origin);
+            points.iter().filter(|p| (*p - v).norm() <= r).copied().collect()
+        }
+        None => points.to_vec(),
+    };
+    let segmentation = if params.segment {
+        segment(&points, params)
+    } else {
+        Segmentation {
+            plane: params.plane,
+            object: (0..points.len()).collect(),
+        }
+    };
+    learn_segmented(&points, segmentation, params)
+}
+
+/// Recover one superquadric from given object points (`segmentation.object` indexes `points`;
+/// the other points serve as free space).
+pub fn learn_segmented(
+    points: &[Point3<f64>],
+    segmentation: Segmentation,
+    params: &LearnParams,
+) -> Result<Learned, LearnError> {
+    let object: Vec<Point3<f64>> = segmentation.object.iter().map(|&i| points[i]).collect();
+    let mut free = others_near(points, &segmentation.object, 0.4);
+    if let Some(pl) = &segmentation.plane {
+        // An open container's inside bottom lies in the plane band and went with the table; the
+        // sensor saw it through the opening, so rays to it are not free space.
+        let hull = footprint(&object, &pl.normal);
+        let (u, v) = crate::detect::plane::orthonormal_basis(&pl.normal);
+        free.retain(|p| !inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))));
+    }
+    let rec = fit_superquadric(&object, &free, segmentation.plane.as_ref(), params)?;
+    Ok(Learned {
+        object_points: object.len(),
+        segmentation,
+        parts: vec![rec],
+    })
+}
+
+/// The convex hull (counter-clockwise) of the points projected on the plane across `normal`, in
+/// the basis of [`crate::detect::plane::orthonormal_basis`].
+pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64)> {
+    let (u, v) = crate::detect::plane::orthonormal_basis(normal);
+    hull2d(points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect())
+}
+
+/// The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain).
+pub fn hull2d(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Free-space samples along rays just outside the object's silhouette as the sensor saw it: the
+/// convex hull of the points in the image (perspective coordinates about the view axis), grown
+/// by `margin` metres at the object's range. The sensor saw the whole silhouette, so nothing of
+/// the object lies on these rays, even when the cloud holds nothing behind them (a cloud
+/// segmented beforehand).
+fn silhouette_samples(
+    v: &Point3<f64>,
+    object: &[Point3<f64>],
+    centroid: &Vector3<f64>,
+    radius: f64,
+    margin: f64,
+) -> Vec<Point3<f64>> {
+    let Some(w) = (centroid - v.coords).try_normalize(1e-9) else {
+        return Vec::new();
+    };
+    let (u1, u2) = crate::detect::plane::orthonormal_basis(&w);
+    let depth = (centroid - v.coords).norm();
+    let proj: Vec<(f64, f64)> = object
+        .iter()
+        .filter_map(|p| {
+            let d = p - v;
+            let z = d.dot(&w);
+            (z > 1e-6).then(|| (d.dot(&u1) / z, d.dot(&u2) / z))
+        })
+        .collect();
+    let hull = hull2d(proj);
+    if hull.len() < 3 {
+        return Vec::new();
+    }
+    let n = hull.len() as f64;
+    let hc = hull.iter().fold((0.0, 0.0), |a, h| (a.0 + h.0 / n, a.1 + h.1 / n));
+    let grow = margin / depth;
+    let grown: Vec<(f64, f64)> = hull
+        .iter()
+        .map(|h| {
+            let (dx, dy) = (h.0 - hc.0, h.1 - hc.1);
+            let l = (dx * dx + dy * dy).sqrt().max(1e-12);
+            (h.0 + grow * dx / l, h.1 + grow * dy / l)
+        })
+        .collect();
+    let step = 0.004 / depth;
+    let spacing = (radius / 10.0).min(0.006);
+    let mut out = Vec::new();
+    for i in 0..grown.len() {
+        let (a, b) = (grown[i], grown[(i + 1) % grown.len()]);
+        let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        let k = (len / step).ceil().max(1.0) as usize;
+        for j in 0..k {
+            let t = j as f64 / k as f64;
+            let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            let dir = (w + u1 * x + u2 * y).normalize();
+            let s0 = (centroid - v.coords).dot(&dir);
+            let mut s = s0 - radius;
+            while s < s0 + radius {
+                if s > 0.0 {
+                    out.push(v + dir * s);
+                }
+                s += spacing;
+            }
+        }
+    }
+    out
+}
+
+/// Whether a point lies inside a counter-clockwise convex polygon.
+pub fn inside_convex(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
+    if hull.len() < 3 {
+        return false;
+    }
+    (0..hull.len()).all(|i| {
+        let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+        (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0) >= 0.0
+    })
+}
+
+/// The points that are not the object's, within `radius` of its centroid, subsampled to 4 mm.
+pub fn others_near(points: &[Point3<f64>], object: &[usize], radius: f64) -> Vec<Point3<f64>> {
+    if object.is_empty() {
+        return Vec::new();
+    }
+    let c = object.iter().fold(Vector3::zeros(), |a, &i| a + points[i].coords) / object.len() as f64;
+    let mut is_object = vec![false; points.len()];
+    for &i in object {
+        is_object[i] = true;
+    }
+    let near: Vec<Point3<f64>> = (0..points.len())
+        .filter(|&i| !is_object[i] && (points[i].coords - c).norm() < radius)
+        .map(|i| points[i])
+        .collect();
+    voxel_subsample(&near, 0.004).into_iter().map(|i| near[i]).collect()
+}
+
+/// Provenance written into the model file's comment block.
+#[derive(Debug, Clone, Default)]
+pub struct Provenance {
+    pub input: String,
+    pub selection: String,
+    pub command: String,
+}
+
+/// A model file for a learned single-part object, in the object frame of the part (the part's
+/// centre, z along its axis).
+pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
+    let mut s = String::new();
+    s.push_str(&format!("# Learned by `sqscan learn` (issue #6) from {}\n", prov.input));
+    if !prov.selection.is_empty() {
+        s.push_str(&format!("# points: {}\n", prov.selection));
+    }
+    s.push_str(&format!(
+        "# object points {}; plane {}\n",
+        learned.object_points,
+        match &learned.segmentation.plane {
+            Some(p) => format!(
+                "n = ({:.4}, {:.4}, {:.4}), d = {:.4}",
+                p.normal.x, p.normal.y, p.normal.z, p.d
+            ),
+            None => "none".into(),
+        }
+    ));
+    for (i, r) in learned.parts.iter().enumerate() {
+        let t = r.placed.pose.translation.vector;
+        s.push_str(&format!(
+            "# part {i}: {} points fitted, residual RMS {:.2} mm over {:.0} % inliers, median |r| {:.2} mm, start {}, centre in the cloud ({:.4}, {:.4}, {:.4})\n",
+            r.fitted_points,
+            r.rms * 1e3,
+            r.inlier_share * 100.0,
+            r.median_abs * 1e3,
+            r.start,
+            t.x,
+            t.y,
+            t.z
+        ));
+    }
+    if !prov.command.is_empty() {
+        s.push_str(&format!("# command: {}\n", prov.command));
+    }
+    s.push_str(&format!("name = {name:?}\n"));
+    s.push_str(&format!("description = {:?}\n", format!("Learned from {}", prov.input)));
+    let written: Vec<Superquadric> = learned
+        .parts
+        .iter()
+        .map(|r| {
+            let shape = match snap_revolution(&r.placed.shape) {
+                Some(snapped) => {
+                    let f = &r.placed.shape;
+                    s.push_str(&format!(
+                        "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
+                        f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
+                    ));
+                    snapped
+                }
+                None => r.placed.shape,
+            };
+            // Tapers below 0.05 are noise of one view; an untapered part keeps its z -> -z
+            // symmetry.
+            let mut shape = shape;
+            if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
+                shape.kx = 0.0;
+                shape.ky = 0.0;
+            }
+            shape
+        })
+        .collect();
+    // The object frame is the first part's frame; further parts are posed in it and connected
+    // to it (the detector votes on the angle between the z axes and the centre distance).
+    let base = learned.parts[0].placed.pose;
+    for (i, (r, shape)) in learned.parts.iter().zip(&written).enumerate() {
+        let name = if i == 0 { "body".to_string() } else { format!("part{i}") };
+        let pose = (i > 0).then(|| base.inverse() * r.placed.pose);
+        s.push_str(&part_toml(&name, shape, r.open && i == 0, pose.as_ref()));
+    }
+    for (i, r) in learned.parts.iter().enumerate().skip(1) {
+        let za = base.rotation * Vector3::z();
+        let zb = r.placed.pose.rotation * Vector3::z();
+        let signed = written[0].is_tapered() && written[i].is_tapered();
+        let angle = crate::model::axis_angle(&za, &zb, signed);
+        let distance = (r.placed.pose.translation.vector - base.translation.vector).norm();
+        s.push_str(&format!(
+            "\n[[connection]]\nparts = [\"body\", \"part{i}\"]\nangle_deg = {:.3}\ndistance = {:.5}\n",
+            angle.to_degrees(),
+            distance
+        ));
+    }
+    s
+}
+
+/// Further parts (recover-and-select, simplified): the object points the parts found so far do
+/// not explain (more than 5 Huber thresholds outside every part, the points the robust fit gave
+/// no weight), clustered; the largest cluster of at least 30 points gets its own superquadric.
+/// Stops early when nothing is left to explain.
+pub fn learn_parts(
+    points: &[Point3<f64>],
+    segmentation: Segmentation,
+    params: &LearnParams,
+    parts: usize,
+) -> Result<Learned, LearnError> {
+    let mut learned = learn_segmented(points, segmentation, params)?;
+    let object: Vec<Point3<f64>> = learned.segmentation.object.iter().map(|&i| points[i]).collect();
+    let part_params = LearnParams {
+        mirror: false,
+        support: false,
+        ..params.clone()
+    };
+    // The points no part explains well (more than 3 median residuals, at least 4 mm, outside).
+    let unexplained_by = |found: &[Recovered], among: &[Point3<f64>]| -> Vec<Point3<f64>> {
+        among
+            .iter()
+            .filter(|p| {
+                found.iter().all(|r| {
+                    let q = r.placed.to_local(p);
+                    let d = r.placed.shape.radial_distance(&q);
+                    r.placed.shape.inside_outside(&q) > 1.0 && d > (3.0 * r.median_abs).max(0.004)
+                })
+            })
+            .copied()
+            .collect()
+    };
+    let largest = |pts: &[Point3<f64>]| -> Vec<Point3<f64>> {
+        let idx: Vec<usize> = (0..pts.len()).collect();
+        clusters(pts, &idx, 0.01)
+            .into_iter()
+            .next()
+            .map(|c| c.iter().map(|&i| pts[i]).collect())
+            .unwrap_or_default()
+    };
+    while learned.parts.len() < parts {
+        let mut part_points = largest(&unexplained_by(&learned.parts, &object));
+        if part_points.len() < MIN_POINTS {
+            break;
+        }
+        // Alternate (recover and select, twice): the first part refitted without the new part's
+        // points (a handle pulls a body fit sideways), then the new part's points taken again.
+        for _ in 0..2 {
+            let rest: Vec<Point3<f64>> = object
+                .iter()
+                .filter(|p| !part_points.iter().any(|q| (*q - **p).norm() < 1e-9))
+                .copied()
+                .collect();
+            let free = others_near(points, &learned.segmentation.object, 0.4);
+            let first = fit_superquadric(&rest, &free, learned.segmentation.plane.as_ref(), params)?;
+            let mut found = learned.parts.clone();
+            found[0] = first;
+            let again = largest(&unexplained_by(&found, &object));
+            learned.parts = found;
+            if again.len() < MIN_POINTS {
+                break;
+            }
+            part_points = again;
+        }
+        if part_points.len() < MIN_POINTS {
+            break;
+        }
+        let mut r = fit_superquadric(&part_points, &[], None, &part_params)?;
+        r.open = false;
+        learned.parts.push(r);
+    }
+    Ok(learned)
+}
+
+/// A learned shape that is a body of revolution to within what one view can tell (x and y
+/// sizes within 10 %, e2 within 0.1 of 1, tapers within 0.05 of each other) made exactly one, so
+/// the detector fits it with 5 degrees of freedom and scores it modulo its spin. `None` when it
+/// is not.
+pub fn snap_revolution(sq: &Superquadric) -> Option<Superquadric> {
+    let (a1, a2) = (sq.a[0], sq.a[1]);
+    let close = (a1 - a2).abs() <= 0.10 * a1.max(a2) && (sq.e2 - 1.0).abs() <= 0.1 && (sq.kx - sq.ky).abs() <= 0.05;
+    close.then(|| {
+        let a = 0.5 * (a1 + a2);
+        let k = 0.5 * (sq.kx + sq.ky);
+        Superquadric {
+            a: [a, a, sq.a[2]],
+            e1: sq.e1,
+            e2: 1.0,
+            kx: k,
+            ky: k,
+        }
+    })
+}
+
+/// One `[[part]]` table.
+pub fn part_toml(name: &str, sq: &Superquadric, open: bool, pose: Option<&Isometry3<f64>>) -> String {
+    let mut s = format!(
+        "\n[[part]]\nname = {name:?}\na = [{:.4}, {:.4}, {:.4}]\ne1 = {:.3}\ne2 = {:.3}\nkx = {:.3}\nky = {:.3}\n",
+        sq.a[0], sq.a[1], sq.a[2], sq.e1, sq.e2, sq.kx, sq.ky
+    );
+    if open {
+        s.push_str("open = true\n");
+    }
+    if let Some(p) = pose {
+        let j = crate::pose::PoseJson::from(p);
+        s.push_str(&format!(
+            "pose = {{ position = [{:.5}, {:.5}, {:.5}], orientation = [{:.6}, {:.6}, {:.6}, {:.6}] }}\n",
+            j.position[0],
+            j.position[1],
+            j.position[2],
+            j.orientation[0],
+            j.orientation[1],
+            j.orientation[2],
+            j.orientation[3]
+        ));
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_a_tapered_shape_from_its_visible_half_on_a_plane() {
+        let truth_sq = Superquadric::new([0.05, 0.035, 0.03], 0.5, 0.7, 0.2, 0.1).unwrap();
+        let mut truth = PlacedSuperquadric::new(truth_sq, Isometry3::translation(0.8, 0.1, 0.0));
+        let low = truth.lowest_z();
+        truth.pose.translation.vector.z = 0.72 - low;
+        let view = Point3::new(0.0, 0.0, 1.35);
+        let c = truth.pose.translation.vector;
+        let pts: Vec<Point3<f64>> = truth
+            .sample_surface(0.003)
+            .into_iter()
+            .filter(|p| (p.coords - c).dot(&(view.coords - c)) > 0.0)
+            .collect();
+        let plane = Plane {
+            normal: Vector3::z(),
+            d: -0.72,
+        };
+        let params = LearnParams {
+            viewpoint: Some(view),
+            ..Default::default()
+        };
+        let r = fit_superquadric(&pts, &[], Some(&plane), &params).unwrap();
+        let sq = r.placed.shape;
+        let (a, b) = if (sq.a[0] - 0.05).abs() < (sq.a[1] - 0.05).abs() {
+            (sq.a[0], sq.a[1])
+        } else {
+            (sq.a[1], sq.a[0])
+        };
+        assert!(
+            (a - 0.05).abs() < 0.003 && (b - 0.035).abs() < 0.003 && (sq.a[2] - 0.03).abs() < 0.003,
+            "{sq} ({})",
+            r.start
+        );
+        assert!((sq.e1 - 0.5).abs() < 0.1 && (sq.e2 - 0.7).abs() < 0.1, "{sq}");
+    }
+}
