@@ -312,10 +312,14 @@ fn unsafe_kill(pid: u32, sig: i32) {
 
 /// `sqscan mock rig` in its own process; returns once both links exist.
 fn start_rig(dir: &Path, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
+    start_rig_with(dir, "powercube", extra)
+}
+
+fn start_rig_with(dir: &Path, protocol: &str, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
     let ptu = dir.join("ptu");
     let sensor = dir.join("sensor");
     let child = Command::new(env!("CARGO_BIN_EXE_sqscan"))
-        .args(["mock", "rig", "--protocol", "powercube", "--scene"])
+        .args(["mock", "rig", "--protocol", protocol, "--scene"])
         .arg(root().join("scenes/fig3_table.toml"))
         .arg("--ptu-link")
         .arg(&ptu)
@@ -335,19 +339,23 @@ fn start_rig(dir: &Path, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
 }
 
 fn hardware_config(ptu: &Path, sensor: &Path) -> String {
+    hardware_config_with(ptu, sensor, "powercube", "sim_rig.toml", 0.84)
+}
+
+fn hardware_config_with(ptu: &Path, sensor: &Path, protocol: &str, calibration: &str, tilt_to: f64) -> String {
     format!(
         r#"
 [hardware]
 calibration = "{}"
-ptu = {{ path = "{}", protocol = "powercube" }}
+ptu = {{ path = "{}", protocol = "{protocol}" }}
 sensor = {{ path = "{}" }}
 [sweep]
 tilt_from_rad = 0.49
-tilt_to_rad = 0.84
+tilt_to_rad = {tilt_to}
 speed_rad_s = 0.12
 timeout_s = 5.0
 "#,
-        root().join("calibration/sim_rig.toml").display(),
+        root().join("calibration").join(calibration).display(),
         ptu.display(),
         sensor.display()
     )
@@ -367,6 +375,25 @@ fn mock_devices_on_ptys_find_the_cup() {
     let s = c.ask(json!({"cmd":"status"}));
     let devices = s["devices"].as_array().unwrap();
     assert!(devices.iter().all(|d| d["state"] == "ok"), "{s}");
+}
+
+#[test]
+fn a_flir_ptu_d46_rig_finds_the_cup() {
+    // A PTU-D46 tilts down at negative positions (tilt range -47..+31 deg): mounted with tilt
+    // sign -1, the sweep 0.49..0.80 rad down is -0.49..-0.80 rad on the unit. The FLIR driver at
+    // 9600 baud, its ASCII protocol and the sign in the calibration all take part.
+    let dir = tmpdir("flir");
+    let (_rig, ptu, sensor) = start_rig_with(&dir, "flir", &["--tilt-sign", "-1"]);
+    let config = hardware_config_with(&ptu, &sensor, "flir", "sim_rig_flir.toml", 0.80);
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    let mut c = Client::connect(&socket);
+    let r = c.ask(json!({"cmd":"find","object":"cup","timeout_s":90}));
+    assert_eq!(r["class"], "detection", "{r}\n{}", log(&dir));
+    assert_eq!(r["found"], true, "{r}");
+    let (dp, dr) = pose_error(&r, &root().join("scenes/fig3_table.toml"), "cup");
+    assert!(dp < 0.010 && dr < 10.0, "cup off by {dp} m, {dr} deg: {r}");
+    let s = c.ask(json!({"cmd":"status"}));
+    assert!(s["devices"][0]["kind"].as_str().unwrap().contains("PTU-D46"), "{s}");
 }
 
 #[test]

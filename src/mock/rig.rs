@@ -12,8 +12,11 @@
 //! closes); with `RigConfig::ptu_replug_after` the same unit comes back later on a new pty, the
 //! PTU link re-pointed at it, while the sensor streams on throughout.
 //!
-//! Device angles are taken as joint angles (axis sign +1, offset 0), which is what
-//! [`crate::calibration::Calibration::for_rig`] assumes.
+//! Device angles map to the joint angles the scene's rig uses through `RigConfig::pan_axis` and
+//! `tilt_axis` (how the unit is mounted): identity by default, which is what
+//! [`crate::calibration::Calibration::for_rig`] and `calibration/sim_rig.toml` assume. A PTU-D46
+//! tilts down at negative positions, and its tilt range (-47..+31 deg) holds a downward sweep only
+//! that way round: `tilt_axis` sign -1 with `calibration/sim_rig_flir.toml`.
 
 use std::io;
 use std::path::{Path, PathBuf};
@@ -22,6 +25,7 @@ use std::time::{Duration, Instant};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use sqscan_drivers::AxisConfig;
 use sqscan_drivers::mock::{
     Faults, MockDevice, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
 };
@@ -52,6 +56,9 @@ pub struct RigConfig {
     /// a new pty, the PTU link symlink re-pointed at it, the same device (same angles, same
     /// move) served again, once, without the unplug fault. The sensor streams on meanwhile.
     pub ptu_replug_after: Option<Duration>,
+    /// Device to joint angle, per axis, as the unit is mounted on the rig.
+    pub pan_axis: AxisConfig,
+    pub tilt_axis: AxisConfig,
 }
 
 impl Default for RigConfig {
@@ -63,6 +70,8 @@ impl Default for RigConfig {
             ptu_faults: Faults::default(),
             sensor_faults: Faults::default(),
             ptu_replug_after: None,
+            pan_axis: AxisConfig::default(),
+            tilt_axis: AxisConfig::default(),
         }
     }
 }
@@ -112,7 +121,7 @@ impl RigMock {
             cfg.ptu_replug_after,
             replugged_tx,
         ));
-        let source = scene_source(scene, ptu.clone(), cfg.seed);
+        let source = scene_source(scene, ptu.clone(), cfg.seed, (cfg.pan_axis, cfg.tilt_axis));
         let period = Duration::from_secs_f64(1.0 / cfg.rate_hz);
         let sensor_task = tokio::spawn(sensor_port.stream(source, period, cfg.sensor_faults.clone()));
         Ok(RigMock {
@@ -163,11 +172,14 @@ fn scene_source(
     scene: Arc<Scene>,
     ptu: Arc<Mutex<dyn MockDevice>>,
     seed: u64,
+    (pan_axis, tilt_axis): (AxisConfig, AxisConfig),
 ) -> impl FnMut(Instant) -> Profile + Send {
     let mut index = 0u64;
     move |now| {
         let (pan, tilt) = ptu.lock().unwrap_or_else(|p| p.into_inner()).joint_angles(now);
-        let pose = scene.rig.sensor_in_base(pan, tilt);
+        let pose = scene
+            .rig
+            .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
         let mut rng = ChaCha8Rng::seed_from_u64(sim::stream_seed(seed, index));
         index += 1;
         let raw = sim::render_profile(&scene, &pose, &mut rng);

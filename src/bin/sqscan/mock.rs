@@ -45,6 +45,11 @@ pub struct MockRigArgs {
     /// again). The sensor keeps streaming meanwhile
     #[arg(long, value_name = "SECS", requires = "disconnect_after")]
     ptu_replug_after: Option<f64>,
+    /// How the unit's tilt is mounted: joint tilt = SIGN x device tilt. -1 for a PTU-D46, which
+    /// tilts down at negative positions (use it with calibration/sim_rig_flir.toml)
+    #[arg(long, value_name = "SIGN", default_value_t = 1, allow_negative_numbers = true,
+          value_parser = clap::value_parser!(i8).range(-1..=1))]
+    tilt_sign: i8,
     /// PTU fault injection; --seed also seeds the sensor noise
     #[command(flatten)]
     faults: FaultArgs,
@@ -177,6 +182,9 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
             seed: a.faults.seed,
         },
         ptu_replug_after,
+        tilt_axis: sqscan_drivers::AxisConfig::new(f64::from(a.tilt_sign), 0.0)
+            .map_err(|e| anyhow::anyhow!("--tilt-sign: {e}; give 1 or -1"))?,
+        ..RigConfig::default()
     };
     let columns = scene.rig.sensor.columns;
     let rig = RigMock::start(
