@@ -326,6 +326,24 @@ impl Calibration {
         for (name, a) in [("pan", self.pan), ("tilt", self.tilt)] {
             let _ = writeln!(s, "{name} = {{ sign = {:?}, offset_rad = {:?} }}", a.sign, a.offset_rad);
         }
+        if let Some(l) = &self.lookup {
+            // `{:?}` prints the shortest text that reads back as the same f64: the table
+            // round-trips exactly.
+            let row = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
+            let _ = writeln!(
+                s,
+                "\n# Per-column lookup table: laser-plane x, y (m) at the sample rows (px)."
+            );
+            let _ = writeln!(s, "[lookup]");
+            let _ = writeln!(s, "rows_px = [{}]", row(&l.rows_px));
+            for (name, table) in [("x", &l.x), ("y", &l.y)] {
+                let _ = writeln!(s, "{name} = [");
+                for col in table {
+                    let _ = writeln!(s, "    [{}],", row(col));
+                }
+                let _ = writeln!(s, "]");
+            }
+        }
         s
     }
 }
@@ -489,6 +507,11 @@ mod tests {
                 other => panic!("not a validation error: {other:?}"),
             }
         };
+        // Written back, the table reads back the same.
+        let text = cal.to_toml("with a lookup table");
+        assert!(text.contains("[lookup]"));
+        assert_eq!(Calibration::from_toml_str(&text, &path).unwrap(), cal);
+
         assert_eq!(field(&|l| l.rows_px.swap(0, 1)), "lookup.rows_px");
         assert_eq!(
             field(&|l| {
