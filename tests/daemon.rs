@@ -513,3 +513,39 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
         "{v}"
     );
 }
+
+#[test]
+fn stalled_clients_do_not_hold_up_acquisition_or_others() {
+    let dir = tmpdir("stall");
+    let (_d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    // One client watches and never reads; one sends half a request and goes quiet; one
+    // connects and says nothing.
+    let mut watcher = Client::connect(&socket);
+    watcher.send(&json!({"cmd":"watch","objects":["bowl","cup"]}));
+    let mut half = UnixStream::connect(&socket).unwrap();
+    half.write_all(b"{\"cmd\":\"fi").unwrap();
+    let _silent = UnixStream::connect(&socket).unwrap();
+    let mut c = Client::connect(&socket);
+    let first = c.ask(json!({"cmd":"scan","timeout_s":30}))["id"].as_u64().unwrap();
+    // Sweeps go on and a fresh find is answered from one made after it was asked.
+    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":30}));
+    assert_eq!(r["found"], true, "{r}");
+    assert!(r["sweep"]["id"].as_u64().unwrap() > first, "{r}");
+    let s = c.ask(json!({"cmd":"status"}));
+    assert!(s["clients"]["connected"].as_u64().unwrap() >= 4, "{s}");
+    assert!(s["sweeps"]["completed"].as_u64().unwrap() > first, "{s}");
+    // The half request, completed later, is still answered.
+    half.write_all(b"nd\",\"object\":\"bowl\",\"id\":9}\n").unwrap();
+    half.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut r = BufReader::new(half);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap(); // version
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    let v: Value = serde_json::from_str(&line).unwrap();
+    assert_eq!(
+        (v["class"].as_str(), v["id"].as_u64()),
+        (Some("detection"), Some(9)),
+        "{v}"
+    );
+}
