@@ -17,6 +17,7 @@
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
 //! choice comes from a seeded generator.
 
+pub mod atomic;
 pub mod calibration;
 pub mod cloud;
 pub mod daemon;

@@ -10,7 +10,7 @@ mod mock;
 mod ptu;
 mod sensor;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -103,29 +103,5 @@ fn main() -> ExitCode {
     }
 }
 
-/// Write a file atomically: a temporary file beside it, then a rename, so a reader never sees a
-/// half-written file and an interrupted run never leaves one.
-pub fn write_atomic(
-    path: &std::path::Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> Result<()>,
-) -> Result<()> {
-    use std::io::Write;
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(std::path::Path::new("."));
-    let tmp = dir.join(format!(
-        ".{}.tmp{}",
-        path.file_name().unwrap_or_default().to_string_lossy(),
-        std::process::id()
-    ));
-    let file = std::fs::File::create(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
-    let mut w = std::io::BufWriter::new(file);
-    let r = write(&mut w).and_then(|()| w.flush().map_err(Into::into));
-    if let Err(e) = r {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.context(format!("cannot write {}", path.display())));
-    }
-    drop(w);
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot rename {} to {}", tmp.display(), path.display()))
-}
+/// Files the tool writes (sweeps, models, detections) go through a temporary file and a rename.
+pub use sqscan::atomic::write_atomic;
