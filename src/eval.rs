@@ -87,13 +87,3 @@ pub fn median_p95(values: &[f64]) -> (f64, f64) {
     let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
     (q(0.5), q(0.95))
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use std::path::Path;
-
-    fn model(name: &str) -> Model {
-        Model::load(name, &Path::new(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
-    }
-}

@@ -7,10 +7,10 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use serde_json::json;
 
 use crate::cloud::PointCloud;
 use crate::sim::{self, Scene};
+use crate::sweep::SweepReport;
 
 use super::config::{Backend, Config};
 use super::hardware::HardwareBackend;
@@ -99,19 +99,21 @@ impl SimBackend {
             // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest.
             tokio::time::sleep_until((started + duration).into()).await;
         }
-        let report = json!({
-            "received": sweep.profiles, "kept": sweep.profiles, "dropped_extrapolated": 0,
-            "dropped_duplicate": 0, "dropped_out_of_order": 0, "missing_seq": 0,
-            "points": sweep.finite_points(),
-            "tilt_from_rad": sweep.tilt_rad.first(), "tilt_to_rad": sweep.tilt_rad.last(),
-        });
+        // The same account as an assembled hardware sweep gives: every rendered profile kept.
+        let report = SweepReport {
+            received: sweep.profiles,
+            kept: sweep.profiles,
+            points: sweep.finite_points(),
+            duration_s: sweep.stamp_s.last().copied().unwrap_or(0.0),
+            ..SweepReport::default()
+        };
         Ok(SweepData {
             started,
             last_profile: Instant::now(),
             profiles: sweep.profiles,
             columns: sweep.columns,
             cloud: sweep.cloud,
-            report,
+            report: serde_json::to_value(&report).unwrap_or_default(),
         })
     }
 }
@@ -175,16 +177,7 @@ pub async fn run(shared: Arc<Shared>, mut backend: AnyBackend) {
         };
         match result {
             Ok(data) => {
-                let mut entry = SweepEntry::new(
-                    next_id,
-                    data.started,
-                    data.cloud,
-                    data.profiles,
-                    data.columns,
-                    data.report,
-                );
-                entry.last_profile = data.last_profile;
-                let entry = Arc::new(entry);
+                let entry = Arc::new(SweepEntry::new(next_id, data));
                 next_id += 1;
                 shared.stats.sweeps_completed.fetch_add(1, Ordering::Relaxed);
                 if let Some(prev) = last_completed {

@@ -80,6 +80,7 @@ fn prune(dir: &Path, keep: usize) -> Result<()> {
 mod tests {
     use super::*;
     use crate::cloud::{PointCloud, read_cloud};
+    use crate::daemon::acquire::SweepData;
     use std::time::Instant;
 
     #[test]
@@ -91,7 +92,17 @@ mod tests {
         for id in 1..=4 {
             let mut cloud = PointCloud::organized(3, 2, pts.clone());
             cloud.viewpoint = Some([0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0]);
-            let e = SweepEntry::new(id, Instant::now(), cloud, 2, 3, json!({"kept": 2}));
+            let e = SweepEntry::new(
+                id,
+                SweepData {
+                    started: Instant::now(),
+                    last_profile: Instant::now(),
+                    cloud,
+                    profiles: 2,
+                    columns: 3,
+                    report: json!({"kept": 2}),
+                },
+            );
             write_sweep(&dir, &e, 2).unwrap();
         }
         let mut names: Vec<String> = fs::read_dir(&dir)

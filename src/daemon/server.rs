@@ -213,7 +213,7 @@ where
             r = read_request(&mut rd, &mut buf) => r,
             () = stopped(&mut shutdown) => break,
             // A dead writer means the client is gone.
-            () = closed(&out.tx) => break,
+            () = out.tx.closed() => break,
         };
         // Reap finished request tasks so a long-lived client does not accumulate them, and stop
         // reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading its
@@ -293,10 +293,6 @@ where
     drop(out);
     // Let queued replies go out (bounded by the writer's own timeout).
     let _ = tokio::time::timeout(Duration::from_secs(1), writer).await;
-}
-
-async fn closed(tx: &mpsc::Sender<Value>) {
-    tx.closed().await
 }
 
 /// Moves this client's watch from `old` to `new` in the shared refcounts.

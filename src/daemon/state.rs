@@ -19,6 +19,7 @@ use crate::cloud::PointCloud;
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
 
+use super::acquire::SweepData;
 use super::config::Config;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
@@ -63,19 +64,19 @@ pub struct Detected {
 }
 
 impl SweepEntry {
-    pub fn new(id: u64, started: Instant, cloud: PointCloud, profiles: usize, columns: usize, report: Value) -> Self {
-        let points = cloud.finite_count();
+    /// The sweep a backend delivered, completed now.
+    pub fn new(id: u64, data: SweepData) -> Self {
         SweepEntry {
             id,
-            started,
+            started: data.started,
             completed: Instant::now(),
-            last_profile: Instant::now(),
+            last_profile: data.last_profile,
             completed_wall: SystemTime::now(),
-            cloud: Arc::new(cloud),
-            profiles,
-            columns,
-            points,
-            report,
+            points: data.cloud.finite_count(),
+            cloud: Arc::new(data.cloud),
+            profiles: data.profiles,
+            columns: data.columns,
+            report: data.report,
             detections: Mutex::new(HashMap::new()),
         }
     }
