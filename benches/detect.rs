@@ -3,7 +3,6 @@
 //! new search seed per iteration. Figures go to BENCHMARKS.md beside the paper's Tables I and II.
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use nalgebra::Point3;
 use sqscan::detect::{Params, detect};
 use sqscan::model::Model;
 use sqscan::sim::{Scene, simulate};
@@ -24,7 +23,7 @@ fn bench(c: &mut Criterion) {
         let s = Scene::from_file(&root.join(format!("scenes/{scene}.toml")), &models).expect("shipped scene");
         let m = Model::load(model, &models).expect("shipped model");
         let sweep = simulate(&s, 0);
-        let viewpoint = sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+        let viewpoint = sweep.cloud.viewpoint_position();
         let mut seed = 0;
         g.bench_function(format!("{scene}/{model}"), |b| {
             b.iter(|| {

@@ -6,7 +6,7 @@ use crate::model::Model;
 use crate::sim::{self, Scene};
 pub use crate::symmetry::Symmetry;
 use crate::symmetry::same_shape;
-use nalgebra::{Isometry3, Point3};
+use nalgebra::Isometry3;
 use std::f64::consts::PI;
 
 /// A detection is correct within these (the paper's grasping tolerance, the criterion).
@@ -54,7 +54,7 @@ pub fn trial(
     let sweep = sim::simulate(scene, noise_seed);
     let mut p = params.clone();
     if p.viewpoint.is_none() {
-        p.viewpoint = sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+        p.viewpoint = sweep.cloud.viewpoint_position();
     }
     let report = detect::detect(&sweep.cloud.points, model, &p);
     let best = report.detections.first();

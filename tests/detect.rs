@@ -2,7 +2,6 @@
 //! pose, says "not here" when it is not, gives the same answer for the same seed, and survives
 //! degenerate input.
 
-use nalgebra::Point3;
 use sqscan::detect::{Params, detect};
 use sqscan::eval::{self, Symmetry};
 use sqscan::model::Model;
@@ -108,7 +107,7 @@ fn same_seed_same_answer() {
     let m = model("cup");
     let params = Params {
         seed: 9,
-        viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])),
+        viewpoint: sweep.cloud.viewpoint_position(),
         ..Params::default()
     };
     let a = detect(&sweep.cloud.points, &m, &params);
@@ -138,7 +137,7 @@ fn all_instances_are_reported_once_each() {
     let params = Params {
         seed: 1,
         all: true,
-        viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])),
+        viewpoint: sweep.cloud.viewpoint_position(),
         ..Params::default()
     };
     let report = detect(&sweep.cloud.points, &m, &params);

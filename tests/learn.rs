@@ -143,15 +143,9 @@ fn two_parts_from_a_cup_with_its_handle_in_view() {
     let text = scene_toml(&cup.source, [0.85, 0.05], [0.0, 0.0, 120.0]);
     let scene = Scene::from_toml_str(&text, std::path::Path::new("cup.toml"), std::path::Path::new("models")).unwrap();
     let sweep = sim::simulate(&scene, 7);
-    let points: Vec<Point3<f64>> = sweep
-        .cloud
-        .points
-        .iter()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-        .collect();
+    let points: Vec<Point3<f64>> = sweep.cloud.finite_points();
     let params = LearnParams {
-        viewpoint: sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2])),
+        viewpoint: sweep.cloud.viewpoint_position(),
         ..LearnParams::default()
     };
     let seg = segment(&points, &params);

@@ -262,6 +262,20 @@ impl PointCloud {
         self.points.iter().filter(|p| is_finite_point(p)).count()
     }
 
+    /// The finite points, in f64 (what the detector and the learner work on).
+    pub fn finite_points(&self) -> Vec<nalgebra::Point3<f64>> {
+        self.points
+            .iter()
+            .filter(|p| is_finite_point(p))
+            .map(|p| nalgebra::Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])))
+            .collect()
+    }
+
+    /// Where the sensor was (the viewpoint's position), if the cloud says.
+    pub fn viewpoint_position(&self) -> Option<nalgebra::Point3<f64>> {
+        self.viewpoint.map(|v| nalgebra::Point3::new(v[0], v[1], v[2]))
+    }
+
     /// Axis-aligned bounds `(min, max)` of the finite points; `None` when there are none.
     pub fn bbox(&self) -> Option<([f32; 3], [f32; 3])> {
         let mut finite = self.points.iter().filter(|p| is_finite_point(p));

@@ -95,7 +95,7 @@ impl SweepEntry {
 
     /// The sensor position for the detector: the cloud's viewpoint.
     fn viewpoint(&self) -> Option<Point3<f64>> {
-        self.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]))
+        self.cloud.viewpoint_position()
     }
 
     /// The detection of `model` on this sweep, made once however many ask; off the async

@@ -157,16 +157,10 @@ pub fn learn_simulated(
         .expect("the generated scene is valid");
     let truth = scene.objects[0].model.placed_parts(&scene.objects[0].pose)[0];
     let sweep = sim::simulate(&scene, seed);
-    let points: Vec<Point3<f64>> = sweep
-        .cloud
-        .points
-        .iter()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-        .collect();
+    let points: Vec<Point3<f64>> = sweep.cloud.finite_points();
     let mut params = params.clone();
     if params.viewpoint.is_none() {
-        params.viewpoint = sweep.cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+        params.viewpoint = sweep.cloud.viewpoint_position();
     }
     let started = std::time::Instant::now();
     let learned = learn(&points, &params)?;

@@ -57,7 +57,7 @@ pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
 
 /// Detector parameters from the common flags and the cloud's own viewpoint.
 pub fn params_for(cloud: &PointCloud, seed: u64, viewpoint: Option<Point3<f64>>) -> Params {
-    let file_viewpoint = cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+    let file_viewpoint = cloud.viewpoint_position();
     Params {
         seed,
         viewpoint: viewpoint.or(file_viewpoint).or(Some(Point3::origin())),

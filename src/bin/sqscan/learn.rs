@@ -99,7 +99,7 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         bail!("{} exists; give --force to replace it", out.display());
     }
     let cloud = cloud::read_cloud(cloud_path)?;
-    let file_viewpoint = cloud.viewpoint.map(|v| Point3::new(v[0], v[1], v[2]));
+    let file_viewpoint = cloud.viewpoint_position();
     params.viewpoint = a.viewpoint.or(file_viewpoint).or(Some(Point3::origin()));
     let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
     let mut labels: Vec<u32> = Vec::new();
