@@ -25,6 +25,7 @@ pub mod detect;
 pub mod eval;
 pub mod geometry;
 pub mod learn;
+pub mod logging;
 pub mod mock;
 pub mod model;
 pub mod pose;

@@ -86,15 +86,7 @@ async fn run(config: Config) -> Result<()> {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let level = std::env::var("SQSCAN_LOG")
-        .ok()
-        .and_then(|l| l.parse().ok())
-        .unwrap_or(tracing::Level::INFO);
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_max_level(level)
-        .with_target(false)
-        .init();
+    sqscan::logging::init(tracing::Level::INFO);
     let result = load_config(&cli).and_then(|config| {
         if cli.check {
             let models = sqscan::daemon::load_models(&config.models_dir)?;

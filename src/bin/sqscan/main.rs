@@ -67,15 +67,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     // Diagnostics go to stderr, so stdout stays one JSON object where a command promises one.
     // SQSCAN_LOG=debug shows, for example, every hypothesis of the detector with its scores.
-    let level = std::env::var("SQSCAN_LOG")
-        .ok()
-        .and_then(|l| l.parse().ok())
-        .unwrap_or(tracing::Level::WARN);
-    tracing_subscriber::fmt()
-        .with_writer(std::io::stderr)
-        .with_max_level(level)
-        .with_target(false)
-        .init();
+    sqscan::logging::init(tracing::Level::WARN);
     let models_dir = cli.models_dir.clone().unwrap_or_else(sqscan::model::default_models_dir);
     let result: Result<()> = match cli.command {
         Command::Simulate(a) => files::simulate(a, &models_dir),
