@@ -11,7 +11,7 @@
 use super::fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 use super::grid::Grid;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, SymmetricEigen, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::RngExt;
 use rand_chacha::ChaCha8Rng;
 
@@ -122,18 +122,8 @@ pub fn initial_poses(
     sample: &[Point3<f64>],
     viewpoint: Option<Point3<f64>>,
 ) -> Vec<Isometry3<f64>> {
-    let n = sample.len() as f64;
-    let c = sample.iter().fold(Vector3::zeros(), |acc, p| acc + p.coords) / n;
-    let mut cov = Matrix3::zeros();
-    for p in sample {
-        let d = p.coords - c;
-        cov += d * d.transpose();
-    }
-    let eig = SymmetricEigen::new(cov / n);
-    // Axes sorted by eigenvalue: e[0] the smallest (the patch normal).
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&i, &j| eig.eigenvalues[i].total_cmp(&eig.eigenvalues[j]));
-    let e = order.map(|k| eig.eigenvectors.column(k).into_owned());
+    // Axes sorted by variance: e[0] the smallest (the patch normal).
+    let (c, e) = crate::geometry::principal_axes(sample);
     let normal = e[0];
     let outward: Vec<Vector3<f64>> = match viewpoint {
         Some(v) => {

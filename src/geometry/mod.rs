@@ -4,10 +4,12 @@
 //! Functions named `*_local` or taking `Vector3` points work in the superquadric's own frame;
 //! the methods of [`PlacedSuperquadric`] take points in the frame the pose maps into.
 
+mod moments;
 mod ray;
 mod sampling;
 mod superquadric;
 
+pub use moments::principal_axes;
 pub use superquadric::*;
 
 #[cfg(test)]

@@ -17,9 +17,7 @@ pub mod simulated;
 use crate::detect::grid::voxel_subsample;
 use crate::detect::plane::{Plane, remove_dominant_plane};
 use crate::geometry::{EPSILON_MAX, EPSILON_MIN, PlacedSuperquadric, Superquadric};
-use nalgebra::{
-    Isometry3, Matrix3, Point3, Rotation3, SMatrix, SVector, SymmetricEigen, Translation3, UnitQuaternion, Vector3,
-};
+use nalgebra::{Isometry3, Point3, Rotation3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use std::collections::{HashMap, VecDeque};
 
@@ -494,17 +492,8 @@ pub enum LearnError {
 
 /// The centroid and the covariance's eigenvectors (columns, by decreasing variance).
 fn moments(points: &[Point3<f64>]) -> (Vector3<f64>, [Vector3<f64>; 3]) {
-    let n = points.len() as f64;
-    let c = points.iter().fold(Vector3::zeros(), |a, p| a + p.coords) / n;
-    let mut cov = Matrix3::zeros();
-    for p in points {
-        let d = p.coords - c;
-        cov += d * d.transpose();
-    }
-    let eig = SymmetricEigen::new(cov / n);
-    let mut order = [0usize, 1, 2];
-    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
-    (c, order.map(|k| eig.eigenvectors.column(k).into_owned()))
+    let (c, [small, mid, large]) = crate::geometry::principal_axes(points);
+    (c, [large, mid, small])
 }
 
 /// A right-handed frame with z along `z` and x along the major moment direction across it.
