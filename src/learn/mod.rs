@@ -149,14 +149,56 @@ pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
         }
         None => true,
     };
-    let best = clusters
+    let Some(best) = clusters
         .iter()
-        .filter(|c| on_plane(c))
-        .max_by_key(|c| c.len())
-        .or_else(|| clusters.iter().max_by_key(|c| c.len()))
-        .cloned()
-        .unwrap_or_default();
-    Segmentation { plane, object: best }
+        .position(|c| on_plane(c))
+        .or((!clusters.is_empty()).then_some(0))
+    else {
+        return Segmentation {
+            plane,
+            object: Vec::new(),
+        };
+    };
+    let object = with_nearby_clusters(points, &clusters, best, MERGE_GAP, plane.as_ref());
+    Segmentation { plane, object }
+}
+
+/// Clusters this close to the object's, seen from above, are the object's too.
+const MERGE_GAP: f64 = 0.03;
+
+/// The cluster `best` with every other cluster of at least 10 points that comes within `gap` of
+/// it seen along the plane normal (in 3-D without a plane). The inside of an open container
+/// seen through its opening is bounded by grazing views at both sides, where no points are
+/// returned, so it is a cluster of its own, centimetres from the outer wall in 3-D but on the
+/// same outline seen from above (mOSD labels the two apart as well: a mug's body and its inside).
+fn with_nearby_clusters(
+    points: &[Point3<f64>],
+    clusters: &[Vec<usize>],
+    best: usize,
+    gap: f64,
+    plane: Option<&Plane>,
+) -> Vec<usize> {
+    let flat = |p: &Point3<f64>| match plane {
+        Some(pl) => p - pl.normal * pl.signed_distance(p),
+        None => *p,
+    };
+    let main: Vec<Point3<f64>> = clusters[best].iter().map(|&i| flat(&points[i])).collect();
+    let grid = crate::detect::grid::Grid::new(&main, gap);
+    let mut object = clusters[best].clone();
+    for (k, c) in clusters.iter().enumerate() {
+        if k == best || c.len() < 10 {
+            continue;
+        }
+        let near = c.iter().any(|&i| {
+            let mut hit = false;
+            grid.for_each_within(&main, &flat(&points[i]), gap, |_| hit = true);
+            hit
+        });
+        if near {
+            object.extend_from_slice(c);
+        }
+    }
+    object
 }
 
 /// Connected clusters of the points `idx` (26-neighbourhood of voxels of side `voxel`), largest
@@ -568,14 +610,20 @@ pub fn fit_superquadric(
     if all_points.len() < MIN_POINTS {
         return Err(LearnError::TooFewPoints(all_points.len()));
     }
-    // Strays: isolated points, then everything not connected to the largest cluster (a few
-    // stereo outliers 25 cm behind a can are a cluster of their own).
+    // Strays: isolated points, then everything not connected to the largest cluster or next to
+    // it seen from above (a few stereo outliers 25 cm behind a can are a cluster of their own).
     let kept = remove_stray_points(all_points, 0.01, 4);
     let idx: Vec<usize> = (0..kept.len()).collect();
-    let kept: Vec<Point3<f64>> = clusters(&kept, &idx, 0.01)
-        .first()
-        .map(|c| c.iter().map(|&i| kept[i]).collect())
-        .unwrap_or_default();
+    let found = clusters(&kept, &idx, 0.01);
+    let kept: Vec<Point3<f64>> = if found.is_empty() {
+        Vec::new()
+    } else {
+        // With the clusters next to it seen from above (an open container's inside).
+        with_nearby_clusters(&kept, &found, 0, MERGE_GAP, plane)
+            .into_iter()
+            .map(|i| kept[i])
+            .collect()
+    };
     if kept.len() < MIN_POINTS {
         return Err(LearnError::TooFewPoints(kept.len()));
     }

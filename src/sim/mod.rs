@@ -139,12 +139,18 @@ impl<'a> Caster<'a> {
                 if s < limit {
                     let local = part.to_local(&(origin + dir * s));
                     let g = part.shape.residual_grad(&local).grad;
-                    // An open container has no lid: the ray goes in, and what it meets inside
-                    // (the inner wall, seen by the camera only through the same opening) is
-                    // left out of this model; the outer wall is what it returns.
-                    if *open && crate::model::is_lid(&g) {
-                        continue;
-                    }
+                    let (s, g) = if *open && crate::model::is_lid(&g) {
+                        // An open container has no lid: the ray goes in through the opening and
+                        // meets the inside of the wall or the bottom (a zero-thickness wall: the
+                        // same surface seen from within), unless it leaves through the opening
+                        // again.
+                        match inner_hit(part, origin, dir, s, *radius) {
+                            Some((s_in, g_in)) if s_in < limit => (s_in, -g_in),
+                            _ => continue,
+                        }
+                    } else {
+                        (s, g)
+                    };
                     let n = (part.pose.rotation * g).try_normalize(1e-300).unwrap_or(-dir);
                     best = Some((s, *label, n));
                     limit = s;
@@ -172,17 +178,69 @@ impl<'a> Caster<'a> {
                 }
             }
         }
-        for (_, part, centre, radius, _) in &self.parts {
+        for (_, part, centre, radius, open) in &self.parts {
             let oc = centre - start;
             let along = oc.dot(&dir).clamp(0.0, t_max);
             if (centre - (start + dir * along)).norm_squared() > radius * radius {
                 continue;
             }
-            if part.ray_hit(&start, &dir, t_max).is_some() {
+            let Some(t_in) = part.ray_hit(&start, &dir, t_max) else {
+                continue;
+            };
+            if !open || !open_crossings_clear(part, &start, &dir, t_in, t_max) {
                 return false;
             }
         }
         true
+    }
+}
+
+/// The outward local normal direction (unnormalised) at a frame point on `part`.
+fn local_normal(part: &PlacedSuperquadric, p: &Point3<f64>) -> Vector3<f64> {
+    part.shape.residual_grad(&part.to_local(p)).grad
+}
+
+/// Where a ray that entered an open part through its opening at `s_entry` meets the part from
+/// inside: the far crossing of the (convex) solid, found by casting back from beyond it. `None`
+/// when the ray leaves through the opening again. Returns the distance and the outward local
+/// normal there.
+fn inner_hit(
+    part: &PlacedSuperquadric,
+    origin: &Point3<f64>,
+    dir: &Vector3<f64>,
+    s_entry: f64,
+    radius: f64,
+) -> Option<(f64, Vector3<f64>)> {
+    let span = 2.0 * radius;
+    let far = origin + dir * (s_entry + span);
+    let back = part.ray_hit(&far, &(-dir), span)?;
+    let s_exit = s_entry + span - back;
+    if s_exit <= s_entry + SHADOW_EPSILON {
+        return None;
+    }
+    let g = local_normal(part, &(origin + dir * s_exit));
+    (!crate::model::is_lid(&g)).then_some((s_exit, g))
+}
+
+/// A segment `start + t dir`, `t` in `[0, t_max]`, that is inside an open part from `t_in` on:
+/// clear of it when every crossing of its surface is through the opening (the camera looking
+/// into a mug at its inner wall).
+fn open_crossings_clear(
+    part: &PlacedSuperquadric,
+    start: &Point3<f64>,
+    dir: &Vector3<f64>,
+    t_in: f64,
+    t_max: f64,
+) -> bool {
+    if t_in > 0.0 && !crate::model::is_lid(&local_normal(part, &(start + dir * t_in))) {
+        return false;
+    }
+    let end = start + dir * t_max;
+    match part.ray_hit(&end, &(-dir), t_max) {
+        // The segment ends inside the part: it does not cross the surface again.
+        Some(back) if back == 0.0 => true,
+        Some(back) => crate::model::is_lid(&local_normal(part, &(start + dir * (t_max - back)))),
+        None => true,
     }
 }
 

@@ -182,3 +182,70 @@ fn paper_scenes_load_and_have_the_papers_point_counts() {
         assert!((n - paper).abs() < 0.15 * paper, "{file}: {n} points, paper {paper}");
     }
 }
+
+/// An open container is seen into: the laser goes in through the opening and the camera sees the
+/// inner far wall through it, as a real scanner does. The far wall of a closed one
+/// stays hidden.
+#[test]
+fn the_inside_of_an_open_mug_is_seen_through_its_opening() {
+    let scene_with = |model: &str| {
+        let text = format!(
+            r#"
+[table]
+height = 0.72
+center = [0.85, 0.0]
+size = [1.2, 1.6]
+
+[rig]
+ptu = {{ position = [0.0, 0.0, 1.35] }}
+sensor_mount = {{ position = [0.05, 0.0, 0.08] }}
+profiles = 150
+tilt_start = 0.49
+tilt_end = 0.84
+tilt_speed = 0.12
+columns = 256
+fov_deg = 40.0
+baseline = 0.15
+range_min = 0.5
+range_max = 1.6
+noise_sigma_at_1m = 0.0
+dropout = 0.0
+max_incidence_deg = 80.0
+
+[[object]]
+name = "object"
+model = "{model}"
+pose = {{ position = [0.85, 0.05, 0.0] }}
+"#
+        );
+        Scene::from_toml_str(&text, Path::new("test.toml"), &models_dir()).unwrap()
+    };
+    // Object points behind the vertical axis as seen from the sensor, off the bottom and the rim.
+    let far_wall = |scene: &Scene| {
+        let sweep = simulate(scene, 1);
+        let part = scene.objects[0].model.placed_parts(&scene.objects[0].pose)[0];
+        let c = part.pose.translation.vector;
+        let v = sweep.cloud.viewpoint_position().unwrap().coords;
+        let away = Vector3::new(c.x - v.x, c.y - v.y, 0.0).normalize();
+        let labels = match &sweep.cloud.fields[1].data {
+            FieldData::U32(l) => l.clone(),
+            _ => unreachable!(),
+        };
+        let mut far = 0;
+        for (p, l) in sweep.cloud.points.iter().zip(&labels) {
+            if !p[0].is_finite() || *l < 20 {
+                continue;
+            }
+            let p = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+            let d = p - c;
+            if d.dot(&away) > 0.01 && d.z.abs() < 0.8 * part.shape.a[2] {
+                far += 1;
+            }
+        }
+        far
+    };
+    let far = far_wall(&scene_with("mug"));
+    assert!(far > 100, "open mug: {far} far-wall points");
+    let far = far_wall(&scene_with("cup_body"));
+    assert!(far == 0, "closed cup: {far} far-wall points");
+}
