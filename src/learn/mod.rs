@@ -45,6 +45,24 @@ pub enum Cost {
     Radial,
     /// Paper eq. (2) with Solina's volume factor: `sqrt(a1 a2 a3) (F^e1 - 1)`.
     Solina,
+    /// The first-order geometric distance `g / |grad g|` of `g = F^(e1/2) - 1` (Taubin): in
+    /// metres like the radial distance, but along the surface normal, where the radial
+    /// distance runs along the ray from the centre and overstates distances on the flat parts
+    /// of an elongated or flat shape (a bowl's top, 3x at its rim), which biases fits towards
+    /// shapes that make the rays meet the surface square.
+    Normal,
+}
+
+/// The shapes [`fit_superquadric`] chooses from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ShapeFamily {
+    /// A body of revolution unless the general shape explains the view clearly better.
+    Auto,
+    /// Any superquadric (13 parameters).
+    General,
+    /// A body of revolution about its z axis (the user knows the object is round: a can, a
+    /// bowl), for views that do not tell.
+    Revolution,
 }
 
 /// Options of [`learn`].
@@ -69,6 +87,8 @@ pub struct LearnParams {
     /// scanner that moves during the sweep has no single viewpoint).
     pub silhouette: bool,
     pub cost: Cost,
+    /// Which shape families the fit may return.
+    pub shape: ShapeFamily,
     /// At most this many points go into the fit (voxel subsampling).
     pub max_points: usize,
     /// Voxel of the cluster flood fill (m).
@@ -91,6 +111,7 @@ impl Default for LearnParams {
             max_points: 1200,
             cluster_voxel: 0.01,
             max_range: None,
+            shape: ShapeFamily::Auto,
         }
     }
 }
@@ -249,9 +270,24 @@ struct State {
     k: [f64; 2],
     rot: UnitQuaternion<f64>,
     t: Vector3<f64>,
+    /// Constrained to a body of revolution about z (a1 = a2, e2 = 1, kx = ky): 9 free
+    /// parameters and an unobservable spin, which the damping holds.
+    rev: bool,
 }
 
 impl State {
+    /// The nearest body of revolution about the same z axis.
+    fn as_revolution(&self) -> State {
+        let mut s = *self;
+        let ln_a = 0.5 * (s.ln_a[0] + s.ln_a[1]);
+        s.ln_a = [ln_a, ln_a, s.ln_a[2]];
+        s.e[1] = 1.0;
+        let k = 0.5 * (s.k[0] + s.k[1]);
+        s.k = [k, k];
+        s.rev = true;
+        s
+    }
+
     fn shape(&self) -> Superquadric {
         Superquadric {
             a: self.ln_a.map(f64::exp),
@@ -281,6 +317,12 @@ impl State {
         }
         s.rot = self.rot * UnitQuaternion::from_scaled_axis(Vector3::new(d[7], d[8], d[9]));
         s.t += Vector3::new(d[10], d[11], d[12]);
+        if s.rev {
+            // The tied parameters follow the free ones (their Jacobian columns are zero).
+            s.ln_a[1] = s.ln_a[0];
+            s.e[1] = 1.0;
+            s.k[1] = s.k[0];
+        }
         s
     }
 }
@@ -294,6 +336,96 @@ struct Problem<'a> {
     /// The supporting plane when the bottom must touch it, and the weight of that residual.
     support: Option<(Plane, f64)>,
     cost: Cost,
+    /// Weight of the size term of the "smallest equally good shape" stage: a residual
+    /// `w cbrt(V / V0)` (dimensionless, `V0` the volume it started from).
+    volume: Option<(f64, f64)>,
+    /// The surface that faced the sensor must have been seen.
+    seen: Option<&'a Seen>,
+}
+
+/// The counterpart of free space: surface that faces the sensor squarely (and is above the
+/// table) would have been seen, so an object point must lie near it. Without this a shape is
+/// free to put surface where the view shows nothing: a bowl's hidden foot tapered to a cone
+/// whose flank would face the sensor, the back of a segmented can blown up sideways.
+struct Seen {
+    viewpoint: Point3<f64>,
+    /// The visible object points and a grid over them.
+    points: Vec<Point3<f64>>,
+    grid: crate::detect::grid::Grid,
+    plane: Option<Plane>,
+    /// An open container: its lid is not surface.
+    open: bool,
+    /// Weight of one surface sample's residual.
+    weight: f64,
+}
+
+/// Surface facing the sensor at a smaller incidence than this is expected in the data; the
+/// residual ramps in from [`SEEN_COS_FROM`] (sensors return up to 80 degrees or so; the margin
+/// leaves grazing surface, which noise and dropout thin out, alone).
+const SEEN_COS_FULL: f64 = 0.707; // 45 deg
+const SEEN_COS_FROM: f64 = 0.5; // 60 deg
+/// A facing surface sample this close to an object point is seen.
+const SEEN_TOLERANCE: f64 = 0.006;
+/// Nearest points are looked for within this radius (a sample farther off counts as this far).
+const SEEN_RADIUS: f64 = 0.03;
+
+impl Seen {
+    fn new(viewpoint: Point3<f64>, points: &[Point3<f64>], plane: Option<&Plane>, open: bool) -> Seen {
+        let samples = SEEN_SAMPLES as f64;
+        Seen {
+            viewpoint,
+            points: points.to_vec(),
+            grid: crate::detect::grid::Grid::new(points, SEEN_RADIUS),
+            plane: plane.copied(),
+            open,
+            // The samples together weigh like half the points.
+            weight: (0.5 * points.len() as f64 / samples).sqrt(),
+        }
+    }
+
+    fn residuals(&self, placed: &PlacedSuperquadric, out: &mut Vec<f64>) {
+        for q in seen_samples(&placed.shape) {
+            let p = placed.pose.transform_point(&Point3::from(q));
+            let g = placed.shape.residual_grad(&q).grad;
+            if self.open && crate::model::is_lid(&g) {
+                out.push(0.0);
+                continue;
+            }
+            let (Some(n), Some(to_sensor)) = (
+                (placed.pose.rotation * g).try_normalize(1e-300),
+                (self.viewpoint - p).try_normalize(1e-12),
+            ) else {
+                out.push(0.0);
+                continue;
+            };
+            let ramp = ((n.dot(&to_sensor) - SEEN_COS_FROM) / (SEEN_COS_FULL - SEEN_COS_FROM)).clamp(0.0, 1.0);
+            let above = self.plane.is_none_or(|pl| pl.signed_distance(&p) > 0.005);
+            if ramp == 0.0 || !above {
+                out.push(0.0);
+                continue;
+            }
+            let mut d2 = SEEN_RADIUS * SEEN_RADIUS;
+            self.grid.for_each_within(&self.points, &p, SEEN_RADIUS, |i| {
+                d2 = d2.min((self.points[i] - p).norm_squared());
+            });
+            out.push(self.weight * ramp * (d2.sqrt() - SEEN_TOLERANCE).max(0.0));
+        }
+    }
+}
+
+/// Cells per cube-face side of [`seen_samples`].
+const SEEN_GRID: usize = 7;
+/// How many residuals [`Seen::residuals`] gives (one per [`seen_samples`] sample).
+const SEEN_SAMPLES: usize = 6 * SEEN_GRID * SEEN_GRID;
+
+/// Surface points along fixed directions through a grid on the six faces of a cube (the
+/// parametric angles crowd a box's edges and leave its faces empty; cube directions spread
+/// over a box's faces and a round shape alike).
+fn seen_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
+    let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
+    (0..6).flat_map(move |face| {
+        (0..SEEN_GRID * SEEN_GRID).map(move |k| sq.cube_surface_point(face, at(k % SEEN_GRID), at(k / SEEN_GRID)))
+    })
 }
 
 /// Fixed parametric angles for the lowest point: the poles, the equator and every 15 degrees.
@@ -321,6 +453,23 @@ fn bottom_gap(placed: &PlacedSuperquadric, plane: &Plane) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// The signed first-order distance of a local point to the surface, `g / |grad g|` with
+/// `g = F^(e1/2) - 1` (homogeneous of degree 1 along rays from the centre, so it stays finite
+/// deep inside and grows linearly outside): from `f = F^e1`, `g = sqrt(f) - 1` and
+/// `grad g = grad f / (2 sqrt f)`.
+fn normal_distance(shape: &Superquadric, q: &Vector3<f64>) -> f64 {
+    let rg = shape.residual_grad(q);
+    let f = (rg.residual + 1.0).max(0.0);
+    let sf = f.sqrt();
+    let gn = rg.grad.norm();
+    if !(gn > 1e-300) || !sf.is_finite() {
+        // The centre or a degenerate point: fall back on the radial distance.
+        let d = shape.radial_distance(q);
+        return if f < 1.0 { -d } else { d };
+    }
+    (sf - 1.0) * 2.0 * sf / gn
+}
+
 /// 180-degree turn of `p` about the line through `c` along unit `u`.
 #[inline]
 fn turn_half(p: &Point3<f64>, c: &Vector3<f64>, u: &Vector3<f64>) -> Point3<f64> {
@@ -341,6 +490,7 @@ impl Problem<'_> {
                 let a = placed.shape.a;
                 (a[0] * a[1] * a[2]).sqrt() * placed.shape.residual(&q)
             }
+            Cost::Normal => normal_distance(&placed.shape, &q),
         }
     }
 
@@ -357,10 +507,20 @@ impl Problem<'_> {
         if let Some((plane, w)) = &self.support {
             out.push(w * bottom_gap(&placed, plane));
         }
+        if let Some((w, v0)) = self.volume {
+            out.push(w * (volume(&placed.shape) / v0).cbrt());
+        }
+        if let Some(seen) = self.seen {
+            seen.residuals(&placed, out);
+        }
     }
 
     fn len(&self) -> usize {
-        self.points.len() + self.free.len() + usize::from(self.support.is_some())
+        self.points.len()
+            + self.free.len()
+            + usize::from(self.support.is_some())
+            + usize::from(self.volume.is_some())
+            + if self.seen.is_some() { SEEN_SAMPLES } else { 0 }
     }
 }
 
@@ -596,6 +756,7 @@ fn start_state(
         k: [0.0, 0.0],
         rot,
         t: rot * c,
+        rev: false,
     }
 }
 
@@ -669,6 +830,18 @@ pub fn fit_superquadric(
             }
         }
     }
+    // Every start also as a body of revolution about its z axis: the simpler family, which the
+    // end prefers unless the general shape explains the view clearly better (a hidden foot or
+    // back leaves a general shape free to bulge or flatten where nothing was seen).
+    let rev: Vec<(String, State)> = starts
+        .iter()
+        .map(|(n, s)| (format!("{n} revolution"), s.as_revolution()))
+        .collect();
+    match params.shape {
+        ShapeFamily::Auto => starts.extend(rev),
+        ShapeFamily::General => {}
+        ShapeFamily::Revolution => starts = rev,
+    }
     // A noise floor for the Huber threshold: 1 mm.
     let min_delta = 0.001;
     // Stage A: the visible points (and the support plane) decide the centre: the mirrored points
@@ -679,6 +852,8 @@ pub fn fit_superquadric(
         free: &[],
         support,
         cost: params.cost,
+        volume: None,
+        seen: None,
     };
     // Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
     // surface must not cross them. Without this nothing stops the hidden back of a flat top (a
@@ -701,8 +876,11 @@ pub fn fit_superquadric(
         .into_par_iter()
         .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, min_delta).0))
         .collect();
+    // (From the general starts: a body of revolution about a wrong axis fitted to the visible
+    // points alone can be a disc as wide as the view, which would take the free space with it.)
     let best_visible = results
         .iter()
+        .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
         .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
         .map(|r| r.1)
         .expect("at least one start");
@@ -717,11 +895,16 @@ pub fn fit_superquadric(
     } else {
         free
     };
+    // What faced the sensor must have been seen (from stage A2 on: the starts are rough); an
+    // open top is not surface.
+    let seen = params.viewpoint.map(|v| Seen::new(v, &points, plane, open_top));
     let problem_free = Problem {
         points: &points,
         free: &free,
         support,
         cost: params.cost,
+        volume: None,
+        seen: seen.as_ref(),
     };
     // Stage A2: every start again with a thinned free space (at most 1500 samples), which is
     // what keeps a start from keeping a skirt or a back where the sensor saw through.
@@ -731,6 +914,8 @@ pub fn fit_superquadric(
         free: &coarse,
         support,
         cost: params.cost,
+        volume: None,
+        seen: seen.as_ref(),
     };
     let results: Vec<(String, State, f64)> = results
         .into_par_iter()
@@ -749,59 +934,108 @@ pub fn fit_superquadric(
             eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
         }
     }
-    // Stage B: the best three starts again with all of the free space.
-    let mut results = results;
-    results.sort_by(|a, b| a.2.total_cmp(&b.2));
-    results.truncate(3);
-    let results: Vec<(String, State, f64)> = results
-        .into_par_iter()
-        .map(|(name, s0, _)| {
-            let s = if free.is_empty() {
-                s0
-            } else {
-                robust_fit(&problem_free, s0, 3, 40, min_delta).0
-            };
-            let score = score(&problem_free, &s);
-            (name, s, score)
-        })
-        .collect();
-    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-        for (n, s, sc) in &results {
+    // Stages B and C for each family (general, revolution), then the choice between them.
+    let mut finals: Vec<(String, State, f64, f64, Vec<Point3<f64>>)> = Vec::new();
+    for family in [false, true] {
+        // Stage B: the best three starts again with all of the free space.
+        let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == family).cloned().collect();
+        results.sort_by(|a, b| a.2.total_cmp(&b.2));
+        results.truncate(3);
+        let results: Vec<(String, State, f64)> = results
+            .into_par_iter()
+            .map(|(name, s0, _)| {
+                let s = if free.is_empty() {
+                    s0
+                } else {
+                    robust_fit(&problem_free, s0, 3, 40, min_delta).0
+                };
+                let score = score(&problem_free, &s);
+                (name, s, score)
+            })
+            .collect();
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            for (n, s, sc) in &results {
+                eprintln!(
+                    "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+                    free.len(),
+                    s.shape(),
+                    s.t.as_slice()
+                );
+            }
+        }
+        // Of the results as good as the best (within SMALLEST_TOLERANCE), the smallest: one view
+        // cannot tell a ball from an egg pointing at the sensor, and the mirror of stage C
+        // would fix the egg's centre, pushed back, for good.
+        let Some(top) = results.iter().map(|r| r.2).min_by(f64::total_cmp) else {
+            continue;
+        };
+        let (name, best, _) = results
+            .into_iter()
+            .filter(|r| r.2 <= top * (1.0 + SMALLEST_TOLERANCE))
+            .min_by(|a, b| volume(&a.1.shape()).total_cmp(&volume(&b.1.shape())))
+            .expect("the best is within its own tolerance");
+        // Stage C: the visible points plus their twins turned 180 degrees about the vertical
+        // axis through the stage-B centre (fixed), which fixes the hidden back half.
+        let (best, delta, fitted) = match (params.mirror, up) {
+            (true, Some(u)) => {
+                let c = best.t;
+                let mut both = points.clone();
+                both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
+                let problem = Problem {
+                    points: &both,
+                    free: &free,
+                    support,
+                    cost: params.cost,
+                    volume: None,
+                    seen: seen.as_ref(),
+                };
+                let (s, d) = robust_fit(&problem, best, 3, 40, min_delta);
+                (s, d, both)
+            }
+            _ => {
+                let (s, d) = robust_fit(&problem_visible, best, 2, 40, min_delta);
+                (s, d, points.clone())
+            }
+        };
+        let sc = score(&problem_free, &best);
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            let mut r = Vec::new();
+            problem_free.residuals(&best, &mut r);
+            let np = points.len();
+            let part = |a: usize, b: usize| r[a..b].iter().map(|v| huber(*v, 0.003)).sum::<f64>();
             eprintln!(
-                "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
-                free.len(),
-                s.shape(),
-                s.t.as_slice()
+                "stage C {name}: score {sc:.6} (points {:.6}, free {:.6}, rest {:.6}) {}",
+                part(0, np),
+                part(np, np + free.len()),
+                part(np + free.len(), r.len()),
+                best.shape()
             );
         }
+        finals.push((name, best, delta, sc, fitted));
     }
-    let (name, best, _) = results
-        .into_iter()
-        .min_by(|a, b| a.2.total_cmp(&b.2))
-        .expect("at least one start");
-    // Stage C: the visible points plus their twins turned 180 degrees about the vertical axis
-    // through the stage-B centre (fixed), which fixes the hidden back half.
-    let (best, delta) = match (params.mirror, up) {
-        (true, Some(u)) => {
-            let c = best.t;
-            let mut both = points.clone();
-            both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
-            let problem = Problem {
-                points: &both,
-                free: &free,
-                support,
-                cost: params.cost,
-            };
-            robust_fit(&problem, best, 3, 40, min_delta)
-        }
-        _ => robust_fit(&problem_visible, best, 2, 40, min_delta),
-    };
+    let (name, best, delta, fitted) = choose_family(finals);
+    // Stage D: the smallest shape as good as that one, on the points of stage C (with their
+    // mirrored twins: the hidden half of a can is the twin of its front, not free to shrink).
+    let best = smallest_equally_good(
+        &Problem {
+            points: &fitted,
+            free: &free,
+            support,
+            cost: params.cost,
+            volume: None,
+            seen: seen.as_ref(),
+        },
+        best,
+        min_delta,
+    );
     let mut r = Vec::new();
     let vis = Problem {
         points: &points,
         free: &[],
         support: None,
         cost: params.cost,
+        volume: None,
+        seen: None,
     };
     vis.residuals(&best, &mut r);
     let inliers: Vec<f64> = r.iter().copied().filter(|v| v.abs() <= delta).collect();
@@ -820,6 +1054,98 @@ pub fn fit_superquadric(
         open,
         start: name,
     })
+}
+
+/// The volume of an untapered superquadric (Jaklic et al. 2000):
+/// `2 a1 a2 a3 e1 e2 B(e1/2 + 1, e1) B(e2/2, e2/2)`. A linear taper adds only a second-order
+/// term (`kx ky` times the second moment along z), left out.
+pub fn volume(sq: &Superquadric) -> f64 {
+    let beta = |x: f64, y: f64| (ln_gamma(x) + ln_gamma(y) - ln_gamma(x + y)).exp();
+    2.0 * sq.a[0] * sq.a[1] * sq.a[2] * sq.e1 * sq.e2 * beta(0.5 * sq.e1 + 1.0, sq.e1) * beta(0.5 * sq.e2, 0.5 * sq.e2)
+}
+
+/// `ln Gamma(x)` for `x > 0` (Lanczos, g = 7, 9 terms: about 15 digits).
+fn ln_gamma(x: f64) -> f64 {
+    const G: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        // Reflection: Gamma(x) Gamma(1 - x) = pi / sin(pi x).
+        return (std::f64::consts::PI / (std::f64::consts::PI * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let t = x + 7.5;
+    let sum = G[1..]
+        .iter()
+        .enumerate()
+        .fold(G[0], |acc, (i, g)| acc + g / (x + i as f64 + 1.0));
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + sum.ln()
+}
+
+/// The smallest shape (by volume) whose score stays within this share of the best fit's.
+const SMALLEST_TOLERANCE: f64 = 0.03;
+
+/// What one view leaves hidden (a bowl's foot under its rim, the far side of a wall) any shape
+/// that explains the view may fill in; of those, the smallest is the one a detector can rely on
+/// (its seen parts are where the data put them) and the likeliest (an object has no more
+/// material than it must). LM with a growing size term, keeping the last result whose score
+/// (points, free space, support; no size term) is within [`SMALLEST_TOLERANCE`] of the start's.
+fn smallest_equally_good(problem: &Problem, best: State, min_delta: f64) -> State {
+    let base = score(problem, &best);
+    let v0 = volume(&best.shape());
+    let n = problem.points.len() as f64;
+    let mut kept = best;
+    for w in [0.5, 1.0, 2.0, 4.0, 8.0, 16.0] {
+        let shrinking = Problem {
+            volume: Some((w * n.sqrt() * 1e-3, v0)),
+            ..*problem
+        };
+        let s = robust_fit(&shrinking, kept, 2, 30, min_delta).0;
+        let sc = score(problem, &s);
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            eprintln!("smallest w {w}: score {sc:.6} (base {base:.6}) {}", s.shape());
+        }
+        if sc > base * (1.0 + SMALLEST_TOLERANCE) {
+            break;
+        }
+        kept = s;
+    }
+    kept
+}
+
+/// A body of revolution is taken unless the general shape's score (Huber, over the points,
+/// free space and support) is lower by more than this share.
+const REVOLUTION_TOLERANCE: f64 = 0.05;
+
+/// The general or the revolution result of [`fit_superquadric`]'s stages (Occam: one view
+/// rarely tells a slightly oval or squarish section from a round one, and the round one is what
+/// the detector fits with 5 DoF and scores modulo its spin).
+fn choose_family(
+    mut finals: Vec<(String, State, f64, f64, Vec<Point3<f64>>)>,
+) -> (String, State, f64, Vec<Point3<f64>>) {
+    let general = finals.iter().position(|f| !f.1.rev);
+    let rev = finals.iter().position(|f| f.1.rev);
+    let pick = match (general, rev) {
+        (Some(g), Some(r)) => {
+            if finals[r].3 <= finals[g].3 * (1.0 + REVOLUTION_TOLERANCE) {
+                r
+            } else {
+                g
+            }
+        }
+        (Some(i), None) | (None, Some(i)) => i,
+        (None, None) => unreachable!("every family has starts"),
+    };
+    let (name, s, delta, _, fitted) = finals.swap_remove(pick);
+    (name, s, delta, fitted)
 }
 
 /// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
@@ -901,7 +1227,7 @@ fn score(problem: &Problem, s: &State) -> f64 {
     let mut r = Vec::new();
     problem.residuals(s, &mut r);
     let delta = match problem.cost {
-        Cost::Radial => 0.003,
+        Cost::Radial | Cost::Normal => 0.003,
         Cost::Solina => {
             let a = s.shape().a;
             0.05 * (a[0] * a[1] * a[2]).sqrt()

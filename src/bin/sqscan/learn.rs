@@ -9,7 +9,7 @@ use nalgebra::Point3;
 use serde_json::json;
 use sqscan::cloud::{self, FieldData};
 use sqscan::detect::plane::remove_dominant_plane;
-use sqscan::learn::{self, Cost, LearnParams, Provenance, Segmentation};
+use sqscan::learn::{self, Cost, LearnParams, Provenance, Segmentation, ShapeFamily};
 use sqscan::model::Model;
 use std::path::{Path, PathBuf};
 
@@ -19,10 +19,25 @@ pub enum CostArg {
     Radial,
     /// Paper eq. 2 with Solina's volume factor sqrt(a1 a2 a3)
     Solina,
+    /// First-order geometric distance along the surface normal (m)
+    Normal,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum ShapeArg {
+    /// A body of revolution unless the general shape fits the view clearly (5 %) better
+    Auto,
+    /// Any superquadric
+    General,
+    /// A body of revolution (for a round object whose view does not tell: a segmented can)
+    Revolution,
 }
 
 #[derive(Args)]
 pub struct LearnArgs {
+    /// Shapes to choose from
+    #[arg(long, value_enum, default_value = "auto")]
+    shape: ShapeArg,
     /// Point cloud file (.pcd, .ply, or text with x y z per line)
     #[arg(long, required_unless_present = "simulate")]
     cloud: Option<PathBuf>,
@@ -80,9 +95,15 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         cost: match a.cost {
             CostArg::Radial => Cost::Radial,
             CostArg::Solina => Cost::Solina,
+            CostArg::Normal => Cost::Normal,
         },
         up: a.up.map(|p| p.coords),
         max_range: a.max_range,
+        shape: match a.shape {
+            ShapeArg::Auto => ShapeFamily::Auto,
+            ShapeArg::General => ShapeFamily::General,
+            ShapeArg::Revolution => ShapeFamily::Revolution,
+        },
         ..LearnParams::default()
     };
     if let Some(m) = &a.simulate {
