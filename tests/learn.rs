@@ -177,3 +177,39 @@ fn two_parts_from_a_cup_with_its_handle_in_view() {
         c.angle.to_degrees()
     );
 }
+
+/// A real stereo view of a can nobody here made (robotology/find-superquadric `data/cylinder`,
+/// already segmented, iCub root frame, z up): standing on the plane below its lowest points,
+/// with free space just outside its silhouette from the guessed eye position, it is learned as a
+/// body of revolution as wide and as tall as the view shows (`models/learned_cylinder.toml`;
+/// the 1-99 % extents of its points: 59 mm deep, 60 mm wide, 213 mm tall).
+#[test]
+fn a_real_segmented_can_is_learned_as_a_can() {
+    use nalgebra::{Point3, Vector3};
+    use sqscan::learn::{learn, support_below};
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
+    let cloud = sqscan::cloud::read_cloud(&dir.join("cylinder")).unwrap();
+    let points: Vec<Point3<f64>> = cloud.finite_points();
+    let up = Vector3::z();
+    let params = LearnParams {
+        segment: false,
+        up: Some(up),
+        viewpoint: Some(Point3::new(-0.05, 0.0, 0.4)),
+        silhouette: true,
+        plane: support_below(&points, Some(&up)),
+        ..LearnParams::default()
+    };
+    let learned = learn(&points, &params).unwrap();
+    let sq = learned.parts[0].placed.shape;
+    let axis = learned.parts[0].placed.pose.rotation * Vector3::z();
+    eprintln!("cylinder: {sq}, axis {axis:?}");
+    assert!(axis.dot(&up).abs() > 0.98, "axis {axis:?}");
+    assert!((sq.a[0] - sq.a[1]).abs() < 0.003, "{sq}");
+    assert!(
+        (0.057..0.070).contains(&(2.0 * sq.a[0])),
+        "diameter {} m",
+        2.0 * sq.a[0]
+    );
+    assert!((2.0 * sq.a[2] - 0.213).abs() < 0.012, "height {} m", 2.0 * sq.a[2]);
+    assert!(sq.e1 < 0.2 && (sq.e2 - 1.0).abs() < 0.1, "{sq}");
+}

@@ -164,8 +164,15 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     } else if a.segmented {
         params.segment = false;
         selection = format!("all {} finite points (segmented input)", points.len());
+        let plane = learn::support_below(&points, params.up.as_ref());
+        if let Some(pl) = &plane {
+            selection.push_str(&format!(
+                ", standing on the plane across --up at {:.4} m (its lowest 1 %)",
+                -pl.d
+            ));
+        }
         let segmentation = Segmentation {
-            plane: None,
+            plane,
             object: (0..points.len()).collect(),
         };
         learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
