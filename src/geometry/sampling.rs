@@ -42,7 +42,7 @@ impl Superquadric {
     }
 
     /// The surface point in the direction of the cube-face point `(u, v)` of face `face`.
-    pub(crate) fn cube_surface_point(&self, face: usize, u: f64, v: f64) -> Vector3<f64> {
+    fn cube_surface_point(&self, face: usize, u: f64, v: f64) -> Vector3<f64> {
         let d = match face {
             0 => Vector3::new(1.0, u, v),
             1 => Vector3::new(-1.0, -u, v),

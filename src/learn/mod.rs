@@ -418,13 +418,26 @@ const SEEN_GRID: usize = 7;
 /// How many residuals [`Seen::residuals`] gives (one per [`seen_samples`] sample).
 const SEEN_SAMPLES: usize = 6 * SEEN_GRID * SEEN_GRID;
 
-/// Surface points along fixed directions through a grid on the six faces of a cube (the
-/// parametric angles crowd a box's edges and leave its faces empty; cube directions spread
-/// over a box's faces and a round shape alike).
+/// Surface points along fixed directions through a grid on the six faces of a box with the
+/// shape's half-sizes (the parametric angles crowd a box's edges and leave its faces empty, and
+/// directions through a cube's faces meet a pen only near its middle; through the box they
+/// spread over the faces of a box and the length of a pen alike).
 fn seen_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
     let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
     (0..6).flat_map(move |face| {
-        (0..SEEN_GRID * SEEN_GRID).map(move |k| sq.cube_surface_point(face, at(k % SEEN_GRID), at(k / SEEN_GRID)))
+        (0..SEEN_GRID * SEEN_GRID).map(move |k| {
+            let (u, v) = (at(k % SEEN_GRID), at(k / SEEN_GRID));
+            let c = match face {
+                0 => Vector3::new(1.0, u, v),
+                1 => Vector3::new(-1.0, u, v),
+                2 => Vector3::new(u, 1.0, v),
+                3 => Vector3::new(u, -1.0, v),
+                4 => Vector3::new(u, v, 1.0),
+                _ => Vector3::new(u, v, -1.0),
+            };
+            let d = Vector3::new(c.x * sq.a[0], c.y * sq.a[1], c.z * sq.a[2]).normalize();
+            sq.taper(&sq.untapered_surface_along(&d))
+        })
     })
 }
 
