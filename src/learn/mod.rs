@@ -360,10 +360,11 @@ struct Seen {
 }
 
 /// Surface facing the sensor at a smaller incidence than this is expected in the data; the
-/// residual ramps in from [`SEEN_COS_FROM`] (sensors return up to 80 degrees or so; the margin
-/// leaves grazing surface, which noise and dropout thin out, alone).
-const SEEN_COS_FULL: f64 = 0.707; // 45 deg
-const SEEN_COS_FROM: f64 = 0.5; // 60 deg
+/// residual ramps in from [`SEEN_COS_FROM`] (triangulation sensors return up to about 80 deg,
+/// the simulated one too; the margin leaves grazing surface, which noise and dropout thin out,
+/// alone).
+const SEEN_COS_FULL: f64 = 0.5; // 60 deg
+const SEEN_COS_FROM: f64 = 0.259; // 75 deg
 /// A facing surface sample this close to an object point is seen.
 const SEEN_TOLERANCE: f64 = 0.006;
 /// Nearest points are looked for within this radius (a sample farther off counts as this far).
