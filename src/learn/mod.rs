@@ -1371,6 +1371,25 @@ pub fn support_below(points: &[Point3<f64>], up: Option<&Vector3<f64>>) -> Optio
     Some(Plane { normal: u, d: -low })
 }
 
+/// The 1-99 % extents of `points` along the local axes of `placed` (m): how much of each full
+/// size `2 a` the view shows.
+pub fn seen_extent(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> [f64; 3] {
+    let local: Vec<Vector3<f64>> = points
+        .iter()
+        .map(|p| placed.to_local(p))
+        .filter(|q| q.iter().all(|v| v.is_finite()))
+        .collect();
+    if local.is_empty() {
+        return [0.0; 3];
+    }
+    [0, 1, 2].map(|k| {
+        let mut v: Vec<f64> = local.iter().map(|q| q[k]).collect();
+        v.sort_by(f64::total_cmp);
+        let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        at(0.99) - at(0.01)
+    })
+}
+
 /// Recover one superquadric from given object points (`segmentation.object` indexes `points`;
 /// the other points serve as free space).
 pub fn learn_segmented(

@@ -57,7 +57,8 @@ pub struct LearnArgs {
     /// table is fitted to the points labelled 1-9
     #[arg(long, value_name = "N")]
     label: Option<u32>,
-    /// The cloud holds the object only (already segmented): no plane removal, no clustering
+    /// The cloud holds the object only (already segmented): no plane removal, no clustering;
+    /// with --up it stands on the plane across up at its lowest points
     #[arg(long)]
     segmented: bool,
     /// Sensor position "x,y,z" [default: the file's VIEWPOINT, else the origin]
@@ -200,6 +201,7 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         w.write_all(text.as_bytes())?;
         Ok(())
     })?;
+    let object: Vec<Point3<f64>> = learned.segmentation.object.iter().map(|&i| points[i]).collect();
     let parts: Vec<serde_json::Value> = learned
         .parts
         .iter()
@@ -208,6 +210,9 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             json!({
                 "a": s.a, "e1": s.e1, "e2": s.e2, "kx": s.kx, "ky": s.ky, "open": r.open,
                 "pose": sqscan::pose::PoseJson::from(&r.placed.pose),
+                // What the data shows of each size: a seen extent well below 2 a is a size the
+                // fit inferred (a hidden back or foot).
+                "seen_extent_m": learn::seen_extent(&r.placed, &object),
                 "rms_m": r.rms, "median_abs_m": r.median_abs, "inlier_share": r.inlier_share,
                 "fitted_points": r.fitted_points, "start": r.start,
             })
