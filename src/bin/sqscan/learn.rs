@@ -35,9 +35,6 @@ pub enum ShapeArg {
 
 #[derive(Args)]
 pub struct LearnArgs {
-    /// Shapes to choose from
-    #[arg(long, value_enum, default_value = "auto")]
-    shape: ShapeArg,
     /// Point cloud file (.pcd, .ply, or text with x y z per line)
     #[arg(long, required_unless_present = "simulate")]
     cloud: Option<PathBuf>,
@@ -80,6 +77,9 @@ pub struct LearnArgs {
     /// Residual minimised
     #[arg(long, value_enum, default_value = "radial")]
     cost: CostArg,
+    /// Shapes to choose from
+    #[arg(long, value_enum, default_value = "auto")]
+    shape: ShapeArg,
     /// Instead of a cloud: simulate the named shipped model alone on the table (fig3 rig, 2 mm
     /// noise), learn it and print the errors against the truth as JSON
     #[arg(long, value_name = "MODEL")]
