@@ -1018,7 +1018,17 @@ pub fn fit_superquadric(
                 (s, d, points.clone())
             }
         };
-        let sc = score(&problem_free, &best);
+        // The families are compared by the first-order distance along the normal (the better
+        // approximation of the true distance, so of the likelihood), whatever the fit minimised:
+        // the radial distance's bias on flat parts is what the general family's extra freedom
+        // otherwise wins on.
+        let sc = score(
+            &Problem {
+                cost: Cost::Normal,
+                ..problem_free
+            },
+            &best,
+        );
         if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
             let mut r = Vec::new();
             problem_free.residuals(&best, &mut r);
