@@ -931,18 +931,13 @@ pub fn fit_superquadric(
         volume: None,
         seen: seen.as_ref(),
     };
-    let results: Vec<(String, State, f64)> = results
-        .into_par_iter()
-        .map(|(name, s0)| {
-            let s = if coarse.is_empty() {
-                s0
-            } else {
-                robust_fit(&problem_coarse, s0, 2, 20, min_delta).0
-            };
-            let score = score(&problem_free, &s);
-            (name, s, score)
-        })
-        .collect();
+    let results = refit_scored(
+        results,
+        (!coarse.is_empty()).then_some(&problem_coarse),
+        (2, 20),
+        min_delta,
+        &problem_free,
+    );
     if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
         for (n, s, sc) in &results {
             eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
@@ -961,19 +956,13 @@ pub fn fit_superquadric(
                 distinct.push(r);
             }
         }
-        let results = distinct;
-        let results: Vec<(String, State, f64)> = results
-            .into_par_iter()
-            .map(|(name, s0, _)| {
-                let s = if free.is_empty() {
-                    s0
-                } else {
-                    robust_fit(&problem_free, s0, 3, 40, min_delta).0
-                };
-                let score = score(&problem_free, &s);
-                (name, s, score)
-            })
-            .collect();
+        let results = refit_scored(
+            distinct.into_iter().map(|(n, s, _)| (n, s)).collect(),
+            (!free.is_empty()).then_some(&problem_free),
+            (3, 40),
+            min_delta,
+            &problem_free,
+        );
         if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
             for (n, s, sc) in &results {
                 eprintln!(
@@ -1150,6 +1139,29 @@ fn smallest_equally_good(problem: &Problem, best: State, min_delta: f64) -> Stat
         kept = s;
     }
     kept
+}
+
+/// Every start refitted on `fit` (when there is one to refit on: without free space a stage
+/// adds nothing) with `(rounds, iterations)` of [`robust_fit`], in parallel, and scored on
+/// `scored`.
+fn refit_scored(
+    starts: Vec<(String, State)>,
+    fit: Option<&Problem>,
+    (rounds, iterations): (usize, usize),
+    min_delta: f64,
+    scored: &Problem,
+) -> Vec<(String, State, f64)> {
+    starts
+        .into_par_iter()
+        .map(|(name, s0)| {
+            let s = match fit {
+                Some(p) => robust_fit(p, s0, rounds, iterations, min_delta).0,
+                None => s0,
+            };
+            let sc = score(scored, &s);
+            (name, s, sc)
+        })
+        .collect()
 }
 
 /// Two fits that are the same shape in the same place (2 mm, 5 %, 8 degrees between the z axes).

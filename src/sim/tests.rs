@@ -188,36 +188,10 @@ fn paper_scenes_load_and_have_the_papers_point_counts() {
 /// stays hidden.
 #[test]
 fn the_inside_of_an_open_mug_is_seen_through_its_opening() {
+    // The learner's single-object scene (the fig3 rig, 2 mm noise).
     let scene_with = |model: &str| {
-        let text = format!(
-            r#"
-[table]
-height = 0.72
-center = [0.85, 0.0]
-size = [1.2, 1.6]
-
-[rig]
-ptu = {{ position = [0.0, 0.0, 1.35] }}
-sensor_mount = {{ position = [0.05, 0.0, 0.08] }}
-profiles = 150
-tilt_start = 0.49
-tilt_end = 0.84
-tilt_speed = 0.12
-columns = 256
-fov_deg = 40.0
-baseline = 0.15
-range_min = 0.5
-range_max = 1.6
-noise_sigma_at_1m = 0.0
-dropout = 0.0
-max_incidence_deg = 80.0
-
-[[object]]
-name = "object"
-model = "{model}"
-pose = {{ position = [0.85, 0.05, 0.0] }}
-"#
-        );
+        let text =
+            crate::learn::simulated::scene_toml(&models_dir().join(format!("{model}.toml")), [0.85, 0.05], [0.0; 3]);
         Scene::from_toml_str(&text, Path::new("test.toml"), &models_dir()).unwrap()
     };
     // Object points behind the vertical axis as seen from the sensor, off the bottom and the rim.
