@@ -944,7 +944,7 @@ pub fn fit_superquadric(
         }
     }
     // Stages B and C for each family (general, revolution), then the choice between them.
-    let mut finals: Vec<(String, State, f64, f64, Vec<Point3<f64>>)> = Vec::new();
+    let mut finals: Vec<FamilyResult> = Vec::new();
     for family in [false, true] {
         // Stage B: the best three starts again with all of the free space.
         let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == family).cloned().collect();
@@ -1031,9 +1031,21 @@ pub fn fit_superquadric(
                 best.shape()
             );
         }
-        finals.push((name, best, delta, sc, fitted));
+        finals.push(FamilyResult {
+            name,
+            state: best,
+            delta,
+            score: sc,
+            fitted,
+        });
     }
-    let (name, best, delta, fitted) = choose_family(finals);
+    let FamilyResult {
+        name,
+        state: best,
+        delta,
+        fitted,
+        ..
+    } = choose_family(finals);
     // Stage D: the smallest shape as good as that one, on the points of stage C (with their
     // mirrored twins: the hidden half of a can is the twin of its front, not free to shrink).
     let best = smallest_equally_good(
@@ -1117,7 +1129,8 @@ const SMALLEST_TOLERANCE: f64 = 0.03;
 /// that explains the view may fill in; of those, the smallest is the one a detector can rely on
 /// (its seen parts are where the data put them) and the likeliest (an object has no more
 /// material than it must). LM with a growing size term, keeping the last result whose score
-/// (points, free space, support; no size term) is within [`SMALLEST_TOLERANCE`] of the start's.
+/// (points, free space, support, seen surface; no size term) is within [`SMALLEST_TOLERANCE`] of
+/// the start's.
 fn smallest_equally_good(problem: &Problem, best: State, min_delta: f64) -> State {
     let base = score(problem, &best);
     let v0 = volume(&best.shape());
@@ -1170,21 +1183,20 @@ fn same_fit(a: &State, b: &State) -> bool {
     (a.t - b.t).norm() < 0.002 && (0..3).all(|k| (a.ln_a[k] - b.ln_a[k]).abs() < 0.05) && za.dot(&zb).abs() > 0.99
 }
 
-/// A body of revolution is taken unless the general shape's score (Huber, over the points,
-/// free space and support) is lower by more than this share.
+/// A body of revolution is taken unless the general shape's score (Huber over the points, free
+/// space, support and seen surface, with the distance along the normal) is lower by more than
+/// this share.
 const REVOLUTION_TOLERANCE: f64 = 0.05;
 
 /// The general or the revolution result of [`fit_superquadric`]'s stages (Occam: one view
 /// rarely tells a slightly oval or squarish section from a round one, and the round one is what
 /// the detector fits with 5 DoF and scores modulo its spin).
-fn choose_family(
-    mut finals: Vec<(String, State, f64, f64, Vec<Point3<f64>>)>,
-) -> (String, State, f64, Vec<Point3<f64>>) {
-    let general = finals.iter().position(|f| !f.1.rev);
-    let rev = finals.iter().position(|f| f.1.rev);
+fn choose_family(mut finals: Vec<FamilyResult>) -> FamilyResult {
+    let general = finals.iter().position(|f| !f.state.rev);
+    let rev = finals.iter().position(|f| f.state.rev);
     let pick = match (general, rev) {
         (Some(g), Some(r)) => {
-            if finals[r].3 <= finals[g].3 * (1.0 + REVOLUTION_TOLERANCE) {
+            if finals[r].score <= finals[g].score * (1.0 + REVOLUTION_TOLERANCE) {
                 r
             } else {
                 g
@@ -1193,8 +1205,20 @@ fn choose_family(
         (Some(i), None) | (None, Some(i)) => i,
         (None, None) => unreachable!("every family has starts"),
     };
-    let (name, s, delta, _, fitted) = finals.swap_remove(pick);
-    (name, s, delta, fitted)
+    finals.swap_remove(pick)
+}
+
+/// One family's result after stage C.
+struct FamilyResult {
+    /// The winning start.
+    name: String,
+    state: State,
+    /// The final Huber threshold.
+    delta: f64,
+    /// The score the families are compared by.
+    score: f64,
+    /// The points stage C fitted (the visible ones and their mirrored twins).
+    fitted: Vec<Point3<f64>>,
 }
 
 /// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
