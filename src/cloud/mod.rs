@@ -276,6 +276,81 @@ impl PointCloud {
         self.viewpoint.map(|v| nalgebra::Point3::new(v[0], v[1], v[2]))
     }
 
+    /// The per-pixel median of several sweeps of one view: organized clouds of the same size
+    /// whose pixel `i` is the same sensor ray in each (a static scene, the pan-tilt unit driven
+    /// through the same sweep). A triangulation sensor's noise runs along the ray, so the points
+    /// of one pixel lie on a line and the coordinate-wise median is their median point; the
+    /// noise of `n` sweeps drops by about `sqrt(n)`. A pixel with fewer than half the sweeps
+    /// returning is left out (NaN): shadow and grazing edges that come and go are not surface
+    /// to trust. The viewpoint and extra fields (labels) are those of the first sweep.
+    pub fn median_of_sweeps(sweeps: &[PointCloud]) -> Result<PointCloud, String> {
+        let Some(first) = sweeps.first() else {
+            return Err("no sweeps given".into());
+        };
+        for (k, c) in sweeps.iter().enumerate() {
+            if !c.is_organized() {
+                return Err(format!(
+                    "sweep {}: an unorganized cloud ({} points in one row); sweeps are combined pixel by pixel, so give organized clouds",
+                    k + 1,
+                    c.len()
+                ));
+            }
+            if (c.width, c.height) != (first.width, first.height) {
+                return Err(format!(
+                    "sweep {} is {}x{}, sweep 1 is {}x{}: the sweeps of one view are clouds of the same size",
+                    k + 1,
+                    c.width,
+                    c.height,
+                    first.width,
+                    first.height
+                ));
+            }
+            if let (Some(a), Some(b)) = (first.viewpoint_position(), c.viewpoint_position()) {
+                // 1 cm: the sensor did not move between the sweeps (beyond encoder jitter).
+                if (a - b).norm() > 0.01 {
+                    return Err(format!(
+                        "sweep {}: viewpoint {:.3},{:.3},{:.3} is {:.3} m from sweep 1's: not the same view",
+                        k + 1,
+                        b.x,
+                        b.y,
+                        b.z,
+                        (a - b).norm()
+                    ));
+                }
+            }
+        }
+        let need = sweeps.len().div_ceil(2);
+        let mut column: Vec<[f32; 3]> = Vec::with_capacity(sweeps.len());
+        let mut axis: Vec<f32> = Vec::with_capacity(sweeps.len());
+        let points = (0..first.len())
+            .map(|i| {
+                column.clear();
+                column.extend(sweeps.iter().map(|c| c.points[i]).filter(is_finite_point));
+                if column.len() < need.max(1) {
+                    return [f32::NAN; 3];
+                }
+                [0, 1, 2].map(|k| {
+                    axis.clear();
+                    axis.extend(column.iter().map(|p| p[k]));
+                    axis.sort_by(f32::total_cmp);
+                    let m = axis.len() / 2;
+                    if axis.len() % 2 == 1 {
+                        axis[m]
+                    } else {
+                        0.5 * (axis[m - 1] + axis[m])
+                    }
+                })
+            })
+            .collect();
+        Ok(PointCloud {
+            points,
+            width: first.width,
+            height: first.height,
+            fields: first.fields.clone(),
+            viewpoint: first.viewpoint,
+        })
+    }
+
     /// Axis-aligned bounds `(min, max)` of the finite points; `None` when there are none.
     pub fn bbox(&self) -> Option<([f32; 3], [f32; 3])> {
         let mut finite = self.points.iter().filter(|p| is_finite_point(p));
@@ -370,6 +445,49 @@ impl PointCloud {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn median_of_sweeps_is_the_per_pixel_median() {
+        let nan = [f32::NAN; 3];
+        let sweep = |p: [[f32; 3]; 4]| PointCloud::organized(2, 2, p.to_vec());
+        let sweeps = [
+            sweep([[1.0, 0.0, 0.0], nan, nan, [0.0, 0.0, 4.0]]),
+            sweep([[3.0, 0.0, 0.0], [0.0, 2.0, 0.0], nan, [0.0, 0.0, 5.0]]),
+            sweep([[2.0, 0.0, 0.0], nan, nan, [0.0, 0.0, 9.0]]),
+        ];
+        let m = PointCloud::median_of_sweeps(&sweeps).unwrap();
+        assert_eq!((m.width, m.height), (2, 2));
+        assert_eq!(m.points[0], [2.0, 0.0, 0.0]);
+        // One return out of three is too few; none is none.
+        assert!(m.points[1][0].is_nan() && m.points[2][0].is_nan());
+        assert_eq!(m.points[3], [0.0, 0.0, 5.0]);
+        // Two of four: the mean of the middle two.
+        let two = [
+            sweep([[1.0, 0.0, 0.0], nan, nan, nan]),
+            sweep([[2.0, 0.0, 0.0], nan, nan, nan]),
+            sweep([nan, nan, nan, nan]),
+            sweep([nan, nan, nan, nan]),
+        ];
+        assert_eq!(PointCloud::median_of_sweeps(&two).unwrap().points[0], [1.5, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn median_of_sweeps_refuses_what_is_not_one_view() {
+        let a = PointCloud::organized(2, 2, vec![[0.0; 3]; 4]);
+        let b = PointCloud::organized(4, 2, vec![[0.0; 3]; 8]);
+        let e = PointCloud::median_of_sweeps(&[a.clone(), b]).unwrap_err();
+        assert!(e.contains("sweep 2 is 4x2, sweep 1 is 2x2"), "{e}");
+        let flat = PointCloud::from_points(vec![[0.0; 3]; 4]);
+        let e = PointCloud::median_of_sweeps(&[a.clone(), flat]).unwrap_err();
+        assert!(e.contains("sweep 2: an unorganized cloud"), "{e}");
+        let mut moved = a.clone();
+        moved.viewpoint = Some([0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0]);
+        let mut here = a;
+        here.viewpoint = Some([0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0]);
+        let e = PointCloud::median_of_sweeps(&[here, moved]).unwrap_err();
+        assert!(e.contains("not the same view"), "{e}");
+        assert!(PointCloud::median_of_sweeps(&[]).is_err());
+    }
 
     #[test]
     fn helpers() {

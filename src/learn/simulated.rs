@@ -2,6 +2,7 @@
 //! tests and the error table of BENCHMARKS.md (`sqscan learn --simulate MODEL`) run.
 
 use super::{LearnError, LearnParams, Learned, learn};
+use crate::cloud::PointCloud;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;
 use crate::sim::{self, Scene};
@@ -143,11 +144,19 @@ pub struct SimTrial {
     pub seconds: f64,
 }
 
-/// Simulate the model alone on the table with sensor noise `seed`, learn it, compare.
+/// The noise seed of sweep `k` of a trial with seed `seed`: sweep 0 is the single sweep of that
+/// seed; the others differ from every other trial's sweeps.
+pub fn sweep_seed(seed: u64, k: usize) -> u64 {
+    seed ^ ((k as u64) << 32)
+}
+
+/// Simulate the model alone on the table with sensor noise `seed`, learn it from the per-pixel
+/// median of `sweeps` sweeps of that one view (1: the single sweep), compare.
 pub fn learn_simulated(
     model: &Model,
     rpy_deg: Option<[f64; 3]>,
     seed: u64,
+    sweeps: usize,
     params: &LearnParams,
 ) -> Result<SimTrial, LearnError> {
     let sq = model.parts[0].shape;
@@ -156,11 +165,14 @@ pub fn learn_simulated(
     let scene = Scene::from_toml_str(&text, Path::new("learn-scene.toml"), Path::new("models"))
         .expect("the generated scene is valid");
     let truth = scene.objects[0].model.placed_parts(&scene.objects[0].pose)[0];
-    let sweep = sim::simulate(&scene, seed);
-    let points: Vec<Point3<f64>> = sweep.cloud.finite_points();
+    let clouds: Vec<PointCloud> = (0..sweeps.max(1))
+        .map(|k| sim::simulate(&scene, sweep_seed(seed, k)).cloud)
+        .collect();
+    let cloud = PointCloud::median_of_sweeps(&clouds).expect("the sweeps of one simulated rig match");
+    let points: Vec<Point3<f64>> = cloud.finite_points();
     let mut params = params.clone();
     if params.viewpoint.is_none() {
-        params.viewpoint = sweep.cloud.viewpoint_position();
+        params.viewpoint = cloud.viewpoint_position();
     }
     let started = std::time::Instant::now();
     let learned = learn(&points, &params)?;
