@@ -110,6 +110,16 @@ fn the_written_model_loads() {
     assert!((got.a[2] - fitted.a[2]).abs() < 1e-4 && (got.e1 - fitted.e1).abs() < 1e-3);
     // A can is a body of revolution: written as one.
     assert!(got.is_revolution(), "{got}");
+    // The model frame of a single part is the part's pose in the cloud, and the file says so.
+    let pose = sqscan::learn::model_pose(&t.learned);
+    let placed = t.learned.parts[0].placed.pose;
+    assert!((pose.translation.vector - placed.translation.vector).norm() < 1e-12);
+    assert!(pose.rotation.angle_to(&placed.rotation) < 1e-12);
+    let c = pose.translation.vector;
+    assert!(
+        text.contains(&format!("# model frame in the cloud: position [{:.5}, {:.5}, {:.5}]", c.x, c.y, c.z)),
+        "{text}"
+    );
 }
 
 /// The mug learned from the labelled white mug (object 5) of mOSD learn33 (`models/learned_mug.toml`,

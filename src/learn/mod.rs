@@ -1632,34 +1632,24 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     }
     s.push_str(&format!("name = {name:?}\n"));
     s.push_str(&format!("description = {:?}\n", format!("Learned from {}", prov.input)));
-    let written: Vec<Superquadric> = learned
-        .parts
-        .iter()
-        .map(|r| {
-            let shape = match snap_revolution(&r.placed.shape) {
-                Some(snapped) => {
-                    let f = &r.placed.shape;
-                    s.push_str(&format!(
-                        "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
-                        f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
-                    ));
-                    snapped
-                }
-                None => r.placed.shape,
-            };
-            // Tapers below 0.05 are noise of one view; an untapered part keeps its z -> -z
-            // symmetry.
-            let mut shape = shape;
-            if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
-                shape.kx = 0.0;
-                shape.ky = 0.0;
-            }
-            shape
-        })
-        .collect();
+    for r in &learned.parts {
+        if snap_revolution(&r.placed.shape).is_some() {
+            let f = &r.placed.shape;
+            s.push_str(&format!(
+                "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
+                f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
+            ));
+        }
+    }
+    let written = written_shapes(learned);
     // The object frame is the first part's frame; further parts are posed in it and connected
     // to it (the detector votes on the angle between the z axes and the centre distance).
     let base = object_frame(learned, &written);
+    let (t, q) = (base.translation.vector, base.rotation.coords);
+    s.push_str(&format!(
+        "# model frame in the cloud: position [{:.5}, {:.5}, {:.5}], orientation [{:.6}, {:.6}, {:.6}, {:.6}]\n",
+        t.x, t.y, t.z, q.x, q.y, q.z, q.w
+    ));
     for (i, (r, shape)) in learned.parts.iter().zip(&written).enumerate() {
         let name = if i == 0 { "body".to_string() } else { format!("part{i}") };
         let pose = (i > 0).then(|| base.inverse() * r.placed.pose);
@@ -1678,6 +1668,31 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
         ));
     }
     s
+}
+
+/// The shapes [`model_toml`] writes: bodies of revolution within what one view tells made
+/// exact ([`snap_revolution`]), tapers below 0.05 (noise of one view) dropped so that an
+/// untapered part keeps its z -> -z symmetry.
+fn written_shapes(learned: &Learned) -> Vec<Superquadric> {
+    learned
+        .parts
+        .iter()
+        .map(|r| {
+            let mut shape = snap_revolution(&r.placed.shape).unwrap_or(r.placed.shape);
+            if shape.kx.abs() < 0.05 && shape.ky.abs() < 0.05 {
+                shape.kx = 0.0;
+                shape.ky = 0.0;
+            }
+            shape
+        })
+        .collect()
+}
+
+/// Where the frame of the model [`model_toml`] writes lies in the learning cloud: with the
+/// object's pose in that cloud it says where the model sits on the object (what `sqscan eval
+/// --model-in-object` takes, so that a learned model is scored against its own frame).
+pub fn model_pose(learned: &Learned) -> Isometry3<f64> {
+    object_frame(learned, &written_shapes(learned))
 }
 
 /// The object frame of a learned model: the first part's frame, spun about its z axis so that

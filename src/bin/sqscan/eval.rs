@@ -3,6 +3,7 @@
 
 use anyhow::{Result, bail};
 use clap::Args;
+use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde_json::json;
 use sqscan::detect::Params;
 use sqscan::eval::{self, MAX_POSITION_ERROR_M, MAX_ROTATION_ERROR_RAD, Symmetry, median_p95};
@@ -32,9 +33,38 @@ pub struct EvalArgs {
     /// model, else the one with the model's first part's shape]; for a learned model
     #[arg(long, value_name = "NAME")]
     truth_object: Option<String>,
+    /// The model's frame in the truth object's frame, "x,y,z,qx,qy,qz,qw" (m, quaternion): the
+    /// truth is the object's pose composed with it. A learned model's frame is where the learner
+    /// put it on the object (its `model_pose` in the learning cloud, composed with the inverse
+    /// of the object's pose there), not the shipped model's [default: the identity]
+    #[arg(long, value_name = "X,Y,Z,QX,QY,QZ,QW", value_parser = parse_pose, allow_hyphen_values = true)]
+    model_in_object: Option<Isometry3<f64>>,
     /// Print one JSON object instead of a table
     #[arg(long)]
     json: bool,
+}
+
+/// "x,y,z,qx,qy,qz,qw" as a pose (the quaternion normalised; it must not be zero).
+pub fn parse_pose(s: &str) -> Result<Isometry3<f64>, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: {e}"))?;
+    let [x, y, z, qx, qy, qz, qw] = v.as_slice() else {
+        return Err(format!("{s:?}: give seven numbers x,y,z,qx,qy,qz,qw"));
+    };
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(format!("{s:?}: not finite"));
+    }
+    let q = Quaternion::new(*qw, *qx, *qy, *qz);
+    if q.norm() < 1e-9 {
+        return Err(format!("{s:?}: the quaternion is zero"));
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(*x, *y, *z),
+        UnitQuaternion::from_quaternion(q),
+    ))
 }
 
 pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
@@ -61,6 +91,10 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
             a.scene.display(),
             model.name
         );
+    };
+    let truth = match a.model_in_object {
+        Some(m) => truth * m,
+        None => truth,
     };
     let scene = if a.absent { scene.without_object(&object) } else { scene };
     let symmetry = Symmetry::of(&model);
@@ -128,4 +162,23 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     }
     println!("time       median {t_med:.1} ms, p95 {t_p95:.1} ms");
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_pose;
+
+    #[test]
+    fn a_pose_is_seven_numbers_with_a_nonzero_quaternion() {
+        let p = parse_pose("0.1,-0.2,0.3,0,0,0.7071068,0.7071068").unwrap();
+        assert!((p.translation.vector.y + 0.2).abs() < 1e-12);
+        assert!((p.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        // Normalised.
+        let q = parse_pose("0,0,0,0,0,0,2").unwrap();
+        assert!(q.rotation.angle().abs() < 1e-12);
+        assert!(parse_pose("1,2,3").unwrap_err().contains("seven numbers"));
+        assert!(parse_pose("0,0,0,0,0,0,0").unwrap_err().contains("zero"));
+        assert!(parse_pose("0,0,0,0,0,x,1").is_err());
+        assert!(parse_pose("0,0,nan,0,0,0,1").unwrap_err().contains("not finite"));
+    }
 }

@@ -253,6 +253,7 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             "out": out.display().to_string(),
             "object_points": learned.object_points,
             "plane": learned.segmentation.plane.map(|p| p.coefficients()),
+            "model_pose": sqscan::pose::PoseJson::from(&learn::model_pose(&learned)),
             "parts": parts,
         })
     );
