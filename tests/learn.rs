@@ -117,7 +117,10 @@ fn the_written_model_loads() {
     assert!(pose.rotation.angle_to(&placed.rotation) < 1e-12);
     let c = pose.translation.vector;
     assert!(
-        text.contains(&format!("# model frame in the cloud: position [{:.5}, {:.5}, {:.5}]", c.x, c.y, c.z)),
+        text.contains(&format!(
+            "# model frame in the cloud: position [{:.5}, {:.5}, {:.5}]",
+            c.x, c.y, c.z
+        )),
         "{text}"
     );
 }

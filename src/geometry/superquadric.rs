@@ -375,6 +375,26 @@ impl Superquadric {
         }
     }
 
+    /// [`Self::radial_distance`], negative inside: what a fit minimises, with one evaluation
+    /// of `F` where the distance and [`Self::inside_outside`] would take two (the log-domain
+    /// evaluation of a shape with fractional exponents is about ten transcendental calls, and
+    /// the learner spends most of its time in it).
+    pub fn signed_radial_distance(&self, p: &Vector3<f64>) -> f64 {
+        let q = self.untaper(p);
+        let lf = self.ln_f_parts(&q).lf;
+        if !lf.is_finite() {
+            // The centre (ln F = -inf) is inside; a point beyond any scale is outside.
+            return if lf == f64::NEG_INFINITY {
+                -self.min_size()
+            } else {
+                self.min_size()
+            };
+        }
+        let s = (-0.5 * self.e1 * lf).exp();
+        let d = (p - self.taper(&(q * s))).norm();
+        if lf < 0.0 { -d } else { d }
+    }
+
     /// The surface point in the untapered frame in unit direction `d` from the centre.
     #[inline]
     pub(crate) fn untapered_surface_along(&self, d: &Vector3<f64>) -> Vector3<f64> {

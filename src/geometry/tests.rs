@@ -407,3 +407,33 @@ fn lowest_z_matches_dense_sampling() {
         }
     }
 }
+
+#[test]
+fn signed_radial_distance_is_the_radial_distance_negative_inside() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for _ in 0..200 {
+        let sq = random_sq(&mut rng);
+        for _ in 0..20 {
+            let p = Vector3::new(
+                rng.random_range(-2.0..2.0) * sq.a[0],
+                rng.random_range(-2.0..2.0) * sq.a[1],
+                rng.random_range(-2.0..2.0) * sq.a[2],
+            );
+            let d = sq.signed_radial_distance(&p);
+            let want = sq.radial_distance(&p);
+            assert!(
+                (d.abs() - want).abs() <= 1e-12 * (1.0 + want),
+                "{sq:?} {p:?}: {d} vs {want}"
+            );
+            let f = sq.inside_outside(&p);
+            // Off the surface the sign is the side (on it, within rounding, either will do).
+            if (f - 1.0).abs() > 1e-9 {
+                assert_eq!(d < 0.0, f < 1.0, "{sq:?} {p:?}: {d}, F = {f}");
+            }
+        }
+    }
+    let s = Superquadric::new([0.1, 0.1, 0.1], 1.0, 1.0, 0.0, 0.0).unwrap();
+    assert!((s.signed_radial_distance(&Vector3::new(0.0, 0.05, 0.0)) + 0.05).abs() < 1e-14);
+    assert!((s.signed_radial_distance(&Vector3::new(0.0, 0.0, 0.3)) - 0.2).abs() < 1e-14);
+    assert_eq!(s.signed_radial_distance(&Vector3::zeros()), -0.1);
+}

@@ -495,11 +495,8 @@ impl Problem<'_> {
     fn point_residual(&self, placed: &PlacedSuperquadric, p: &Point3<f64>) -> f64 {
         let q = placed.to_local(p);
         match self.cost {
-            Cost::Radial => {
-                let d = placed.shape.radial_distance(&q);
-                // Signed: negative inside, so the Jacobian has no kink on the surface.
-                if placed.shape.inside_outside(&q) < 1.0 { -d } else { d }
-            }
+            // Signed: negative inside, so the Jacobian has no kink on the surface.
+            Cost::Radial => placed.shape.signed_radial_distance(&q),
             Cost::Solina => {
                 let a = placed.shape.a;
                 (a[0] * a[1] * a[2]).sqrt() * placed.shape.residual(&q)
@@ -593,20 +590,30 @@ fn lm(problem: &Problem, start: State, weights: &[f64], iterations: usize) -> St
     let mut fresh = false;
     for _ in 0..iterations {
         if !fresh {
-            for k in 0..NP {
-                let mut d = Vect::zeros();
-                d[k] = STEPS[k];
-                let sk = s.step(&d);
-                // A parameter at its bound steps inwards.
-                let (sk, h) = if sk_param(&sk, k) == sk_param(&s, k) {
-                    d[k] = -STEPS[k];
-                    (s.step(&d), -STEPS[k])
-                } else {
-                    (sk, STEPS[k])
-                };
-                problem.residuals(&sk, &mut r1);
+            // The columns in parallel: the later stages fit one start at a time, and a residual
+            // evaluation (thousands of points and free-space samples, the seen-surface queries)
+            // is the whole cost. The same arithmetic as one after the other, so the same result.
+            let columns: Vec<(Vec<f64>, f64)> = (0..NP)
+                .into_par_iter()
+                .map(|k| {
+                    let mut d = Vect::zeros();
+                    d[k] = STEPS[k];
+                    let sk = s.step(&d);
+                    // A parameter at its bound steps inwards.
+                    let (sk, h) = if sk_param(&sk, k) == sk_param(&s, k) {
+                        d[k] = -STEPS[k];
+                        (s.step(&d), -STEPS[k])
+                    } else {
+                        (sk, STEPS[k])
+                    };
+                    let mut r = Vec::with_capacity(n);
+                    problem.residuals(&sk, &mut r);
+                    (r, h)
+                })
+                .collect();
+            for (k, (r, h)) in columns.iter().enumerate() {
                 for i in 0..n {
-                    jac[i][k] = (r1[i] - r0[i]) / h;
+                    jac[i][k] = (r[i] - r0[i]) / h;
                 }
             }
             fresh = true;
