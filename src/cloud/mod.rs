@@ -208,6 +208,12 @@ pub struct PointCloud {
     pub viewpoint: Option<[f64; 7]>,
 }
 
+/// The median of finite values (NaN when there are none).
+fn median_f64(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    if v.is_empty() { f64::NAN } else { v[v.len() / 2] }
+}
+
 fn is_finite_point(p: &[f32; 3]) -> bool {
     p.iter().all(|c| c.is_finite())
 }
@@ -319,6 +325,73 @@ impl PointCloud {
                 }
             }
         }
+        // Pixel i must be the same ray in every sweep. A pan-tilt unit sweeping back and forth
+        // stores every other sweep's rows in the opposite order (rows are in exposure order);
+        // such a sweep is turned round. One whose rays still differ by more than a row and a
+        // half (a sweep that started late, another tilt range) is refused.
+        let v = first.viewpoint_position().unwrap_or_else(nalgebra::Point3::origin);
+        let dir = |p: &[f32; 3]| -> Option<nalgebra::Vector3<f64>> {
+            if !is_finite_point(p) {
+                return None;
+            }
+            (nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])) - v.coords).try_normalize(1e-9)
+        };
+        let (w, h) = (first.width, first.height);
+        let spacing = {
+            let mut a: Vec<f64> = Vec::new();
+            for r in 0..h.saturating_sub(1) {
+                for c in (0..w.saturating_sub(1)).step_by(3) {
+                    for (i, j) in [(r * w + c, (r + 1) * w + c), (r * w + c, r * w + c + 1)] {
+                        if let (Some(d1), Some(d2)) = (dir(&first.points[i]), dir(&first.points[j])) {
+                            a.push(d1.angle(&d2));
+                        }
+                    }
+                }
+            }
+            median_f64(&mut a)
+        };
+        let offset = |c: &PointCloud, flip: bool| -> Option<f64> {
+            let mut a: Vec<f64> = Vec::new();
+            for r in 0..h {
+                let rc = if flip { h - 1 - r } else { r };
+                for col in (0..w).step_by(3) {
+                    if let (Some(d1), Some(d2)) = (dir(&first.points[r * w + col]), dir(&c.points[rc * w + col])) {
+                        a.push(d1.angle(&d2));
+                    }
+                }
+            }
+            (!a.is_empty()).then(|| median_f64(&mut a))
+        };
+        let mut turned: Vec<PointCloud> = Vec::new();
+        let mut order: Vec<&PointCloud> = vec![first];
+        for (k, c) in sweeps.iter().enumerate().skip(1) {
+            let (Some(straight), Some(round)) = (offset(c, false), offset(c, true)) else {
+                // No pixel returned in both: nothing to tell the order by, nothing to mix up.
+                turned.push(c.clone());
+                continue;
+            };
+            let best = straight.min(round);
+            if spacing.is_finite() && best > 1.5 * spacing {
+                return Err(format!(
+                    "sweep {}: its pixels are not sweep 1's rays (a median {:.2} mrad apart, the rows {:.2} mrad): another sweep range, or a sweep that started late",
+                    k + 1,
+                    best * 1e3,
+                    spacing * 1e3
+                ));
+            }
+            if round < straight {
+                let mut t = c.clone();
+                t.points = (0..h)
+                    .rev()
+                    .flat_map(|r| c.points[r * w..(r + 1) * w].iter().copied())
+                    .collect();
+                turned.push(t);
+            } else {
+                turned.push(c.clone());
+            }
+        }
+        order.extend(turned.iter());
+        let sweeps = order;
         let need = sweeps.len().div_ceil(2);
         let mut column: Vec<[f32; 3]> = Vec::with_capacity(sweeps.len());
         let mut axis: Vec<f32> = Vec::with_capacity(sweeps.len());
@@ -469,6 +542,38 @@ mod tests {
             sweep([nan, nan, nan, nan]),
         ];
         assert_eq!(PointCloud::median_of_sweeps(&two).unwrap().points[0], [1.5, 0.0, 0.0]);
+    }
+
+    /// A sweep of a plane z = 1 seen from the origin, rows 10 mrad apart, rows `shift` on.
+    fn plane_sweep(shift: usize, dz: f32, reversed: bool) -> PointCloud {
+        let (w, h) = (8, 6);
+        let mut p = Vec::new();
+        for r in 0..h {
+            let r = if reversed { h - 1 - r } else { r };
+            for c in 0..w {
+                p.push([0.01 * c as f32, 0.01 * (r + shift) as f32, 1.0 + dz]);
+            }
+        }
+        PointCloud::organized(w, h, p)
+    }
+
+    #[test]
+    fn median_of_sweeps_turns_a_sweep_run_backwards_round_and_refuses_a_shifted_one() {
+        let forth = plane_sweep(0, 0.0, false);
+        let back = plane_sweep(0, 0.002, true);
+        let m = PointCloud::median_of_sweeps(&[forth.clone(), back]).unwrap();
+        for r in 0..6 {
+            for c in 0..8 {
+                let p = m.points[r * 8 + c];
+                assert!(
+                    (p[1] - 0.01 * r as f32).abs() < 1e-6 && (p[2] - 1.001).abs() < 1e-6,
+                    "{r} {c}: {p:?}"
+                );
+            }
+        }
+        let late = plane_sweep(3, 0.0, false);
+        let e = PointCloud::median_of_sweeps(&[forth, late]).unwrap_err();
+        assert!(e.contains("sweep 2: its pixels are not sweep 1's rays"), "{e}");
     }
 
     #[test]
