@@ -362,12 +362,11 @@ impl PointCloud {
             }
             (!a.is_empty()).then(|| median_f64(&mut a))
         };
-        let mut turned: Vec<PointCloud> = Vec::new();
-        let mut order: Vec<&PointCloud> = vec![first];
+        // Whether each sweep is read turned round (its rows from the last).
+        let mut turned = vec![false; sweeps.len()];
         for (k, c) in sweeps.iter().enumerate().skip(1) {
             let (Some(straight), Some(round)) = (offset(c, false), offset(c, true)) else {
                 // No pixel returned in both: nothing to tell the order by, nothing to mix up.
-                turned.push(c.clone());
                 continue;
             };
             let best = straight.min(round);
@@ -379,26 +378,22 @@ impl PointCloud {
                     spacing * 1e3
                 ));
             }
-            if round < straight {
-                let mut t = c.clone();
-                t.points = (0..h)
-                    .rev()
-                    .flat_map(|r| c.points[r * w..(r + 1) * w].iter().copied())
-                    .collect();
-                turned.push(t);
-            } else {
-                turned.push(c.clone());
-            }
+            turned[k] = round < straight;
         }
-        order.extend(turned.iter());
-        let sweeps = order;
+        let pixel = |k: usize, i: usize| -> [f32; 3] {
+            if turned[k] {
+                sweeps[k].points[(h - 1 - i / w) * w + i % w]
+            } else {
+                sweeps[k].points[i]
+            }
+        };
         let need = sweeps.len().div_ceil(2);
         let mut column: Vec<[f32; 3]> = Vec::with_capacity(sweeps.len());
         let mut axis: Vec<f32> = Vec::with_capacity(sweeps.len());
         let points = (0..first.len())
             .map(|i| {
                 column.clear();
-                column.extend(sweeps.iter().map(|c| c.points[i]).filter(is_finite_point));
+                column.extend((0..sweeps.len()).map(|k| pixel(k, i)).filter(is_finite_point));
                 if column.len() < need.max(1) {
                     return [f32::NAN; 3];
                 }
