@@ -208,10 +208,13 @@ pub struct PointCloud {
     pub viewpoint: Option<[f64; 7]>,
 }
 
-/// The median of finite values (NaN when there are none).
+/// The median (the upper one of an even count; NaN when there are none).
 fn median_f64(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    if v.is_empty() { f64::NAN } else { v[v.len() / 2] }
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mid = v.len() / 2;
+    *v.select_nth_unstable_by(mid, f64::total_cmp).1
 }
 
 fn is_finite_point(p: &[f32; 3]) -> bool {

@@ -3,7 +3,7 @@
 use crate::write_atomic;
 use anyhow::{Result, bail};
 use clap::Args;
-use nalgebra::Point3;
+use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 use sqscan::cloud::{self, Field, FieldData, PlyFormat, PointCloud};
 use sqscan::detect::{self, Params};
 use sqscan::model::Model;
@@ -43,16 +43,39 @@ pub struct DetectArgs {
     keep_plane: bool,
 }
 
-pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
-    let v: Vec<f64> = s
-        .split(',')
+/// Comma-separated numbers ("1, -2.5,3").
+fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
+    s.split(',')
         .map(|t| t.trim().parse::<f64>())
         .collect::<Result<_, _>>()
-        .map_err(|e| format!("{s:?}: {e}"))?;
+        .map_err(|e| format!("{s:?}: {e}"))
+}
+
+pub fn parse_point(s: &str) -> Result<Point3<f64>, String> {
+    let v = parse_numbers(s)?;
     match v.as_slice() {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok(Point3::new(*x, *y, *z)),
         _ => Err(format!("{s:?}: give three finite numbers x,y,z")),
     }
+}
+
+/// "x,y,z,qx,qy,qz,qw" as a pose (the quaternion normalised; it must not be zero).
+pub fn parse_pose(s: &str) -> Result<Isometry3<f64>, String> {
+    let v = parse_numbers(s)?;
+    let [x, y, z, qx, qy, qz, qw] = v.as_slice() else {
+        return Err(format!("{s:?}: give seven numbers x,y,z,qx,qy,qz,qw"));
+    };
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(format!("{s:?}: not finite"));
+    }
+    let q = Quaternion::new(*qw, *qx, *qy, *qz);
+    if q.norm() < 1e-9 {
+        return Err(format!("{s:?}: the quaternion is zero"));
+    }
+    Ok(Isometry3::from_parts(
+        Translation3::new(*x, *y, *z),
+        UnitQuaternion::from_quaternion(q),
+    ))
 }
 
 /// Detector parameters from the common flags and the cloud's own viewpoint.
@@ -124,4 +147,23 @@ fn with_detections(input: &PointCloud, detections: &[&detect::Detection]) -> Poi
         });
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_pose;
+
+    #[test]
+    fn a_pose_is_seven_numbers_with_a_nonzero_quaternion() {
+        let p = parse_pose("0.1,-0.2,0.3,0,0,0.7071068,0.7071068").unwrap();
+        assert!((p.translation.vector.y + 0.2).abs() < 1e-12);
+        assert!((p.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
+        // Normalised.
+        let q = parse_pose("0,0,0,0,0,0,2").unwrap();
+        assert!(q.rotation.angle().abs() < 1e-12);
+        assert!(parse_pose("1,2,3").unwrap_err().contains("seven numbers"));
+        assert!(parse_pose("0,0,0,0,0,0,0").unwrap_err().contains("zero"));
+        assert!(parse_pose("0,0,0,0,0,x,1").is_err());
+        assert!(parse_pose("0,0,nan,0,0,0,1").unwrap_err().contains("not finite"));
+    }
 }

@@ -1,9 +1,10 @@
 //! `sqscan eval`: detection rate, false "found" rate, time and pose errors against the
 //! simulator's ground truth.
 
+use crate::detect::parse_pose;
 use anyhow::{Result, bail};
 use clap::Args;
-use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
+use nalgebra::Isometry3;
 use serde_json::json;
 use sqscan::detect::Params;
 use sqscan::eval::{self, MAX_POSITION_ERROR_M, MAX_ROTATION_ERROR_RAD, Symmetry, median_p95};
@@ -42,29 +43,6 @@ pub struct EvalArgs {
     /// Print one JSON object instead of a table
     #[arg(long)]
     json: bool,
-}
-
-/// "x,y,z,qx,qy,qz,qw" as a pose (the quaternion normalised; it must not be zero).
-pub fn parse_pose(s: &str) -> Result<Isometry3<f64>, String> {
-    let v: Vec<f64> = s
-        .split(',')
-        .map(|t| t.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|e| format!("{s:?}: {e}"))?;
-    let [x, y, z, qx, qy, qz, qw] = v.as_slice() else {
-        return Err(format!("{s:?}: give seven numbers x,y,z,qx,qy,qz,qw"));
-    };
-    if !v.iter().all(|c| c.is_finite()) {
-        return Err(format!("{s:?}: not finite"));
-    }
-    let q = Quaternion::new(*qw, *qx, *qy, *qz);
-    if q.norm() < 1e-9 {
-        return Err(format!("{s:?}: the quaternion is zero"));
-    }
-    Ok(Isometry3::from_parts(
-        Translation3::new(*x, *y, *z),
-        UnitQuaternion::from_quaternion(q),
-    ))
 }
 
 pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
@@ -162,23 +140,4 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     }
     println!("time       median {t_med:.1} ms, p95 {t_p95:.1} ms");
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::parse_pose;
-
-    #[test]
-    fn a_pose_is_seven_numbers_with_a_nonzero_quaternion() {
-        let p = parse_pose("0.1,-0.2,0.3,0,0,0.7071068,0.7071068").unwrap();
-        assert!((p.translation.vector.y + 0.2).abs() < 1e-12);
-        assert!((p.rotation.angle() - std::f64::consts::FRAC_PI_2).abs() < 1e-6);
-        // Normalised.
-        let q = parse_pose("0,0,0,0,0,0,2").unwrap();
-        assert!(q.rotation.angle().abs() < 1e-12);
-        assert!(parse_pose("1,2,3").unwrap_err().contains("seven numbers"));
-        assert!(parse_pose("0,0,0,0,0,0,0").unwrap_err().contains("zero"));
-        assert!(parse_pose("0,0,0,0,0,x,1").is_err());
-        assert!(parse_pose("0,0,nan,0,0,0,1").unwrap_err().contains("not finite"));
-    }
 }
