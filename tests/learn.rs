@@ -309,3 +309,38 @@ fn learn_from_several_sweeps_of_one_view() {
     assert!(!dir.join("bad.toml").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A box seen at its corner (its moment axes are its diagonals: the start that becomes a diamond
+/// when nothing bounds the hidden sides) is learned as the box, through the CLI's `--rpy`.
+#[test]
+fn a_carton_seen_at_its_corner_is_a_box() {
+    use std::process::Command;
+    let bin = env!("CARGO_BIN_EXE_sqscan");
+    let dir = std::env::temp_dir().join(format!("sqscan-learn-carton-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("carton.toml"),
+        "name = \"carton\"\n[[part]]\nname = \"body\"\na = [0.035, 0.035, 0.100]\ne1 = 0.1\ne2 = 0.1\n",
+    )
+    .unwrap();
+    let learn = |rpy: &str| {
+        Command::new(bin)
+            .arg("--models-dir")
+            .arg(&dir)
+            .args(["learn", "--simulate", "carton", "--rpy", rpy])
+            .output()
+            .unwrap()
+    };
+    // 48 degrees of yaw: the sensor, 3 degrees to the side, looks at the corner.
+    let o = learn("0,0,48");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(r["within_tolerance"], true, "{r}");
+    assert!(r["learned"]["e2"].as_f64().unwrap() < 0.3, "{r}");
+    let o = learn("0,48");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--rpy") && err.contains("three finite numbers"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -92,6 +92,10 @@ pub struct LearnArgs {
     /// Sweeps of the one view --simulate takes, learned from their per-pixel median
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
     sweeps: u32,
+    /// How --simulate sets the model on the table, "roll,pitch,yaw" in degrees [default: slender
+    /// parts on their side at yaw 30, the others upright at yaw 25]
+    #[arg(long, value_name = "R,P,Y", value_parser = parse_point, allow_hyphen_values = true)]
+    rpy: Option<Point3<f64>>,
 }
 
 pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
@@ -113,7 +117,8 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         ..LearnParams::default()
     };
     if let Some(m) = &a.simulate {
-        return simulate(m, a.seed, a.sweeps as usize, &params, models_dir);
+        let rpy = a.rpy.map(|p| [p.x, p.y, p.z]);
+        return simulate(m, rpy, a.seed, a.sweeps as usize, &params, models_dir);
     }
     let (false, Some(name)) = (a.cloud.is_empty(), a.name.as_ref()) else {
         bail!("give --cloud and --name");
@@ -260,7 +265,10 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     Ok(())
 }
 
-fn simulate(model_name: &str, seed: u64, sweeps: usize, params: &LearnParams, models_dir: &Path) -> Result<()> {
+fn simulate(
+    model_name: &str,
+    rpy_deg: Option<[f64; 3]>,
+    seed: u64, sweeps: usize, params: &LearnParams, models_dir: &Path) -> Result<()> {
     let model = Model::load(model_name, models_dir)?;
     if model.parts.len() != 1 {
         bail!(
@@ -269,7 +277,7 @@ fn simulate(model_name: &str, seed: u64, sweeps: usize, params: &LearnParams, mo
             model.parts.len()
         );
     }
-    let t = learn::simulated::learn_simulated(&model, None, seed, sweeps, params)?;
+    let t = learn::simulated::learn_simulated(&model, rpy_deg, seed, sweeps, params)?;
     let r = &t.learned.parts[0];
     let sq = |s: &sqscan::geometry::Superquadric| json!({"a": s.a, "e1": s.e1, "e2": s.e2, "kx": s.kx, "ky": s.ky});
     println!(
