@@ -268,7 +268,11 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
 fn simulate(
     model_name: &str,
     rpy_deg: Option<[f64; 3]>,
-    seed: u64, sweeps: usize, params: &LearnParams, models_dir: &Path) -> Result<()> {
+    seed: u64,
+    sweeps: usize,
+    params: &LearnParams,
+    models_dir: &Path,
+) -> Result<()> {
     let model = Model::load(model_name, models_dir)?;
     if model.parts.len() != 1 {
         bail!(
