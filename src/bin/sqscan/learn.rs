@@ -79,6 +79,10 @@ pub struct LearnArgs {
     /// Residual minimised
     #[arg(long, value_enum, default_value = "radial")]
     cost: CostArg,
+    /// Fit the distance to the nearest surface in the final stages, not the distance along the
+    /// sensor's ray through each point (for a cloud whose viewpoint is not known)
+    #[arg(long)]
+    no_rays: bool,
     /// Shapes to choose from
     #[arg(long, value_enum, default_value = "auto")]
     shape: ShapeArg,
@@ -107,6 +111,7 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             CostArg::Solina => Cost::Solina,
             CostArg::Normal => Cost::Normal,
         },
+        along_rays: !a.no_rays,
         up: a.up.map(|p| p.coords),
         max_range: a.max_range,
         shape: match a.shape {
