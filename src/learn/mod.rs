@@ -1967,6 +1967,12 @@ pub fn learn_parts(
         support: false,
         ..params.clone()
     };
+    // A part explains a point inside it or within 3 median residuals (at least 4 mm) of it.
+    let explains = |r: &Recovered, p: &Point3<f64>| {
+        let q = r.placed.to_local(p);
+        r.placed.shape.inside_outside(&q) <= 1.0
+            || r.placed.shape.radial_distance(&q) <= (3.0 * r.median_abs).max(0.004)
+    };
     // The points no part explains well (more than 3 median residuals, at least 4 mm, outside).
     let unexplained_by = |found: &[Recovered], among: &[Point3<f64>]| -> Vec<Point3<f64>> {
         among
@@ -1995,11 +2001,15 @@ pub fn learn_parts(
             break;
         }
         // Alternate (recover and select, twice): the first part refitted without the new part's
-        // points (a handle pulls a body fit sideways), then the new part's points taken again.
+        // points and without those the parts after the first explain (a handle pulls a body fit
+        // sideways; with a handle on each side, the first handle's pull was still in the body
+        // when the second was looked for), then the new part's points taken again.
+        let later_parts = learned.parts[1..].to_vec();
         for _ in 0..2 {
             let rest: Vec<Point3<f64>> = object
                 .iter()
                 .filter(|p| !part_points.iter().any(|q| (*q - **p).norm() < 1e-9))
+                .filter(|p| !later_parts.iter().any(|r| explains(r, p)))
                 .copied()
                 .collect();
             let free = others_near(points, &learned.segmentation.object, 0.4);
