@@ -162,17 +162,14 @@ fn learned_mug_lands_on_a_mug_in_test34() {
     }
 }
 
-/// `--parts 2` on a simulated scan of the paper's cup with its handle in view (yaw 120 deg):
-/// a body near 38 x 38 x 48 mm and a second part where the handle is, connected at about
-/// 90 deg and 50 mm (the shipped cup's connectivity), written as a compound model that loads.
-#[test]
-fn two_parts_from_a_cup_with_its_handle_in_view() {
+/// `parts` parts learned from one simulated sweep (noise seed 7) of the model file `path` alone
+/// on the table at yaw `yaw_deg`, as the model file `sqscan learn` writes, loaded back.
+fn learn_parts_of(path: &std::path::Path, models_dir: &std::path::Path, yaw_deg: f64, parts: usize) -> Model {
     use nalgebra::Point3;
     use sqscan::learn::{learn_parts, model_toml, segment, simulated::scene_toml};
     use sqscan::sim::{self, Scene};
-    let cup = model("cup");
-    let text = scene_toml(&cup.source, [0.85, 0.05], [0.0, 0.0, 120.0]);
-    let scene = Scene::from_toml_str(&text, std::path::Path::new("cup.toml"), std::path::Path::new("models")).unwrap();
+    let text = scene_toml(path, [0.85, 0.05], [0.0, 0.0, yaw_deg]);
+    let scene = Scene::from_toml_str(&text, &models_dir.join("scene.toml"), models_dir).unwrap();
     let sweep = sim::simulate(&scene, 7);
     let points: Vec<Point3<f64>> = sweep.cloud.finite_points();
     let params = LearnParams {
@@ -180,12 +177,21 @@ fn two_parts_from_a_cup_with_its_handle_in_view() {
         ..LearnParams::default()
     };
     let seg = segment(&points, &params);
-    let learned = learn_parts(&points, seg, &params, 2).unwrap();
-    assert_eq!(learned.parts.len(), 2);
-    let text = model_toml("learned_cup", &learned, &Default::default());
-    let m = Model::from_toml_str(&text, std::path::Path::new("learned_cup.toml")).unwrap();
-    let body = m.parts[0].shape;
+    let learned = learn_parts(&points, seg, &params, parts).unwrap();
+    assert_eq!(learned.parts.len(), parts);
+    let text = model_toml("learned", &learned, &Default::default());
     eprintln!("{text}");
+    Model::from_toml_str(&text, std::path::Path::new("learned.toml")).unwrap()
+}
+
+/// `--parts 2` on a simulated scan of the paper's cup with its handle in view (yaw 120 deg):
+/// a body near 38 x 38 x 48 mm and a second part where the handle is, connected at about
+/// 90 deg and 50 mm (the shipped cup's connectivity), written as a compound model that loads.
+#[test]
+fn two_parts_from_a_cup_with_its_handle_in_view() {
+    let cup = model("cup");
+    let m = learn_parts_of(&cup.source, std::path::Path::new("models"), 120.0, 2);
+    let body = m.parts[0].shape;
     let mut a = [body.a[0], body.a[1]];
     a.sort_by(f64::total_cmp);
     assert!(
@@ -207,9 +213,6 @@ fn two_parts_from_a_cup_with_its_handle_in_view() {
 /// at 56 and 57 mm (their seen shells' centres), 87 and 90 deg.
 #[test]
 fn three_parts_from_a_pot_with_two_handles() {
-    use nalgebra::Point3;
-    use sqscan::learn::{learn_parts, model_toml, segment, simulated::scene_toml};
-    use sqscan::sim::{self, Scene};
     let dir = std::env::temp_dir().join(format!("sqscan-learn-pot-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
@@ -226,20 +229,7 @@ fn three_parts_from_a_pot_with_two_handles() {
         + "[[connection]]\nparts = [\"body\", \"right\"]\nangle_deg = 90.0\ndistance = 0.05\n";
     let path = dir.join("pot.toml");
     std::fs::write(&path, pot).unwrap();
-    let text = scene_toml(&path, [0.85, 0.05], [0.0, 0.0, 80.0]);
-    let scene = Scene::from_toml_str(&text, &dir.join("scene.toml"), &dir).unwrap();
-    let sweep = sim::simulate(&scene, 7);
-    let points: Vec<Point3<f64>> = sweep.cloud.finite_points();
-    let params = LearnParams {
-        viewpoint: sweep.cloud.viewpoint_position(),
-        ..LearnParams::default()
-    };
-    let seg = segment(&points, &params);
-    let learned = learn_parts(&points, seg, &params, 3).unwrap();
-    assert_eq!(learned.parts.len(), 3);
-    let text = model_toml("learned_pot", &learned, &Default::default());
-    let m = Model::from_toml_str(&text, std::path::Path::new("learned_pot.toml")).unwrap();
-    eprintln!("{text}");
+    let m = learn_parts_of(&path, &dir, 80.0, 3);
     let body = m.parts[0].shape;
     assert!(
         (body.a[0] - 0.038).abs() < 0.006 && (body.a[1] - 0.038).abs() < 0.006 && (body.a[2] - 0.048).abs() < 0.005,

@@ -1247,20 +1247,11 @@ pub fn fit_superquadric(
     } = choose_family(finals);
     // Stage D: the smallest shape as good as that one, on the points of stage C (with their
     // mirrored twins: the hidden half of a can is the twin of its front, not free to shrink).
-    let best = smallest_equally_good(
-        &Problem {
-            points: &fitted,
-            free: &free,
-            support,
-            cost: params.cost,
-            volume: None,
-            seen: seen.as_ref(),
-            rays: None,
-            fix_taper: false,
-        },
-        best,
-        min_delta,
-    );
+    let problem_fitted = Problem {
+        points: &fitted,
+        ..problem_free
+    };
+    let best = smallest_equally_good(&problem_fitted, best, min_delta);
     // Stage E: the shrunk shape refitted along the rays again, its taper held. Stage D's
     // distance to the nearest surface rounds the edges again (a lying shaft's e1 0.21 for 0.1);
     // D's size term along the rays would shrink an open bowl's rim away from the points on its
@@ -1270,14 +1261,9 @@ pub fn fit_superquadric(
     let best = match rays(mirror_at) {
         Some(r) => {
             let problem = Problem {
-                points: &fitted,
-                free: &free,
-                support,
-                cost: params.cost,
-                volume: None,
-                seen: seen.as_ref(),
                 rays: Some(r),
                 fix_taper: true,
+                ..problem_fitted
             };
             let (s, _) = robust_fit(&problem, best, 3, 30, min_delta);
             if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
