@@ -345,8 +345,7 @@ struct Problem<'a> {
     volume: Option<(f64, f64)>,
     /// The surface that faced the sensor must have been seen.
     seen: Option<&'a Seen>,
-    /// The sensor position and how many of the first points it saw (the rest are mirrored
-    /// twins): those take the distance along their ray ([`ray_residual`]) instead of `cost`.
+    /// Points that take the distance along their ray ([`ray_residual`]) instead of `cost`.
     rays: Option<Rays>,
     /// Hold the tapers where they are.
     fix_taper: bool,
@@ -367,7 +366,8 @@ struct Rays {
 /// Half the window along a point's ray searched for the surface (m): four times the simulated
 /// sensor's noise at 1 m. A surface farther off reads as this far.
 const RAY_WINDOW: f64 = 0.01;
-/// Samples over the window: 1.25 mm apart, under the smallest half-size a part is given.
+/// Samples over the window: 1.25 mm apart, a quarter of the pen's radius (a ray that crosses
+/// less of a part than that grazes it, and the dip of a graze is searched for).
 const RAY_SAMPLES: usize = 16;
 
 /// The signed distance along the sensor's ray from the point (local `q`, unit ray direction
@@ -379,9 +379,9 @@ const RAY_SAMPLES: usize = 16;
 /// misses the surface reads the offset of its closest approach plus the gap there, which is
 /// continuous with a hit at the grazing ray.
 ///
-/// `None` for an open container's point whose ray enters through the opening (or more than the
-/// window behind it): the inside seen through it is the container's wall, which the solid shape
-/// has no surface for; such points take the distance to the nearest surface.
+/// `None` for an open container's point whose ray enters through the opening (the inside seen
+/// through it is the container's wall, which the solid shape has no surface for), and for a
+/// point more than the window inside: such points take the distance to the nearest surface.
 fn ray_residual(shape: &Superquadric, q: &Vector3<f64>, d: &Vector3<f64>, open: bool) -> Option<f64> {
     let g = |t: f64| shape.signed_radial_distance(&(q + d * t));
     let h = 2.0 * RAY_WINDOW / RAY_SAMPLES as f64;
