@@ -5,7 +5,7 @@
 //! the methods of [`PlacedSuperquadric`] take points in the frame the pose maps into.
 
 mod moments;
-mod ray;
+pub(crate) mod ray;
 mod sampling;
 mod superquadric;
 

@@ -62,7 +62,7 @@ impl Superquadric {
                 return Some(refine(&f, ta, fa, tb, fb));
             }
             if fa < fp && fa < fb && fa < GRAZE_RESIDUAL {
-                let (tm, fm) = golden_min(&f, tp, tb);
+                let (tm, fm) = golden_min(&f, tp, tb, T_TOLERANCE);
                 if fm <= 0.0 {
                     // Every sample so far was outside, so the first crossing lies in [tp, tm].
                     return Some(refine(&f, tp, f(tp), tm, fm));
@@ -80,8 +80,9 @@ impl Superquadric {
 /// the surface the residual cannot dip below zero between samples one step apart.
 const GRAZE_RESIDUAL: f64 = 0.5;
 
-/// Golden-section search for the minimum of `f` on `[a, b]`, stopping early once `f <= 0`.
-fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
+/// Golden-section search for the minimum of `f` on `[a, b]` (to a bracket of `tolerance`),
+/// stopping early once `f <= 0`.
+pub(crate) fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64, tolerance: f64) -> (f64, f64) {
     const R: f64 = 0.618_033_988_749_895;
     let mut c = b - R * (b - a);
     let mut d = a + R * (b - a);
@@ -93,7 +94,7 @@ fn golden_min(f: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
         if fd <= 0.0 {
             return (d, fd);
         }
-        if b - a <= T_TOLERANCE {
+        if b - a <= tolerance {
             break;
         }
         if fc < fd {

@@ -16,6 +16,7 @@ pub mod simulated;
 
 use crate::detect::grid::voxel_subsample;
 use crate::detect::plane::{Plane, remove_dominant_plane};
+use crate::geometry::ray::golden_min;
 use crate::geometry::{EPSILON_MAX, EPSILON_MIN, PlacedSuperquadric, Superquadric};
 use nalgebra::{Isometry3, Point3, Rotation3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -407,7 +408,7 @@ fn ray_residual(shape: &Superquadric, q: &Vector3<f64>, d: &Vector3<f64>, open: 
     }
     // No sample inside: the closest approach (a grazing ray may dip in between samples).
     let (lo, hi) = ((best.0 - h).max(-RAY_WINDOW), (best.0 + h).min(RAY_WINDOW));
-    let (tm, gm) = ray_golden_min(&g, lo, hi);
+    let (tm, gm) = golden_min(&g, lo, hi, 1e-11);
     if gm <= 0.0 {
         let (ta, ga) = (lo, g(lo));
         return entered(ray_refine(&g, ta, ga, tm, gm));
@@ -416,7 +417,9 @@ fn ray_residual(shape: &Superquadric, q: &Vector3<f64>, d: &Vector3<f64>, open: 
 }
 
 /// Illinois regula falsi on `ga > 0 >= gb`, to 1e-12 m: the LM differentiates this by finite
-/// steps down to 1e-7 m.
+/// steps down to 1e-7 m. Not `ray`'s refinement, which returns the inside end of the bracket
+/// (a hit never short of the surface): the secant of the final bracket is smooth in the
+/// shape's parameters, and an exact zero (a sample on the surface, which happens) ends it.
 fn ray_refine(g: &impl Fn(f64) -> f64, mut ta: f64, mut ga: f64, mut tb: f64, mut gb: f64) -> f64 {
     let mut side = 0i8;
     for _ in 0..60 {
@@ -452,35 +455,6 @@ fn ray_refine(g: &impl Fn(f64) -> f64, mut ta: f64, mut ga: f64, mut tb: f64, mu
     } else {
         0.5 * (ta + tb)
     }
-}
-
-/// Golden-section minimum of `g` on `[a, b]`, stopping once `g <= 0`.
-fn ray_golden_min(g: &impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> (f64, f64) {
-    const R: f64 = 0.618_033_988_749_895;
-    let mut c = b - R * (b - a);
-    let mut e = a + R * (b - a);
-    let (mut gc, mut ge) = (g(c), g(e));
-    for _ in 0..50 {
-        if gc <= 0.0 {
-            return (c, gc);
-        }
-        if ge <= 0.0 {
-            return (e, ge);
-        }
-        if b - a <= 1e-11 {
-            break;
-        }
-        if gc < ge {
-            (b, e, ge) = (e, c, gc);
-            c = b - R * (b - a);
-            gc = g(c);
-        } else {
-            (a, c, gc) = (c, e, ge);
-            e = a + R * (b - a);
-            ge = g(e);
-        }
-    }
-    if gc < ge { (c, gc) } else { (e, ge) }
 }
 
 /// The counterpart of free space: surface that faces the sensor squarely (and is above the
@@ -655,16 +629,16 @@ impl Problem<'_> {
                 seen,
                 open,
                 twin_viewpoint,
-            }) => out.extend(self.points.iter().enumerate().map(|(i, p)| {
-                let v = if i < seen { viewpoint } else { twin_viewpoint };
-                (p - v)
-                    .try_normalize(1e-12)
-                    .and_then(|d| {
-                        let d = placed.pose.rotation.inverse() * d;
-                        ray_residual(&placed.shape, &placed.to_local(p), &d, open)
-                    })
-                    .unwrap_or_else(|| self.point_residual(&placed, p))
-            })),
+            }) => {
+                let to_local = placed.pose.rotation.inverse();
+                out.extend(self.points.iter().enumerate().map(|(i, p)| {
+                    let v = if i < seen { viewpoint } else { twin_viewpoint };
+                    (p - v)
+                        .try_normalize(1e-12)
+                        .and_then(|d| ray_residual(&placed.shape, &placed.to_local(p), &(to_local * d), open))
+                        .unwrap_or_else(|| self.point_residual(&placed, p))
+                }))
+            }
             None => out.extend(self.points.iter().map(|p| self.point_residual(&placed, p))),
         }
         out.extend(
@@ -750,12 +724,12 @@ fn lm(problem: &Problem, start: State, weights: &[f64], iterations: usize) -> St
             // The columns in parallel: the later stages fit one start at a time, and a residual
             // evaluation (thousands of points and free-space samples, the seen-surface queries)
             // is the whole cost. The same arithmetic as one after the other, so the same result.
-            let columns: Vec<(Vec<f64>, f64)> = (0..NP)
+            // A held parameter gets no column (a zero one: the step leaves it alone).
+            let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
                 .into_par_iter()
                 .map(|k| {
                     if problem.fix_taper && matches!(k, 5 | 6) {
-                        // A zero column: the step leaves the parameter alone.
-                        return (r0.clone(), 1.0);
+                        return None;
                     }
                     let mut d = Vect::zeros();
                     d[k] = STEPS[k];
@@ -769,12 +743,12 @@ fn lm(problem: &Problem, start: State, weights: &[f64], iterations: usize) -> St
                     };
                     let mut r = Vec::with_capacity(n);
                     problem.residuals(&sk, &mut r);
-                    (r, h)
+                    Some((r, h))
                 })
                 .collect();
-            for (k, (r, h)) in columns.iter().enumerate() {
+            for (k, column) in columns.iter().enumerate() {
                 for i in 0..n {
-                    jac[i][k] = (r[i] - r0[i]) / h;
+                    jac[i][k] = column.as_ref().map_or(0.0, |(r, h)| (r[i] - r0[i]) / h);
                 }
             }
             fresh = true;
@@ -1179,33 +1153,28 @@ pub fn fit_superquadric(
             (true, Some(u)) => Some((best.t, u)),
             _ => None,
         };
-        let (best, delta, fitted) = match (params.mirror, up) {
-            (true, Some(u)) => {
-                let c = best.t;
+        let (best, delta, fitted) = match mirror_at {
+            Some((c, u)) => {
                 let mut both = points.clone();
                 both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
                 let problem = Problem {
                     points: &both,
-                    free: &free,
-                    support,
-                    cost: params.cost,
-                    volume: None,
-                    seen: seen.as_ref(),
-                    rays: rays(Some((c, u))),
-                    fix_taper: false,
+                    rays: rays(mirror_at),
+                    ..problem_free
                 };
                 let (s, d) = robust_fit(&problem, best, 3, 40, min_delta);
                 (s, d, both)
             }
-            _ => {
+            None => {
                 let (s, d) = robust_fit(&problem_visible, best, 2, 40, min_delta);
                 (s, d, points.clone())
             }
         };
-        // The families are compared by the first-order distance along the normal (the better
-        // approximation of the true distance, so of the likelihood), whatever the fit minimised:
-        // the radial distance's bias on flat parts is what the general family's extra freedom
-        // otherwise wins on.
+        // The families are compared on the points of stage C (with their twins) by the
+        // first-order distance along the normal (the better approximation of the true distance,
+        // so of the likelihood), whatever the fit minimised: the radial distance's bias on flat
+        // parts is what the general family's extra freedom otherwise wins on. With the rays, the
+        // distance along them.
         let sc = score(
             &Problem {
                 cost: Cost::Normal,

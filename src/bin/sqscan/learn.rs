@@ -135,28 +135,19 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     if out.exists() && !a.force {
         bail!("{} exists; give --force to replace it", out.display());
     }
-    let cloud = if let [one] = a.cloud.as_slice() {
-        cloud::read_cloud(one)?
+    let cloud_path = &a.cloud[0];
+    let (cloud, input) = if let [one] = a.cloud.as_slice() {
+        (cloud::read_cloud(one)?, one.display().to_string())
     } else {
         let sweeps = a
             .cloud
             .iter()
             .map(|p| cloud::read_cloud(p).with_context(|| format!("sweep {}", p.display())))
             .collect::<Result<Vec<_>>>()?;
-        cloud::PointCloud::median_of_sweeps(&sweeps).map_err(|e| anyhow::anyhow!("--cloud: {e}"))?
-    };
-    let cloud_path = &a.cloud[0];
-    let input = if a.cloud.len() == 1 {
-        cloud_path.display().to_string()
-    } else {
-        format!(
-            "the per-pixel median of {} sweeps: {}",
-            a.cloud.len(),
-            a.cloud
-                .iter()
-                .map(|p| p.display().to_string())
-                .collect::<Vec<_>>()
-                .join(", ")
+        let names: Vec<String> = a.cloud.iter().map(|p| p.display().to_string()).collect();
+        (
+            cloud::PointCloud::median_of_sweeps(&sweeps).map_err(|e| anyhow::anyhow!("--cloud: {e}"))?,
+            format!("the per-pixel median of {} sweeps: {}", a.cloud.len(), names.join(", ")),
         )
     };
     let file_viewpoint = cloud.viewpoint_position();
