@@ -3,6 +3,7 @@
 
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
+use crate::numeric::quantile;
 use crate::sim::{self, Scene};
 pub use crate::symmetry::Symmetry;
 use crate::symmetry::same_shape;
@@ -80,10 +81,6 @@ pub fn trial(
 /// Median and 95th percentile of the finite values.
 pub fn median_p95(values: &[f64]) -> (f64, f64) {
     let mut v: Vec<f64> = values.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN);
-    }
-    v.sort_by(|a, b| a.total_cmp(b));
-    let q = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
-    (q(0.5), q(0.95))
+    let median = quantile(&mut v, 0.5).unwrap_or(f64::NAN);
+    (median, quantile(&mut v, 0.95).unwrap_or(f64::NAN))
 }

@@ -28,6 +28,7 @@ pub mod learn;
 pub mod logging;
 pub mod mock;
 pub mod model;
+pub mod numeric;
 pub mod pose;
 pub mod sim;
 pub mod spec;

@@ -8,16 +8,22 @@
 //! File IO (PLY, PCD, plain text) is described in the [`io`] module docs; its API is re-exported
 //! here.
 
+mod codec;
+pub mod grid;
 pub mod io;
 pub mod lzf;
 mod pcd;
+pub mod plane;
 mod ply;
 mod text;
 
-pub use io::*;
+pub use codec::{CloudError, PcdData, PlyFormat};
+pub use io::{read_cloud, write_cloud};
 pub use pcd::{read_pcd, write_pcd};
 pub use ply::{read_ply, write_ply};
 pub use text::{read_text, write_text};
+
+use crate::numeric::median;
 
 /// The scalar type of an extra per-point field, as PCD (`TYPE`/`SIZE`) and PLY name them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -208,15 +214,6 @@ pub struct PointCloud {
     pub viewpoint: Option<[f64; 7]>,
 }
 
-/// The median (the upper one of an even count; NaN when there are none).
-fn median_f64(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return f64::NAN;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, f64::total_cmp).1
-}
-
 fn is_finite_point(p: &[f32; 3]) -> bool {
     p.iter().all(|c| c.is_finite())
 }
@@ -351,7 +348,7 @@ impl PointCloud {
                     }
                 }
             }
-            median_f64(&mut a)
+            median(&mut a).unwrap_or(f64::NAN)
         };
         let offset = |c: &PointCloud, flip: bool| -> Option<f64> {
             let mut a: Vec<f64> = Vec::new();
@@ -363,7 +360,7 @@ impl PointCloud {
                     }
                 }
             }
-            (!a.is_empty()).then(|| median_f64(&mut a))
+            median(&mut a)
         };
         // Whether each sweep is read turned round (its rows from the last).
         let mut turned = vec![false; sweeps.len()];

@@ -2,7 +2,7 @@
 
 use std::io::{Read, Write};
 
-use super::io::{Column, Scalar, assemble, dims, lines, quote, read_all};
+use super::codec::{Column, Scalar, assemble, dims, lines, quote, read_all};
 use super::{CloudError, FieldData, PcdData, PointCloud, ScalarKind, lzf};
 
 /// One entry of `FIELDS`, with its `SIZE`/`TYPE`/`COUNT`.

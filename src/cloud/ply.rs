@@ -2,7 +2,7 @@
 
 use std::io::{Read, Write};
 
-use super::io::{Column, Scalar, Tokens, assemble, dims, lines, quote, read_all};
+use super::codec::{Column, Scalar, Tokens, assemble, dims, lines, quote, read_all};
 use super::{CloudError, FieldData, PlyFormat, PointCloud, ScalarKind};
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -2,7 +2,7 @@
 
 use std::io::{Read, Write};
 
-use super::io::{Column, Scalar, assemble, lines, quote, read_all};
+use super::codec::{Column, Scalar, assemble, lines, quote, read_all};
 use super::{CloudError, FieldData, PointCloud, ScalarKind};
 
 /// The comment that names and types the columns (written by [`write_text`]).

@@ -1,13 +1,13 @@
 //! Levenberg-Marquardt fit of a superquadric's pose (size, shape and taper fixed) to points,
 //! minimising the paper's eq. (2), `sum (F^e1 - 1)^2`.
 //!
-//! Hand-written rather than the `levenberg-marquardt` crate: the problem is always 5 or 6
-//! parameters, so the normal equations are a 6x6 system built in one pass over the points
-//! (no n x 6 Jacobian matrix is stored), the pose is updated on the manifold (a local rotation
-//! vector, see `PlacedSuperquadric::residual_pose_jacobian`), and a body of revolution simply
-//! drops its unobservable spin. `benches/lm.rs` compares it with the crate (BENCHMARKS.md).
+//! The normal equations are a 6x6 system built in one pass over the points (no n x 6 Jacobian
+//! is stored), the pose is updated on the manifold (a local rotation vector, see
+//! `PlacedSuperquadric::residual_pose_jacobian`), and a body of revolution simply drops its
+//! unobservable spin. The solver is [`crate::numeric::lm`].
 
 use crate::geometry::PlacedSuperquadric;
+use crate::numeric::{LeastSquares, LmSettings, minimize};
 use nalgebra::{Matrix6, Point3, Vector6};
 
 /// Result of a pose fit.
@@ -44,48 +44,41 @@ pub fn fit_pose_tol(
     five_dof: bool,
     rel_tol: f64,
 ) -> Fit {
-    let mut placed = *start;
+    let problem = PoseFit { points, five_dof };
+    let found = minimize(&problem, *start, &LmSettings::attempts(max_iterations, rel_tol));
+    let m = (found.cost / points.len().max(1) as f64).sqrt();
+    Fit {
+        placed: found.x,
+        m,
+        iterations: found.attempts,
+    }
+}
+
+/// The pose of a superquadric over points, the paper's eq. (2).
+struct PoseFit<'a> {
+    points: &'a [Point3<f64>],
+    /// The spin about the local z axis held (a body of revolution).
+    five_dof: bool,
+}
+
+impl LeastSquares<6> for PoseFit<'_> {
+    type Params = PlacedSuperquadric;
     // Every candidate is evaluated with its normal equations: an accepted step (the usual case
     // once the damping has settled) then needs no second pass over the points.
-    let (mut cost, mut h, mut g) = normal_equations(&placed, points, five_dof);
-    let mut lambda = 1e-3;
-    let mut iterations = 0;
-    let dof = if five_dof { 5 } else { 6 };
-    while iterations < max_iterations {
-        iterations += 1;
-        let mut a = h;
-        for k in 0..dof {
-            // Marquardt's scaling, with a floor so a zero column cannot make a zero pivot.
-            a[(k, k)] += lambda * h[(k, k)].max(1e-12);
-        }
-        let Some(chol) = a.cholesky() else {
-            lambda *= 10.0;
-            if lambda > 1e8 {
-                break;
-            }
-            continue;
-        };
-        let delta = chol.solve(&(-g));
-        let step: [f64; 6] = delta.into();
-        let candidate = placed.perturbed(&step);
-        let (new_cost, new_h, new_g) = normal_equations(&candidate, points, five_dof);
-        if new_cost < cost {
-            let relative = (cost - new_cost) / cost.max(1e-300);
-            placed = candidate;
-            (cost, h, g) = (new_cost, new_h, new_g);
-            lambda = (lambda * 0.1).max(1e-9);
-            if relative < rel_tol {
-                break;
-            }
-        } else {
-            lambda *= 10.0;
-            if lambda > 1e8 {
-                break;
-            }
-        }
+    type Evaluation = (Matrix6<f64>, Vector6<f64>);
+
+    fn evaluate(&self, placed: &PlacedSuperquadric) -> (f64, Self::Evaluation) {
+        let (cost, h, g) = normal_equations(placed, self.points, self.five_dof);
+        (cost, (h, g))
     }
-    let m = (cost / points.len().max(1) as f64).sqrt();
-    Fit { placed, m, iterations }
+
+    fn linearize(&self, _: &PlacedSuperquadric, at: &Self::Evaluation) -> (Matrix6<f64>, Vector6<f64>) {
+        *at
+    }
+
+    fn step(&self, placed: &PlacedSuperquadric, delta: &Vector6<f64>) -> PlacedSuperquadric {
+        placed.perturbed(&(*delta).into())
+    }
 }
 
 /// The cost `sum r^2`, the Gauss-Newton matrix `J^T J` and the gradient `J^T r` at a pose, in

@@ -16,19 +16,19 @@
 //! its own stream, so the answer does not depend on the number of threads.
 
 pub mod fit;
-pub mod grid;
+
 pub mod output;
-pub mod plane;
+
 pub mod rigid;
 pub mod search;
 pub mod verify;
 
+use crate::cloud::grid::{Grid, voxel_subsample};
+use crate::cloud::plane::{Plane, remove_dominant_plane};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::{Model, axis_angle};
 use crate::sim::stream_seed;
-use grid::{Grid, voxel_subsample};
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
-use plane::{Plane, remove_dominant_plane};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;

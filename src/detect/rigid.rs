@@ -10,6 +10,7 @@ use super::fit::measure_of_fit;
 use super::search::SearchSpace;
 use crate::geometry::PlacedSuperquadric;
 use crate::model::Model;
+use crate::numeric::{LeastSquares, LmSettings, minimize};
 use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
 
 /// Points near the placed model: each with the index of the part whose surface it is nearest.
@@ -101,19 +102,39 @@ fn fit_object(
     pts: &[(usize, Point3<f64>)],
     iterations: usize,
 ) -> Isometry3<f64> {
-    let mut pose = *start;
-    let mut c = cost(model, &pose, pts);
-    let mut lambda = 1e-3;
-    let mut it = 0;
-    'outer: while it < iterations {
-        let parts = place(model, &pose);
+    minimize(
+        &RigidFit { model, pts },
+        *start,
+        &LmSettings::attempts(iterations, 1e-6),
+    )
+    .x
+}
+
+/// The pose of an object whose parts are held rigidly, each point on the part it was gathered
+/// for.
+struct RigidFit<'a> {
+    model: &'a Model,
+    pts: &'a [(usize, Point3<f64>)],
+}
+
+impl LeastSquares<6> for RigidFit<'_> {
+    type Params = Isometry3<f64>;
+    // A candidate's cost alone: the normal equations only for the pose a step is taken from.
+    type Evaluation = ();
+
+    fn evaluate(&self, pose: &Isometry3<f64>) -> (f64, ()) {
+        (cost(self.model, pose, self.pts), ())
+    }
+
+    fn linearize(&self, pose: &Isometry3<f64>, _: &()) -> (Matrix6<f64>, Vector6<f64>) {
+        let parts = place(self.model, pose);
         let rot = pose.rotation;
         let mut h = Matrix6::<f64>::zeros();
         let mut g = Vector6::<f64>::zeros();
-        for (k, p) in pts {
+        for (k, p) in self.pts {
             let (r, j) = parts[*k].residual_pose_jacobian(p);
-            let m_t = model.parts[*k].pose_in_object.translation.vector;
-            let m_r = model.parts[*k].pose_in_object.rotation;
+            let m_t = self.model.parts[*k].pose_in_object.translation.vector;
+            let m_r = self.model.parts[*k].pose_in_object.rotation;
             let jt = Vector3::new(j[0], j[1], j[2]);
             let jw = Vector3::new(j[3], j[4], j[5]);
             // Part perturbation from object perturbation: dt_part = dt - R [m_t]x w and
@@ -123,41 +144,14 @@ fn fit_object(
             h.ger(1.0, &row, &row, 1.0);
             g += row * r;
         }
-        loop {
-            it += 1;
-            let mut a = h;
-            for d in 0..6 {
-                a[(d, d)] += lambda * h[(d, d)].max(1e-12);
-            }
-            let Some(chol) = a.cholesky() else {
-                lambda *= 10.0;
-                if lambda > 1e8 || it >= iterations {
-                    break 'outer;
-                }
-                continue;
-            };
-            let delta = chol.solve(&(-g));
-            let t = pose.translation.vector + Vector3::new(delta[0], delta[1], delta[2]);
-            let r = pose.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
-            let candidate = Isometry3::from_parts(t.into(), r);
-            let nc = cost(model, &candidate, pts);
-            if nc < c {
-                let rel = (c - nc) / c.max(1e-300);
-                pose = candidate;
-                c = nc;
-                lambda = (lambda * 0.1).max(1e-9);
-                if rel < 1e-6 {
-                    break 'outer;
-                }
-                break;
-            }
-            lambda *= 10.0;
-            if lambda > 1e8 || it >= iterations {
-                break 'outer;
-            }
-        }
+        (h, g)
     }
-    pose
+
+    fn step(&self, pose: &Isometry3<f64>, delta: &Vector6<f64>) -> Isometry3<f64> {
+        let t = pose.translation.vector + Vector3::new(delta[0], delta[1], delta[2]);
+        let r = pose.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
+        Isometry3::from_parts(t.into(), r)
+    }
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 //! only the best continues.
 
 use super::fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
-use super::grid::Grid;
+use crate::cloud::grid::Grid;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::RngExt;
@@ -48,7 +48,7 @@ pub struct SearchSpace<'a> {
     pub noise: f64,
     /// The support plane (normal towards the objects), when one was found: nothing the sensor
     /// saw on it can reach through it.
-    pub plane: Option<super::plane::Plane>,
+    pub plane: Option<crate::cloud::plane::Plane>,
 }
 
 /// How a shape may be placed against the support plane: its surface samples, to find how deep a
@@ -78,7 +78,7 @@ impl PlaneCheck {
     }
 
     /// How far (m) the placed shape reaches through the plane (negative: it stays above).
-    pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &super::plane::Plane) -> f64 {
+    pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &crate::cloud::plane::Plane) -> f64 {
         let n_local = placed.pose.rotation.inverse() * plane.normal;
         let lowest = self
             .samples

@@ -15,8 +15,8 @@
 //! - the interior ratio `I / S`: a wrong shape or size swallows points of the real surface;
 //! - the RMS Euclidean (radial) distance of the surface points, against the sensor noise.
 
-use super::grid::Grid;
 use super::search::SearchSpace;
+use crate::cloud::grid::Grid;
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 
@@ -389,7 +389,7 @@ pub fn visibility(
     all_grid: &Grid,
     placed: &PlacedSuperquadric,
     viewpoint: Option<Point3<f64>>,
-    plane: Option<&super::plane::Plane>,
+    plane: Option<&crate::cloud::plane::Plane>,
     samples: &SurfaceSamples,
 ) -> Visibility {
     let mut vis = Visibility::default();

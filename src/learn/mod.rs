@@ -14,10 +14,12 @@
 
 pub mod simulated;
 
-use crate::detect::grid::voxel_subsample;
-use crate::detect::plane::{Plane, remove_dominant_plane};
+use crate::cloud::grid::voxel_subsample;
+use crate::cloud::plane::{Plane, remove_dominant_plane};
 use crate::geometry::ray::golden_min;
 use crate::geometry::{EPSILON_MAX, EPSILON_MIN, PlacedSuperquadric, Superquadric};
+use crate::numeric::lm::Budget;
+use crate::numeric::{Damping, LeastSquares, LmSettings, huber, huber_weight, median, minimize};
 use nalgebra::{Isometry3, Point3, Rotation3, SMatrix, SVector, Translation3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use std::collections::{HashMap, VecDeque};
@@ -209,7 +211,7 @@ fn with_nearby_clusters(
         None => *p,
     };
     let main: Vec<Point3<f64>> = clusters[best].iter().map(|&i| flat(&points[i])).collect();
-    let grid = crate::detect::grid::Grid::new(&main, gap);
+    let grid = crate::cloud::grid::Grid::new(&main, gap);
     let mut object = clusters[best].clone();
     for (k, c) in clusters.iter().enumerate() {
         if k == best || c.len() < 10 {
@@ -465,7 +467,7 @@ struct Seen {
     viewpoint: Point3<f64>,
     /// The visible object points and a grid over them.
     points: Vec<Point3<f64>>,
-    grid: crate::detect::grid::Grid,
+    grid: crate::cloud::grid::Grid,
     plane: Option<Plane>,
     /// An open container: its lid is not surface.
     open: bool,
@@ -490,7 +492,7 @@ impl Seen {
         Seen {
             viewpoint,
             points: points.to_vec(),
-            grid: crate::detect::grid::Grid::new(points, SEEN_RADIUS),
+            grid: crate::cloud::grid::Grid::new(points, SEEN_RADIUS),
             plane: plane.copied(),
             open,
             // The samples together weigh like half the points.
@@ -666,42 +668,6 @@ impl Problem<'_> {
     }
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
-}
-
-#[inline]
-fn huber_weight(r: f64, delta: f64) -> f64 {
-    let a = r.abs();
-    if a <= delta {
-        1.0
-    } else if a <= OUTLIER_DELTAS * delta {
-        delta / a
-    } else {
-        // Redescending, as EMS's uniform outlier component: a point this far off is no evidence
-        // about the surface at all (Huber alone lets a few stereo strays 20 cm behind a can pull
-        // its hidden back out to them).
-        0.0
-    }
-}
-
-/// Residuals beyond this many Huber thresholds get no weight.
-const OUTLIER_DELTAS: f64 = 5.0;
-
-#[inline]
-fn huber(r: f64, delta: f64) -> f64 {
-    let a = r.abs();
-    if a <= delta {
-        0.5 * r * r
-    } else {
-        delta * (a - 0.5 * delta)
-    }
-}
-
 /// Finite-difference steps of the parameters.
 const STEPS: [f64; NP] = [
     1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-5, 1e-6, 1e-6, 1e-6, 1e-7, 1e-7, 1e-7,
@@ -709,98 +675,89 @@ const STEPS: [f64; NP] = [
 
 /// Weighted LM with a forward-difference Jacobian, bounds by projection.
 fn lm(problem: &Problem, start: State, weights: &[f64], iterations: usize) -> State {
-    let n = problem.len();
-    let mut s = start;
-    let mut r0 = Vec::with_capacity(n);
-    let mut r1 = Vec::with_capacity(n);
-    let cost_of = |r: &[f64]| r.iter().zip(weights).map(|(r, w)| w * r * r).sum::<f64>();
-    problem.residuals(&s, &mut r0);
-    let mut cost = cost_of(&r0);
-    let mut lambda = 1e-3;
-    let mut jac = vec![[0.0; NP]; n];
-    let mut fresh = false;
-    for _ in 0..iterations {
-        if !fresh {
-            // The columns in parallel: the later stages fit one start at a time, and a residual
-            // evaluation (thousands of points and free-space samples, the seen-surface queries)
-            // is the whole cost. The same arithmetic as one after the other, so the same result.
-            // A held parameter gets no column (a zero one: the step leaves it alone).
-            let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
-                .into_par_iter()
-                .map(|k| {
-                    if problem.fix_taper && matches!(k, 5 | 6) {
-                        return None;
-                    }
-                    let mut d = Vect::zeros();
-                    d[k] = STEPS[k];
-                    let sk = s.step(&d);
-                    // A parameter at its bound steps inwards.
-                    let (sk, h) = if sk_param(&sk, k) == sk_param(&s, k) {
-                        d[k] = -STEPS[k];
-                        (s.step(&d), -STEPS[k])
-                    } else {
-                        (sk, STEPS[k])
-                    };
-                    let mut r = Vec::with_capacity(n);
-                    problem.residuals(&sk, &mut r);
-                    Some((r, h))
-                })
-                .collect();
-            for (k, column) in columns.iter().enumerate() {
-                for i in 0..n {
-                    jac[i][k] = column.as_ref().map_or(0.0, |(r, h)| (r[i] - r0[i]) / h);
+    let settings = LmSettings {
+        max_iterations: iterations,
+        budget: Budget::Steps,
+        rel_tol: 1e-7,
+        damping: Damping::MarquardtPlusMean {
+            share: 1e-9,
+            floor: 1e-12,
+        },
+        lambda_start: 1e-3,
+        lambda_down: 0.2,
+        lambda_min: 1e-9,
+        lambda_up: 10.0,
+        // Attempts below 1e10.
+        lambda_max: 1e10_f64.next_down(),
+    };
+    minimize(&Weighted { problem, weights }, start, &settings).x
+}
+
+/// A learning problem with IRLS weights on its residuals.
+struct Weighted<'a> {
+    problem: &'a Problem<'a>,
+    weights: &'a [f64],
+}
+
+impl LeastSquares<NP> for Weighted<'_> {
+    type Params = State;
+    /// The residuals: the base of the forward differences.
+    type Evaluation = Vec<f64>;
+
+    fn evaluate(&self, s: &State) -> (f64, Vec<f64>) {
+        let mut r = Vec::with_capacity(self.problem.len());
+        self.problem.residuals(s, &mut r);
+        let cost = r.iter().zip(self.weights).map(|(r, w)| w * r * r).sum::<f64>();
+        (cost, r)
+    }
+
+    fn linearize(&self, s: &State, r0: &Vec<f64>) -> (Mat, Vect) {
+        let (problem, n) = (self.problem, self.problem.len());
+        // The columns in parallel: the later stages fit one start at a time, and a residual
+        // evaluation (thousands of points and free-space samples, the seen-surface queries)
+        // is the whole cost. The same arithmetic as one after the other, so the same result.
+        // A held parameter gets no column (a zero one: the step leaves it alone).
+        let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
+            .into_par_iter()
+            .map(|k| {
+                if problem.fix_taper && matches!(k, 5 | 6) {
+                    return None;
                 }
-            }
-            fresh = true;
-        }
+                let mut d = Vect::zeros();
+                d[k] = STEPS[k];
+                let sk = s.step(&d);
+                // A parameter at its bound steps inwards.
+                let (sk, h) = if sk_param(&sk, k) == sk_param(s, k) {
+                    d[k] = -STEPS[k];
+                    (s.step(&d), -STEPS[k])
+                } else {
+                    (sk, STEPS[k])
+                };
+                let mut r = Vec::with_capacity(n);
+                problem.residuals(&sk, &mut r);
+                Some((r, h))
+            })
+            .collect();
         let mut h = Mat::zeros();
         let mut g = Vect::zeros();
         for i in 0..n {
-            let w = weights[i];
+            let w = self.weights[i];
             if w == 0.0 || !r0[i].is_finite() {
                 continue;
             }
-            let j = Vect::from_column_slice(&jac[i]);
+            let j = Vect::from_fn(|k, _| columns[k].as_ref().map_or(0.0, |(r, h)| (r[i] - r0[i]) / h));
             if j.iter().any(|v| !v.is_finite()) {
                 continue;
             }
             h.ger(w, &j, &j, 1.0);
             g += j * (w * r0[i]);
         }
-        let mut accepted = false;
-        while lambda < 1e10 {
-            let mut a = h;
-            for k in 0..NP {
-                a[(k, k)] += lambda * (h[(k, k)] + 1e-9 * h.trace() / NP as f64 + 1e-12);
-            }
-            let Some(ch) = a.cholesky() else {
-                lambda *= 10.0;
-                continue;
-            };
-            let d = ch.solve(&(-g));
-            let cand = s.step(&d);
-            problem.residuals(&cand, &mut r1);
-            let c1 = cost_of(&r1);
-            if c1.is_finite() && c1 < cost {
-                let rel = (cost - c1) / cost.max(1e-300);
-                s = cand;
-                std::mem::swap(&mut r0, &mut r1);
-                cost = c1;
-                lambda = (lambda * 0.2).max(1e-9);
-                accepted = true;
-                fresh = false;
-                if rel < 1e-7 {
-                    return s;
-                }
-                break;
-            }
-            lambda *= 10.0;
-        }
-        if !accepted {
-            break;
-        }
+        (h, g)
     }
-    s
+
+    fn step(&self, s: &State, d: &Vect) -> State {
+        s.step(d)
+    }
 }
 
 fn sk_param(s: &State, k: usize) -> f64 {
@@ -824,7 +781,7 @@ fn robust_fit(problem: &Problem, start: State, rounds: usize, iterations: usize,
         if round > 0 {
             problem.residuals(&s, &mut r);
             let mut abs: Vec<f64> = r[..problem.points.len()].iter().map(|v| v.abs()).collect();
-            delta = (2.0 * 1.4826 * median(&mut abs)).max(min_delta);
+            delta = (2.0 * 1.4826 * median(&mut abs).unwrap_or(0.0)).max(min_delta);
             for (w, v) in weights.iter_mut().zip(&r) {
                 *w = huber_weight(*v, delta);
             }
@@ -1257,7 +1214,7 @@ pub fn fit_superquadric(
     let inliers: Vec<f64> = r.iter().copied().filter(|v| v.abs() <= delta).collect();
     let rms = (inliers.iter().map(|v| v * v).sum::<f64>() / inliers.len().max(1) as f64).sqrt();
     let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
-    let median_abs = median(&mut abs);
+    let median_abs = median(&mut abs).unwrap_or(0.0);
     let mut placed = best.placed();
     let open = open_top || is_open(&placed, &points, params.viewpoint.as_ref());
     canonicalise(&mut placed, up.as_ref());
@@ -1500,7 +1457,7 @@ fn score(problem: &Problem, s: &State) -> f64 {
 /// The points with at least `min_neighbours` others within `radius` (a radius outlier filter:
 /// stereo and edge strays are isolated).
 pub fn remove_stray_points(points: &[Point3<f64>], radius: f64, min_neighbours: usize) -> Vec<Point3<f64>> {
-    let grid = crate::detect::grid::Grid::new(points, radius);
+    let grid = crate::cloud::grid::Grid::new(points, radius);
     points
         .iter()
         .filter(|p| {
@@ -1635,7 +1592,7 @@ pub fn learn_segmented(
         // An open container's inside bottom lies in the plane band and went with the table; the
         // sensor saw it through the opening, so rays to it are not free space.
         let hull = footprint(&object, &pl.normal);
-        let (u, v) = crate::detect::plane::orthonormal_basis(&pl.normal);
+        let (u, v) = crate::cloud::plane::orthonormal_basis(&pl.normal);
         free.retain(|p| !inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))));
     }
     let rec = fit_superquadric(&object, &free, segmentation.plane.as_ref(), params)?;
@@ -1647,9 +1604,9 @@ pub fn learn_segmented(
 }
 
 /// The convex hull (counter-clockwise) of the points projected on the plane across `normal`, in
-/// the basis of [`crate::detect::plane::orthonormal_basis`].
+/// the basis of [`crate::cloud::plane::orthonormal_basis`].
 pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64)> {
-    let (u, v) = crate::detect::plane::orthonormal_basis(normal);
+    let (u, v) = crate::cloud::plane::orthonormal_basis(normal);
     hull2d(points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect())
 }
 
@@ -1695,7 +1652,7 @@ fn silhouette_samples(
     let Some(w) = (centroid - v.coords).try_normalize(1e-9) else {
         return Vec::new();
     };
-    let (u1, u2) = crate::detect::plane::orthonormal_basis(&w);
+    let (u1, u2) = crate::cloud::plane::orthonormal_basis(&w);
     let depth = (centroid - v.coords).norm();
     let proj: Vec<(f64, f64)> = object
         .iter()

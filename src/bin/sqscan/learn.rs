@@ -8,7 +8,7 @@ use clap::{Args, ValueEnum};
 use nalgebra::Point3;
 use serde_json::json;
 use sqscan::cloud::{self, FieldData};
-use sqscan::detect::plane::remove_dominant_plane;
+use sqscan::cloud::plane::remove_dominant_plane;
 use sqscan::learn::{self, Cost, LearnParams, Provenance, Segmentation, ShapeFamily};
 use sqscan::model::Model;
 use std::path::{Path, PathBuf};

@@ -9,6 +9,7 @@
 //! it holds more points than the rest of the scene.
 
 use super::grid::Grid;
+use crate::numeric::median;
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
 /// Seeds spread over the data, as in the paper.
@@ -155,7 +156,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     for (_, h, _) in &hypotheses {
         all_d.extend(seeds.iter().map(|&s| h.signed_distance(&points[s]).abs()));
     }
-    let threshold = median(&mut all_d);
+    let threshold = median(&mut all_d).unwrap_or(0.0);
     // The paper's vote over the seeds ranks the hypotheses; on a cluttered table most seeds lie
     // on objects and the vote alone can crown a box top, so the hypotheses are compared by how
     // many of all the points (every 16th) lie within a centimetre of them.
@@ -196,7 +197,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let scale: Vec<f64> = match viewpoint {
         Some(v) => {
             let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
-            let r_ref = median(&mut r.clone()).max(1e-3);
+            let r_ref = median(&mut r.clone()).unwrap_or(0.0).max(1e-3);
             r.iter_mut().for_each(|x| *x = (*x / r_ref).powi(2).max(0.05));
             r
         }
@@ -223,7 +224,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             .filter(|&d| d < band)
             .collect();
         // 1.4826 MAD estimates sigma; three sigma hold 99.7 % of the plane's noise.
-        band = (3.0 * 1.4826 * median(&mut dist)).clamp(0.002, cap);
+        band = (3.0 * 1.4826 * median(&mut dist).unwrap_or(0.0)).clamp(0.002, cap);
         if (band - previous).abs() < 0.05 * previous {
             break;
         }
@@ -267,14 +268,6 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         band,
         kept,
     }
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let mid = v.len() / 2;
-    *v.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
 }
 
 /// Two unit vectors completing `n` to an orthonormal basis.
