@@ -1,0 +1,335 @@
+//! What the sensor saw besides the points: free space along rays that passed the object, the
+//! surface that faced the sensor and so must have been seen, and the silhouette.
+
+use crate::cloud::plane::Plane;
+use crate::geometry::{PlacedSuperquadric, Superquadric};
+use nalgebra::{Point3, Vector3};
+
+/// The counterpart of free space: surface that faces the sensor squarely (and is above the
+/// table) would have been seen, so an object point must lie near it. Without this a shape is
+/// free to put surface where the view shows nothing: a bowl's hidden foot tapered to a cone
+/// whose flank would face the sensor, the back of a segmented can blown up sideways.
+pub(super) struct Seen {
+    pub(super) viewpoint: Point3<f64>,
+    /// The visible object points and a grid over them.
+    pub(super) points: Vec<Point3<f64>>,
+    pub(super) grid: crate::cloud::grid::Grid,
+    pub(super) plane: Option<Plane>,
+    /// An open container: its lid is not surface.
+    pub(super) open: bool,
+    /// Weight of one surface sample's residual.
+    pub(super) weight: f64,
+}
+
+/// Surface facing the sensor at a smaller incidence than this is expected in the data; the
+/// residual ramps in from [`SEEN_COS_FROM`] (triangulation sensors return up to about 80 deg,
+/// the simulated one too; the margin leaves grazing surface, which noise and dropout thin out,
+/// alone).
+pub(super) const SEEN_COS_FULL: f64 = 0.5; // 60 deg
+pub(super) const SEEN_COS_FROM: f64 = 0.259; // 75 deg
+/// A facing surface sample this close to an object point is seen.
+pub(super) const SEEN_TOLERANCE: f64 = 0.006;
+/// Nearest points are looked for within this radius (a sample farther off counts as this far).
+pub(super) const SEEN_RADIUS: f64 = 0.03;
+
+impl Seen {
+    pub(super) fn new(viewpoint: Point3<f64>, points: &[Point3<f64>], plane: Option<&Plane>, open: bool) -> Seen {
+        let samples = SEEN_SAMPLES as f64;
+        Seen {
+            viewpoint,
+            points: points.to_vec(),
+            grid: crate::cloud::grid::Grid::new(points, SEEN_RADIUS),
+            plane: plane.copied(),
+            open,
+            // The samples together weigh like half the points.
+            weight: (0.5 * points.len() as f64 / samples).sqrt(),
+        }
+    }
+
+    pub(super) fn residuals(&self, placed: &PlacedSuperquadric, out: &mut Vec<f64>) {
+        for q in seen_samples(&placed.shape) {
+            let p = placed.pose.transform_point(&Point3::from(q));
+            let g = placed.shape.residual_grad(&q).grad;
+            if self.open && crate::model::is_lid(&g) {
+                out.push(0.0);
+                continue;
+            }
+            let (Some(n), Some(to_sensor)) = (
+                (placed.pose.rotation * g).try_normalize(1e-300),
+                (self.viewpoint - p).try_normalize(1e-12),
+            ) else {
+                out.push(0.0);
+                continue;
+            };
+            let ramp = ((n.dot(&to_sensor) - SEEN_COS_FROM) / (SEEN_COS_FULL - SEEN_COS_FROM)).clamp(0.0, 1.0);
+            let above = self.plane.is_none_or(|pl| pl.signed_distance(&p) > 0.005);
+            if ramp == 0.0 || !above {
+                out.push(0.0);
+                continue;
+            }
+            let mut d2 = SEEN_RADIUS * SEEN_RADIUS;
+            self.grid.for_each_within(&self.points, &p, SEEN_RADIUS, |i| {
+                d2 = d2.min((self.points[i] - p).norm_squared());
+            });
+            out.push(self.weight * ramp * (d2.sqrt() - SEEN_TOLERANCE).max(0.0));
+        }
+    }
+}
+
+/// Cells per cube-face side of [`seen_samples`].
+pub(super) const SEEN_GRID: usize = 7;
+/// How many residuals [`Seen::residuals`] gives (one per [`seen_samples`] sample).
+pub(super) const SEEN_SAMPLES: usize = 6 * SEEN_GRID * SEEN_GRID;
+
+/// Surface points along fixed directions through a grid on the six faces of a box with the
+/// shape's half-sizes (the parametric angles crowd a box's edges and leave its faces empty, and
+/// directions through a cube's faces meet a pen only near its middle; through the box they
+/// spread over the faces of a box and the length of a pen alike).
+pub(super) fn seen_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
+    let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
+    (0..6).flat_map(move |face| {
+        (0..SEEN_GRID * SEEN_GRID).map(move |k| {
+            let (u, v) = (at(k % SEEN_GRID), at(k / SEEN_GRID));
+            let c = match face {
+                0 => Vector3::new(1.0, u, v),
+                1 => Vector3::new(-1.0, u, v),
+                2 => Vector3::new(u, 1.0, v),
+                3 => Vector3::new(u, -1.0, v),
+                4 => Vector3::new(u, v, 1.0),
+                _ => Vector3::new(u, v, -1.0),
+            };
+            let d = Vector3::new(c.x * sq.a[0], c.y * sq.a[1], c.z * sq.a[2]).normalize();
+            sq.taper(&sq.untapered_surface_along(&d))
+        })
+    })
+}
+
+/// Fixed parametric angles for the lowest point: the poles, the equator and every 15 degrees.
+pub(super) fn surface_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
+    let spow = |c: f64, e: f64| c.signum() * c.abs().powf(e);
+    (0..=12).flat_map(move |i| {
+        let eta = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
+        (0..24).map(move |j| {
+            let om = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * j as f64 / 24.0;
+            let (ce, se) = (eta.cos(), eta.sin());
+            let p = Vector3::new(
+                sq.a[0] * spow(ce, sq.e1) * spow(om.cos(), sq.e2),
+                sq.a[1] * spow(ce, sq.e1) * spow(om.sin(), sq.e2),
+                sq.a[2] * spow(se, sq.e1),
+            );
+            sq.taper(&p)
+        })
+    })
+}
+
+/// Samples along the rays from the viewpoint to the scene points `others` (seen beyond or beside
+/// the object), inside the sphere `(centre, radius)`, spaced `radius / 10` (at most 6 mm); at most
+/// 300 rays.
+pub(super) fn free_space_samples(
+    v: &Point3<f64>,
+    others: &[Point3<f64>],
+    centre: &Vector3<f64>,
+    radius: f64,
+) -> Vec<Point3<f64>> {
+    let c = Point3::from(*centre);
+    let rays: Vec<&Point3<f64>> = others
+        .iter()
+        .filter(|q| {
+            let d = *q - v;
+            let len = d.norm();
+            if len < 1e-9 {
+                return false;
+            }
+            let u = d / len;
+            let s = (c - v).dot(&u).clamp(0.0, len);
+            ((v + u * s) - c).norm() < radius && (**q - c).norm() > 0.5 * radius.min(0.02)
+        })
+        .collect();
+    let step = (rays.len() / 300).max(1);
+    let spacing = (radius / 10.0).min(0.006);
+    let mut out = Vec::new();
+    for q in rays.into_iter().step_by(step) {
+        let d = q - v;
+        let len = d.norm();
+        let u = d / len;
+        let s0 = (c - v).dot(&u);
+        let h2 = radius * radius - ((v + u * s0) - c).norm_squared();
+        if h2 <= 0.0 {
+            continue;
+        }
+        let h = h2.sqrt();
+        // Stop 5 mm short of the seen point: it may touch the object (the table at its foot).
+        let (a, b) = ((s0 - h).max(0.0), (s0 + h).min(len - 0.005));
+        let mut s = a;
+        while s < b {
+            out.push(v + u * s);
+            s += spacing;
+        }
+    }
+    out
+}
+
+/// The sensor is above the top of an upright shape, yet fewer than 2 % of the points lie on the
+/// inner half of its top (a closed top in view shows plenty).
+pub(super) fn unseen_top(
+    placed: &PlacedSuperquadric,
+    points: &[Point3<f64>],
+    v: &Point3<f64>,
+    up: &Vector3<f64>,
+) -> bool {
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(up).abs() < 0.9 {
+        return false;
+    }
+    let a = placed.shape.a;
+    let sign = z.dot(up).signum();
+    let lv = placed.to_local(v);
+    if sign * lv.z < a[2] {
+        return false;
+    }
+    let on_top = points
+        .iter()
+        .filter(|p| {
+            let q = placed.to_local(p);
+            sign * q.z > 0.7 * a[2] && (q.x / a[0]).powi(2) + (q.y / a[1]).powi(2) < 0.5
+        })
+        .count();
+    on_top * 50 < points.len()
+}
+
+/// Free-space samples less those in or near `placed` (the inside of an open container, seen
+/// through its opening, and its rim).
+pub(super) fn drop_rays_through_top(free: &[Point3<f64>], placed: &PlacedSuperquadric) -> Vec<Point3<f64>> {
+    free.iter()
+        .filter(|p| placed.shape.inside_outside(&placed.to_local(p)) > 1.5)
+        .copied()
+        .collect()
+}
+
+/// The 1-99 % extents of `points` along the local axes of `placed` (m): how much of each full
+/// size `2 a` the view shows.
+pub fn seen_extent(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> [f64; 3] {
+    let local: Vec<Vector3<f64>> = points
+        .iter()
+        .map(|p| placed.to_local(p))
+        .filter(|q| q.iter().all(|v| v.is_finite()))
+        .collect();
+    if local.is_empty() {
+        return [0.0; 3];
+    }
+    [0, 1, 2].map(|k| {
+        let mut v: Vec<f64> = local.iter().map(|q| q[k]).collect();
+        v.sort_by(f64::total_cmp);
+        let at = |f: f64| v[((v.len() - 1) as f64 * f).round() as usize];
+        at(0.99) - at(0.01)
+    })
+}
+
+/// The convex hull (counter-clockwise) of the points projected on the plane across `normal`, in
+/// the basis of [`crate::cloud::plane::orthonormal_basis`].
+pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64)> {
+    let (u, v) = crate::cloud::plane::orthonormal_basis(normal);
+    hull2d(points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect())
+}
+
+/// The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain).
+pub fn hull2d(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: (f64, f64), a: (f64, f64), b: (f64, f64)| (a.0 - o.0) * (b.1 - o.1) - (a.1 - o.1) * (b.0 - o.0);
+    let mut hull: Vec<(f64, f64)> = Vec::new();
+    for pass in 0..2 {
+        let start = hull.len();
+        let iter: Box<dyn Iterator<Item = &(f64, f64)>> = if pass == 0 {
+            Box::new(pts.iter())
+        } else {
+            Box::new(pts.iter().rev())
+        };
+        for &p in iter {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(p);
+        }
+        hull.pop();
+    }
+    hull
+}
+
+/// Free-space samples along rays just outside the object's silhouette as the sensor saw it: the
+/// convex hull of the points in the image (perspective coordinates about the view axis), grown
+/// by `margin` metres at the object's range. The sensor saw the whole silhouette, so nothing of
+/// the object lies on these rays, even when the cloud holds nothing behind them (a cloud
+/// segmented beforehand).
+pub(super) fn silhouette_samples(
+    v: &Point3<f64>,
+    object: &[Point3<f64>],
+    centroid: &Vector3<f64>,
+    radius: f64,
+    margin: f64,
+) -> Vec<Point3<f64>> {
+    let Some(w) = (centroid - v.coords).try_normalize(1e-9) else {
+        return Vec::new();
+    };
+    let (u1, u2) = crate::cloud::plane::orthonormal_basis(&w);
+    let depth = (centroid - v.coords).norm();
+    let proj: Vec<(f64, f64)> = object
+        .iter()
+        .filter_map(|p| {
+            let d = p - v;
+            let z = d.dot(&w);
+            (z > 1e-6).then(|| (d.dot(&u1) / z, d.dot(&u2) / z))
+        })
+        .collect();
+    let hull = hull2d(proj);
+    if hull.len() < 3 {
+        return Vec::new();
+    }
+    let n = hull.len() as f64;
+    let hc = hull.iter().fold((0.0, 0.0), |a, h| (a.0 + h.0 / n, a.1 + h.1 / n));
+    let grow = margin / depth;
+    let grown: Vec<(f64, f64)> = hull
+        .iter()
+        .map(|h| {
+            let (dx, dy) = (h.0 - hc.0, h.1 - hc.1);
+            let l = (dx * dx + dy * dy).sqrt().max(1e-12);
+            (h.0 + grow * dx / l, h.1 + grow * dy / l)
+        })
+        .collect();
+    let step = 0.004 / depth;
+    let spacing = (radius / 10.0).min(0.006);
+    let mut out = Vec::new();
+    for i in 0..grown.len() {
+        let (a, b) = (grown[i], grown[(i + 1) % grown.len()]);
+        let len = ((b.0 - a.0).powi(2) + (b.1 - a.1).powi(2)).sqrt();
+        let k = (len / step).ceil().max(1.0) as usize;
+        for j in 0..k {
+            let t = j as f64 / k as f64;
+            let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            let dir = (w + u1 * x + u2 * y).normalize();
+            let s0 = (centroid - v.coords).dot(&dir);
+            let mut s = s0 - radius;
+            while s < s0 + radius {
+                if s > 0.0 {
+                    out.push(v + dir * s);
+                }
+                s += spacing;
+            }
+        }
+    }
+    out
+}
+
+/// Whether a point lies inside a counter-clockwise convex polygon.
+pub fn inside_convex(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
+    if hull.len() < 3 {
+        return false;
+    }
+    (0..hull.len()).all(|i| {
+        let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
+        (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0) >= 0.0
+    })
+}

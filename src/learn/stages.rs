@@ -1,0 +1,499 @@
+//! The stages of the single-part fit: starts, A (visible points), A2 and B (free space), C (the
+//! mirrored twins, along the rays), D (the smallest equally good shape), E (along the rays again).
+
+use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
+use super::residual::{Problem, Rays, score, turn_half};
+use super::robust::robust_fit;
+use super::seen::{Seen, drop_rays_through_top, free_space_samples, silhouette_samples, unseen_top};
+use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
+use super::state::{SIZE_MAX, State};
+use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
+use crate::cloud::plane::Plane;
+use crate::numeric::{huber, median};
+use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+/// The centroid and the covariance's eigenvectors (columns, by decreasing variance).
+pub(super) fn moments(points: &[Point3<f64>]) -> (Vector3<f64>, [Vector3<f64>; 3]) {
+    let (c, [small, mid, large]) = crate::geometry::principal_axes(points);
+    (c, [large, mid, small])
+}
+
+/// A right-handed frame with z along `z` and x along the major moment direction across it.
+pub(super) fn frame_with_z(points: &[Point3<f64>], centroid: &Vector3<f64>, z: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let z = z.normalize();
+    let helper = if z.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let u = z.cross(&helper).normalize();
+    let v = z.cross(&u);
+    let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
+    for p in points {
+        let d = p.coords - centroid;
+        let (a, b) = (d.dot(&u), d.dot(&v));
+        suu += a * a;
+        suv += a * b;
+        svv += b * b;
+    }
+    let angle = 0.5 * (2.0 * suv).atan2(suu - svv);
+    let x = u * angle.cos() + v * angle.sin();
+    let y = z.cross(&x);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[x, y, z]))
+}
+
+/// Start sizes and centre from the extents of the points in a frame (2-98 percent), the centre
+/// pushed away from the sensor by half the sizes along the view (only the front half is seen).
+pub(super) fn start_state(
+    points: &[Point3<f64>],
+    rot: UnitQuaternion<f64>,
+    viewpoint: Option<&Point3<f64>>,
+    e: (f64, f64),
+) -> State {
+    let local: Vec<Vector3<f64>> = points.iter().map(|p| rot.inverse() * p.coords).collect();
+    let mut lo = [0.0; 3];
+    let mut hi = [0.0; 3];
+    for k in 0..3 {
+        let mut v: Vec<f64> = local.iter().map(|q| q[k]).collect();
+        v.sort_by(f64::total_cmp);
+        lo[k] = v[(v.len() as f64 * 0.02) as usize];
+        hi[k] = v[((v.len() as f64 * 0.98) as usize).min(v.len() - 1)];
+    }
+    let mut a = [0.0; 3];
+    let mut c = Vector3::zeros();
+    for k in 0..3 {
+        a[k] = (0.5 * (hi[k] - lo[k])).clamp(0.003, SIZE_MAX);
+        c[k] = 0.5 * (hi[k] + lo[k]);
+    }
+    if let Some(v) = viewpoint {
+        let centre = rot * c;
+        if let Some(view) = (centre - v.coords).try_normalize(1e-9) {
+            let d = rot.inverse() * view;
+            for k in 0..3 {
+                c[k] += 0.3 * d[k] * a[k];
+            }
+        }
+    }
+    State {
+        ln_a: a.map(f64::ln),
+        e: [e.0, e.1],
+        k: [0.0, 0.0],
+        rot,
+        t: rot * c,
+        rev: false,
+    }
+}
+
+/// Recover one superquadric from the points of a single view. `plane`: the surface the object
+/// stands on (normal towards the object), `up`: the up direction when there is no plane.
+pub fn fit_superquadric(
+    all_points: &[Point3<f64>],
+    free_points: &[Point3<f64>],
+    plane: Option<&Plane>,
+    params: &LearnParams,
+) -> Result<Recovered, LearnError> {
+    if all_points.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(all_points.len()));
+    }
+    // Strays: isolated points, then everything not connected to the largest cluster or next to
+    // it seen from above (a few stereo outliers 25 cm behind a can are a cluster of their own).
+    let kept = remove_stray_points(all_points, 0.01, 4);
+    let idx: Vec<usize> = (0..kept.len()).collect();
+    let found = clusters(&kept, &idx, 0.01);
+    let kept: Vec<Point3<f64>> = if found.is_empty() {
+        Vec::new()
+    } else {
+        // With the clusters next to it seen from above (an open container's inside).
+        with_nearby_clusters(&kept, &found, 0, MERGE_GAP, plane)
+            .into_iter()
+            .map(|i| kept[i])
+            .collect()
+    };
+    if kept.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(kept.len()));
+    }
+    let points = subsample(&kept, params.max_points);
+    let up = plane
+        .map(|p| p.normal)
+        .or(params.up.and_then(|u| u.try_normalize(1e-12)));
+    let support = if params.support {
+        plane.map(|p| (*p, (points.len() as f64 / 4.0).sqrt()))
+    } else {
+        None
+    };
+    let (centroid, axes) = moments(&points);
+    let mut starts: Vec<(String, State)> = Vec::new();
+    let mut zs: Vec<(String, Vector3<f64>)> = Vec::new();
+    if let Some(u) = up {
+        zs.push(("up".into(), u));
+    }
+    for (k, a) in axes.iter().enumerate() {
+        // A moment axis within 15 degrees of up duplicates the up start.
+        if up.is_some_and(|u| a.dot(&u).abs() > 0.966) {
+            continue;
+        }
+        zs.push((format!("moment{k}"), *a));
+    }
+    for (zn, z) in &zs {
+        let rot = frame_with_z(&points, &centroid, z);
+        for e in [(1.0, 1.0), (0.3, 1.0), (0.3, 0.3)] {
+            starts.push((
+                format!("z={zn} e=({},{})", e.0, e.1),
+                start_state(&points, rot, params.viewpoint.as_ref(), e),
+            ));
+        }
+        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
+        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
+        if zn == "up" {
+            for k in [0.3, -0.3] {
+                for e in [(1.0, 1.0), (0.3, 1.0)] {
+                    let mut s = start_state(&points, rot, params.viewpoint.as_ref(), e);
+                    s.k = [k, k];
+                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
+                }
+            }
+        }
+    }
+    // Every start also as a body of revolution about its z axis: the simpler family, which the
+    // end prefers unless the general shape explains the view clearly better (a hidden foot or
+    // back leaves a general shape free to bulge or flatten where nothing was seen).
+    let rev: Vec<(String, State)> = starts
+        .iter()
+        .map(|(n, s)| (format!("{n} revolution"), s.as_revolution()))
+        .collect();
+    match params.shape {
+        ShapeFamily::Auto => starts.extend(rev),
+        ShapeFamily::General => {}
+        ShapeFamily::Revolution => starts = rev,
+    }
+    // A noise floor for the Huber threshold: 1 mm.
+    let min_delta = 0.001;
+    // Stage A: the visible points (and the support plane) decide the centre: the mirrored points
+    // cannot, since their union with the visible ones is symmetric about whatever centre they
+    // were mirrored through.
+    let problem_visible = Problem {
+        points: &points,
+        free: &[],
+        support,
+        cost: params.cost,
+        volume: None,
+        seen: None,
+        rays: None,
+        fix_taper: false,
+    };
+    // Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
+    // surface must not cross them. Without this nothing stops the hidden back of a flat top (a
+    // cylinder's disc, a book's cover) from growing: the points on a face say where its plane
+    // is, not where it ends. Samples around the points' bounding sphere, the same for every start.
+    let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
+    let mut free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, &centroid, 1.5 * extent),
+        None => Vec::new(),
+    };
+    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
+        free.extend(silhouette_samples(&v, &points, &centroid, 1.5 * extent, 0.004));
+    }
+    if let Some(pl) = plane {
+        // Below the table nothing was seen: no free space there.
+        free.retain(|p| pl.signed_distance(p) > 0.003);
+    }
+    // Stage A1: every start on the visible points (and the support plane).
+    let results: Vec<(String, State)> = starts
+        .into_par_iter()
+        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, min_delta).0))
+        .collect();
+    // (From the general starts: a body of revolution about a wrong axis fitted to the visible
+    // points alone can be a disc as wide as the view, which would take the free space with it.)
+    let best_visible = results
+        .iter()
+        .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
+        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
+        .map(|r| r.1)
+        .expect("at least one start");
+    // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
+    // through its opening are not free space.
+    let open_top = match (params.viewpoint, up) {
+        (Some(v), Some(u)) => unseen_top(&best_visible.placed(), &points, &v, &u),
+        _ => false,
+    };
+    let free: Vec<Point3<f64>> = if open_top {
+        drop_rays_through_top(&free, &best_visible.placed())
+    } else {
+        free
+    };
+    // What faced the sensor must have been seen (from stage A2 on: the starts are rough); an
+    // open top is not surface.
+    let seen = params.viewpoint.map(|v| Seen::new(v, &points, plane, open_top));
+    // From stage C on the visible points take the distance along their rays, and their twins
+    // (mirrored through the vertical axis at `mirror`) the distance along the mirrored rays:
+    // the view a sensor at the mirrored viewpoint would have had. Only with the twins: the
+    // distance along a ray reads where the ray enters the surface and nothing behind it, so
+    // without them (no up direction) nothing holds the hidden back half.
+    let rays = |mirror: Option<(Vector3<f64>, Vector3<f64>)>| {
+        let v = params.viewpoint.filter(|_| params.along_rays)?;
+        let (c, u) = mirror?;
+        Some(Rays {
+            viewpoint: v,
+            seen: points.len(),
+            twin_viewpoint: turn_half(&v, &c, &u),
+            open: open_top,
+        })
+    };
+    let problem_free = Problem {
+        points: &points,
+        free: &free,
+        support,
+        cost: params.cost,
+        volume: None,
+        seen: seen.as_ref(),
+        rays: None,
+        fix_taper: false,
+    };
+    // Stage A2: every start again with a thinned free space (at most 1500 samples), which is
+    // what keeps a start from keeping a skirt or a back where the sensor saw through.
+    let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
+    let problem_coarse = Problem {
+        points: &points,
+        free: &coarse,
+        support,
+        cost: params.cost,
+        volume: None,
+        seen: seen.as_ref(),
+        rays: None,
+        fix_taper: false,
+    };
+    let results = refit_scored(
+        results,
+        (!coarse.is_empty()).then_some(&problem_coarse),
+        (2, 20),
+        min_delta,
+        &problem_free,
+    );
+    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+        for (n, s, sc) in &results {
+            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+        }
+    }
+    // Stages B and C for each family (general, revolution), then the choice between them.
+    let mut finals: Vec<FamilyResult> = Vec::new();
+    for family in [false, true] {
+        // Stage B: the best three starts again with all of the free space.
+        let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == family).cloned().collect();
+        results.sort_by(|a, b| a.2.total_cmp(&b.2));
+        // Three distinct ones: starts that converged to the same shape count once.
+        let mut distinct: Vec<(String, State, f64)> = Vec::new();
+        for r in results {
+            if distinct.len() < 3 && !distinct.iter().any(|d| same_fit(&d.1, &r.1)) {
+                distinct.push(r);
+            }
+        }
+        let results = refit_scored(
+            distinct.into_iter().map(|(n, s, _)| (n, s)).collect(),
+            (!free.is_empty()).then_some(&problem_free),
+            (3, 40),
+            min_delta,
+            &problem_free,
+        );
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            for (n, s, sc) in &results {
+                eprintln!(
+                    "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+                    free.len(),
+                    s.shape(),
+                    s.t.as_slice()
+                );
+            }
+        }
+        // Of the results as good as the best (within SMALLEST_TOLERANCE), the smallest: one view
+        // cannot tell a ball from an egg pointing at the sensor, and the mirror of stage C
+        // would fix the egg's centre, pushed back, for good.
+        let Some(top) = results.iter().map(|r| r.2).min_by(f64::total_cmp) else {
+            continue;
+        };
+        let (name, best, _) = results
+            .into_iter()
+            .filter(|r| r.2 <= top * (1.0 + SMALLEST_TOLERANCE))
+            .min_by(|a, b| volume(&a.1.shape()).total_cmp(&volume(&b.1.shape())))
+            .expect("the best is within its own tolerance");
+        // Stage C: the visible points plus their twins turned 180 degrees about the vertical
+        // axis through the stage-B centre (fixed), which fixes the hidden back half.
+        let mirror_at = match (params.mirror, up) {
+            (true, Some(u)) => Some((best.t, u)),
+            _ => None,
+        };
+        let (best, delta, fitted) = match mirror_at {
+            Some((c, u)) => {
+                let mut both = points.clone();
+                both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
+                let problem = Problem {
+                    points: &both,
+                    rays: rays(mirror_at),
+                    ..problem_free
+                };
+                let (s, d) = robust_fit(&problem, best, 3, 40, min_delta);
+                (s, d, both)
+            }
+            None => {
+                let (s, d) = robust_fit(&problem_visible, best, 2, 40, min_delta);
+                (s, d, points.clone())
+            }
+        };
+        // The families are compared on the points of stage C (with their twins) by the
+        // first-order distance along the normal (the better approximation of the true distance,
+        // so of the likelihood), whatever the fit minimised: the radial distance's bias on flat
+        // parts is what the general family's extra freedom otherwise wins on. With the rays, the
+        // distance along them.
+        let sc = score(
+            &Problem {
+                cost: Cost::Normal,
+                rays: rays(mirror_at),
+                points: &fitted,
+                ..problem_free
+            },
+            &best,
+        );
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            let mut r = Vec::new();
+            problem_free.residuals(&best, &mut r);
+            let np = points.len();
+            let part = |a: usize, b: usize| r[a..b].iter().map(|v| huber(*v, 0.003)).sum::<f64>();
+            eprintln!(
+                "stage C {name}: score {sc:.6} (points {:.6}, free {:.6}, rest {:.6}) {}",
+                part(0, np),
+                part(np, np + free.len()),
+                part(np + free.len(), r.len()),
+                best.shape()
+            );
+        }
+        finals.push(FamilyResult {
+            name,
+            state: best,
+            delta,
+            score: sc,
+            fitted,
+            mirror_at,
+        });
+    }
+    let FamilyResult {
+        name,
+        state: best,
+        delta,
+        fitted,
+        mirror_at,
+        ..
+    } = choose_family(finals);
+    // Stage D: the smallest shape as good as that one, on the points of stage C (with their
+    // mirrored twins: the hidden half of a can is the twin of its front, not free to shrink).
+    let problem_fitted = Problem {
+        points: &fitted,
+        ..problem_free
+    };
+    let best = smallest_equally_good(&problem_fitted, best, min_delta);
+    // Stage E: the shrunk shape refitted along the rays again, its taper held. Stage D's
+    // distance to the nearest surface rounds the edges again (a lying shaft's e1 0.21 for 0.1);
+    // D's size term along the rays would shrink an open bowl's rim away from the points on its
+    // inside, whose rays cannot read it. The taper and the size of a bowl's hidden lower half
+    // trade against each other freely along the rays (a = 51 mm, k 0.65 for 60 mm, 0.3 from
+    // one sweep, seed 7): D chose between them, E keeps that.
+    let best = match rays(mirror_at) {
+        Some(r) => {
+            let problem = Problem {
+                rays: Some(r),
+                fix_taper: true,
+                ..problem_fitted
+            };
+            let (s, _) = robust_fit(&problem, best, 3, 30, min_delta);
+            if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+                eprintln!("stage E along the rays: {}", s.shape());
+            }
+            s
+        }
+        None => best,
+    };
+    let mut r = Vec::new();
+    let vis = Problem {
+        points: &points,
+        free: &[],
+        support: None,
+        cost: params.cost,
+        volume: None,
+        seen: None,
+        rays: None,
+        fix_taper: false,
+    };
+    vis.residuals(&best, &mut r);
+    let inliers: Vec<f64> = r.iter().copied().filter(|v| v.abs() <= delta).collect();
+    let rms = (inliers.iter().map(|v| v * v).sum::<f64>() / inliers.len().max(1) as f64).sqrt();
+    let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
+    let median_abs = median(&mut abs).unwrap_or(0.0);
+    let mut placed = best.placed();
+    let open = open_top || is_open(&placed, &points, params.viewpoint.as_ref());
+    canonicalise(&mut placed, up.as_ref());
+    Ok(Recovered {
+        placed,
+        rms,
+        median_abs,
+        inlier_share: inliers.len() as f64 / r.len().max(1) as f64,
+        fitted_points: points.len(),
+        open,
+        start: name,
+    })
+}
+
+/// The smallest shape (by volume) whose score stays within this share of the best fit's.
+pub(super) const SMALLEST_TOLERANCE: f64 = 0.03;
+
+/// What one view leaves hidden (a bowl's foot under its rim, the far side of a wall) any shape
+/// that explains the view may fill in; of those, the smallest is the one a detector can rely on
+/// (its seen parts are where the data put them) and the likeliest (an object has no more
+/// material than it must). LM with a growing size term, keeping the last result whose score
+/// (points, free space, support, seen surface; no size term) is within [`SMALLEST_TOLERANCE`] of
+/// the start's.
+pub(super) fn smallest_equally_good(problem: &Problem, best: State, min_delta: f64) -> State {
+    let base = score(problem, &best);
+    let v0 = volume(&best.shape());
+    let n = problem.points.len() as f64;
+    let mut kept = best;
+    for w in [0.5, 1.0, 2.0, 4.0, 8.0, 16.0] {
+        let shrinking = Problem {
+            volume: Some((w * n.sqrt() * 1e-3, v0)),
+            ..*problem
+        };
+        let s = robust_fit(&shrinking, kept, 2, 30, min_delta).0;
+        let sc = score(problem, &s);
+        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
+            eprintln!("smallest w {w}: score {sc:.6} (base {base:.6}) {}", s.shape());
+        }
+        if sc > base * (1.0 + SMALLEST_TOLERANCE) {
+            break;
+        }
+        kept = s;
+    }
+    kept
+}
+
+/// Every start refitted on `fit` (when there is one to refit on: without free space a stage
+/// adds nothing) with `(rounds, iterations)` of [`robust_fit`], in parallel, and scored on
+/// `scored`.
+pub(super) fn refit_scored(
+    starts: Vec<(String, State)>,
+    fit: Option<&Problem>,
+    (rounds, iterations): (usize, usize),
+    min_delta: f64,
+    scored: &Problem,
+) -> Vec<(String, State, f64)> {
+    starts
+        .into_par_iter()
+        .map(|(name, s0)| {
+            let s = match fit {
+                Some(p) => robust_fit(p, s0, rounds, iterations, min_delta).0,
+                None => s0,
+            };
+            let sc = score(scored, &s);
+            (name, s, sc)
+        })
+        .collect()
+}
+
+/// Two fits that are the same shape in the same place (2 mm, 5 %, 8 degrees between the z axes).
+pub(super) fn same_fit(a: &State, b: &State) -> bool {
+    let (za, zb) = (a.rot * Vector3::z(), b.rot * Vector3::z());
+    (a.t - b.t).norm() < 0.002 && (0..3).all(|k| (a.ln_a[k] - b.ln_a[k]).abs() < 0.05) && za.dot(&zb).abs() > 0.99
+}
