@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The error table of `sqscan learn` on simulated single-object scans (issue #6): every shipped
+# The error table of `sqscan learn` on simulated single-object scans: every shipped
 # single-part model alone on the table of the fig3 rig (2 mm noise at 1 m), learned from one
 # sweep, compared with the truth after matching the learned axes to the true ones.
 # Usage: benches/learn_table.sh [SEED [LEARN OPTIONS...]] (build with `cargo build --release` first),

@@ -10,50 +10,71 @@ use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::pose::PoseSpec;
 use crate::spec::{SpecError, read_toml};
 use nalgebra::{Isometry3, Vector3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// Connectivity given in a file must match the part poses to this much.
 const ANGLE_TOLERANCE_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
 const DISTANCE_TOLERANCE_M: f64 = 0.001;
 
-#[derive(Debug, Deserialize)]
+/// A model file as written (`models/README.md`): what [`Model::from_file`] reads and validates,
+/// and what `sqscan learn` writes.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-struct ModelFile {
-    name: Option<String>,
+pub struct ModelFile {
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
     #[serde(default)]
-    description: String,
-    #[serde(default)]
-    part: Vec<PartFile>,
-    #[serde(default)]
-    connection: Vec<ConnectionFile>,
+    pub part: Vec<PartFile>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub connection: Vec<ConnectionFile>,
 }
 
-#[derive(Debug, Deserialize)]
+/// One `[[part]]` table.
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-struct PartFile {
-    name: String,
-    a: [f64; 3],
-    e1: f64,
-    e2: f64,
+pub struct PartFile {
+    pub name: String,
+    pub a: [f64; 3],
+    pub e1: f64,
+    pub e2: f64,
     #[serde(default)]
-    kx: f64,
+    pub kx: f64,
     #[serde(default)]
-    ky: f64,
-    m: Option<u32>,
-    #[serde(default)]
-    open: bool,
-    #[serde(default)]
-    pose: PoseSpec,
+    pub ky: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub m: Option<u32>,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub open: bool,
+    #[serde(default, skip_serializing_if = "PoseSpec::is_identity")]
+    pub pose: PoseSpec,
 }
 
-#[derive(Debug, Deserialize)]
+/// One `[[connection]]` table.
+#[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-struct ConnectionFile {
-    parts: [String; 2],
-    angle_rad: Option<f64>,
-    angle_deg: Option<f64>,
-    distance: f64,
+pub struct ConnectionFile {
+    pub parts: [String; 2],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_rad: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_deg: Option<f64>,
+    pub distance: f64,
+}
+
+impl ModelFile {
+    /// The file's text: `comments` as `#` lines, then the tables.
+    pub fn to_toml(&self, comments: &[String]) -> Result<String, toml::ser::Error> {
+        let mut text: String = comments
+            .iter()
+            .flat_map(|c| c.lines())
+            .map(|l| format!("# {l}\n"))
+            .collect();
+        text.push_str(&toml::to_string(self)?);
+        Ok(text)
+    }
 }
 
 /// One superquadric part of a model.

@@ -31,20 +31,28 @@ impl From<&Isometry3<f64>> for PoseJson {
 
 /// A pose as written in TOML files: a position and at most one orientation form (identity if
 /// none is given).
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct PoseSpec {
     #[serde(default)]
     pub position: [f64; 3],
     /// Quaternion `[x, y, z, w]`.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub orientation: Option<[f64; 4]>,
     /// Roll, pitch, yaw in radians.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub rpy: Option<[f64; 3]>,
     /// Roll, pitch, yaw in degrees.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub rpy_deg: Option<[f64; 3]>,
 }
 
 impl PoseSpec {
+    /// Nothing given: the identity.
+    pub fn is_identity(&self) -> bool {
+        *self == PoseSpec::default()
+    }
+
     /// The pose, or a message saying what is wrong with it.
     pub fn to_isometry(&self) -> Result<Isometry3<f64>, String> {
         if self.position.iter().any(|v| !v.is_finite()) {

@@ -1,4 +1,4 @@
-//! Issue #6: a model learned from a simulated single-object scan (fig3 rig, 2 mm noise at 1 m)
+//! A model learned from a simulated single-object scan (fig3 rig, 2 mm noise at 1 m)
 //! of every shipped single-part model: sizes within 5 mm and e1, e2 within 0.1 of the truth,
 //! after matching the learned axes to the true ones (symmetric equivalents compare equal).
 

@@ -3,6 +3,8 @@
 use super::Learned;
 use super::family::snap_revolution;
 use crate::geometry::Superquadric;
+use crate::model::{ConnectionFile, ModelFile, PartFile};
+use crate::pose::PoseSpec;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 /// Provenance written into the model file's comment block.
@@ -13,16 +15,15 @@ pub struct Provenance {
     pub command: String,
 }
 
-/// A model file for a learned single-part object, in the object frame of the part (the part's
-/// centre, z along its axis).
+/// A model file for a learned object, in the object frame of its first part (the part's
+/// centre, z along its axis); the fit's account and the provenance as comments.
 pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
-    let mut s = String::new();
-    s.push_str(&format!("# Learned by `sqscan learn` (issue #6) from {}\n", prov.input));
+    let mut comments = vec![format!("Learned by `sqscan learn` from {}", prov.input)];
     if !prov.selection.is_empty() {
-        s.push_str(&format!("# points: {}\n", prov.selection));
+        comments.push(format!("points: {}", prov.selection));
     }
-    s.push_str(&format!(
-        "# object points {}; plane {}\n",
+    comments.push(format!(
+        "object points {}; plane {}",
         learned.object_points,
         match &learned.segmentation.plane {
             Some(p) => format!(
@@ -34,8 +35,8 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     ));
     for (i, r) in learned.parts.iter().enumerate() {
         let t = r.placed.pose.translation.vector;
-        s.push_str(&format!(
-            "# part {i}: {} points fitted, residual RMS {:.2} mm over {:.0} % inliers, median |r| {:.2} mm, start {}, centre in the cloud ({:.4}, {:.4}, {:.4})\n",
+        comments.push(format!(
+            "part {i}: {} points fitted, residual RMS {:.2} mm over {:.0} % inliers, median |r| {:.2} mm, start {}, centre in the cloud ({:.4}, {:.4}, {:.4})",
             r.fitted_points,
             r.rms * 1e3,
             r.inlier_share * 100.0,
@@ -47,15 +48,13 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
         ));
     }
     if !prov.command.is_empty() {
-        s.push_str(&format!("# command: {}\n", prov.command));
+        comments.push(format!("command: {}", prov.command));
     }
-    s.push_str(&format!("name = {name:?}\n"));
-    s.push_str(&format!("description = {:?}\n", format!("Learned from {}", prov.input)));
     for r in &learned.parts {
         if snap_revolution(&r.placed.shape).is_some() {
             let f = &r.placed.shape;
-            s.push_str(&format!(
-                "# fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution\n",
+            comments.push(format!(
+                "fitted a = ({:.4}, {:.4}, {:.4}), e2 = {:.3}, kx = {:.3}, ky = {:.3}: taken as a body of revolution",
                 f.a[0], f.a[1], f.a[2], f.e2, f.kx, f.ky
             ));
         }
@@ -65,28 +64,55 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     // to it (the detector votes on the angle between the z axes and the centre distance).
     let base = object_frame(learned, &written);
     let (t, q) = (base.translation.vector, base.rotation.coords);
-    s.push_str(&format!(
-        "# model frame in the cloud: position [{:.5}, {:.5}, {:.5}], orientation [{:.6}, {:.6}, {:.6}, {:.6}]\n",
+    comments.push(format!(
+        "model frame in the cloud: position [{:.5}, {:.5}, {:.5}], orientation [{:.6}, {:.6}, {:.6}, {:.6}]",
         t.x, t.y, t.z, q.x, q.y, q.z, q.w
     ));
-    for (i, (r, shape)) in learned.parts.iter().zip(&written).enumerate() {
-        let name = if i == 0 { "body".to_string() } else { format!("part{i}") };
-        let pose = (i > 0).then(|| base.inverse() * r.placed.pose);
-        s.push_str(&part_toml(&name, shape, r.open && i == 0, pose.as_ref()));
-    }
-    for (i, r) in learned.parts.iter().enumerate().skip(1) {
-        let za = base.rotation * Vector3::z();
-        let zb = r.placed.pose.rotation * Vector3::z();
-        let signed = written[0].is_tapered() && written[i].is_tapered();
-        let angle = crate::model::axis_angle(&za, &zb, signed);
-        let distance = (r.placed.pose.translation.vector - base.translation.vector).norm();
-        s.push_str(&format!(
-            "\n[[connection]]\nparts = [\"body\", \"part{i}\"]\nangle_deg = {:.3}\ndistance = {:.5}\n",
-            angle.to_degrees(),
-            distance
-        ));
-    }
-    s
+    let part = learned
+        .parts
+        .iter()
+        .zip(&written)
+        .enumerate()
+        .map(|(i, (r, shape))| {
+            let name = if i == 0 { "body".to_string() } else { format!("part{i}") };
+            let pose = (i > 0).then(|| base.inverse() * r.placed.pose);
+            part_file(&name, shape, r.open && i == 0, pose.as_ref())
+        })
+        .collect();
+    let connection = learned
+        .parts
+        .iter()
+        .enumerate()
+        .skip(1)
+        .map(|(i, r)| {
+            let za = base.rotation * Vector3::z();
+            let zb = r.placed.pose.rotation * Vector3::z();
+            let signed = written[0].is_tapered() && written[i].is_tapered();
+            let angle = crate::model::axis_angle(&za, &zb, signed);
+            let distance = (r.placed.pose.translation.vector - base.translation.vector).norm();
+            ConnectionFile {
+                parts: ["body".into(), format!("part{i}")],
+                angle_rad: None,
+                angle_deg: Some(round(angle.to_degrees(), 3)),
+                distance: round(distance, 5),
+            }
+        })
+        .collect();
+    let file = ModelFile {
+        name: Some(name.into()),
+        description: format!("Learned from {}", prov.input),
+        part,
+        connection,
+    };
+    file.to_toml(&comments)
+        .expect("a model file of numbers and strings serializes")
+}
+
+/// `x` rounded to `decimals` places: a model file carries what one view can tell (0.1 mm, a
+/// thousandth of an exponent), not the fit's last digits.
+fn round(x: f64, decimals: i32) -> f64 {
+    let s = 10f64.powi(decimals);
+    (x * s).round() / s
 }
 
 /// The shapes [`model_toml`] writes: bodies of revolution within what one view tells made
@@ -130,26 +156,23 @@ pub(super) fn object_frame(learned: &Learned, written: &[Superquadric]) -> Isome
 }
 
 /// One `[[part]]` table.
-pub fn part_toml(name: &str, sq: &Superquadric, open: bool, pose: Option<&Isometry3<f64>>) -> String {
-    let mut s = format!(
-        "\n[[part]]\nname = {name:?}\na = [{:.4}, {:.4}, {:.4}]\ne1 = {:.3}\ne2 = {:.3}\nkx = {:.3}\nky = {:.3}\n",
-        sq.a[0], sq.a[1], sq.a[2], sq.e1, sq.e2, sq.kx, sq.ky
-    );
-    if open {
-        s.push_str("open = true\n");
+pub(super) fn part_file(name: &str, sq: &Superquadric, open: bool, pose: Option<&Isometry3<f64>>) -> PartFile {
+    PartFile {
+        name: name.into(),
+        a: sq.a.map(|v| round(v, 4)),
+        e1: round(sq.e1, 3),
+        e2: round(sq.e2, 3),
+        kx: round(sq.kx, 3),
+        ky: round(sq.ky, 3),
+        m: None,
+        open,
+        pose: pose.map_or_else(PoseSpec::default, |p| {
+            let j = crate::pose::PoseJson::from(p);
+            PoseSpec {
+                position: j.position.map(|v| round(v, 5)),
+                orientation: Some(j.orientation.map(|v| round(v, 6))),
+                ..PoseSpec::default()
+            }
+        }),
     }
-    if let Some(p) = pose {
-        let j = crate::pose::PoseJson::from(p);
-        s.push_str(&format!(
-            "pose = {{ position = [{:.5}, {:.5}, {:.5}], orientation = [{:.6}, {:.6}, {:.6}, {:.6}] }}\n",
-            j.position[0],
-            j.position[1],
-            j.position[2],
-            j.orientation[0],
-            j.orientation[1],
-            j.orientation[2],
-            j.orientation[3]
-        ));
-    }
-    s
 }

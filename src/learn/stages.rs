@@ -81,6 +81,9 @@ pub(super) fn start_state(
     }
 }
 
+/// The Huber threshold never falls below this (m): the noise floor of the sensors learned from.
+const MIN_DELTA: f64 = 0.001;
+
 /// Recover one superquadric from the points of a single view. `plane`: the surface the object
 /// stands on (normal towards the object), `up`: the up direction when there is no plane.
 pub fn fit_superquadric(
@@ -89,27 +92,7 @@ pub fn fit_superquadric(
     plane: Option<&Plane>,
     params: &LearnParams,
 ) -> Result<Recovered, LearnError> {
-    if all_points.len() < MIN_POINTS {
-        return Err(LearnError::TooFewPoints(all_points.len()));
-    }
-    // Strays: isolated points, then everything not connected to the largest cluster or next to
-    // it seen from above (a few stereo outliers 25 cm behind a can are a cluster of their own).
-    let kept = remove_stray_points(all_points, 0.01, 4);
-    let idx: Vec<usize> = (0..kept.len()).collect();
-    let found = clusters(&kept, &idx, 0.01);
-    let kept: Vec<Point3<f64>> = if found.is_empty() {
-        Vec::new()
-    } else {
-        // With the clusters next to it seen from above (an open container's inside).
-        with_nearby_clusters(&kept, &found, 0, MERGE_GAP, plane)
-            .into_iter()
-            .map(|i| kept[i])
-            .collect()
-    };
-    if kept.len() < MIN_POINTS {
-        return Err(LearnError::TooFewPoints(kept.len()));
-    }
-    let points = subsample(&kept, params.max_points);
+    let points = object_points(all_points, plane, params)?;
     let up = plane
         .map(|p| p.normal)
         .or(params.up.and_then(|u| u.try_normalize(1e-12)));
@@ -119,52 +102,7 @@ pub fn fit_superquadric(
         None
     };
     let (centroid, axes) = moments(&points);
-    let mut starts: Vec<(String, State)> = Vec::new();
-    let mut zs: Vec<(String, Vector3<f64>)> = Vec::new();
-    if let Some(u) = up {
-        zs.push(("up".into(), u));
-    }
-    for (k, a) in axes.iter().enumerate() {
-        // A moment axis within 15 degrees of up duplicates the up start.
-        if up.is_some_and(|u| a.dot(&u).abs() > 0.966) {
-            continue;
-        }
-        zs.push((format!("moment{k}"), *a));
-    }
-    for (zn, z) in &zs {
-        let rot = frame_with_z(&points, &centroid, z);
-        for e in [(1.0, 1.0), (0.3, 1.0), (0.3, 0.3)] {
-            starts.push((
-                format!("z={zn} e=({},{})", e.0, e.1),
-                start_state(&points, rot, params.viewpoint.as_ref(), e),
-            ));
-        }
-        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
-        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
-        if zn == "up" {
-            for k in [0.3, -0.3] {
-                for e in [(1.0, 1.0), (0.3, 1.0)] {
-                    let mut s = start_state(&points, rot, params.viewpoint.as_ref(), e);
-                    s.k = [k, k];
-                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
-                }
-            }
-        }
-    }
-    // Every start also as a body of revolution about its z axis: the simpler family, which the
-    // end prefers unless the general shape explains the view clearly better (a hidden foot or
-    // back leaves a general shape free to bulge or flatten where nothing was seen).
-    let rev: Vec<(String, State)> = starts
-        .iter()
-        .map(|(n, s)| (format!("{n} revolution"), s.as_revolution()))
-        .collect();
-    match params.shape {
-        ShapeFamily::Auto => starts.extend(rev),
-        ShapeFamily::General => {}
-        ShapeFamily::Revolution => starts = rev,
-    }
-    // A noise floor for the Huber threshold: 1 mm.
-    let min_delta = 0.001;
+    let starts = starts(&points, &centroid, &axes, up.as_ref(), params);
     // Stage A: the visible points (and the support plane) decide the centre: the mirrored points
     // cannot, since their union with the visible ones is symmetric about whatever centre they
     // were mirrored through.
@@ -178,26 +116,11 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    // Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
-    // surface must not cross them. Without this nothing stops the hidden back of a flat top (a
-    // cylinder's disc, a book's cover) from growing: the points on a face say where its plane
-    // is, not where it ends. Samples around the points' bounding sphere, the same for every start.
-    let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
-    let mut free = match params.viewpoint {
-        Some(v) => free_space_samples(&v, free_points, &centroid, 1.5 * extent),
-        None => Vec::new(),
-    };
-    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
-        free.extend(silhouette_samples(&v, &points, &centroid, 1.5 * extent, 0.004));
-    }
-    if let Some(pl) = plane {
-        // Below the table nothing was seen: no free space there.
-        free.retain(|p| pl.signed_distance(p) > 0.003);
-    }
+    let free = free_space(&points, free_points, &centroid, plane, params);
     // Stage A1: every start on the visible points (and the support plane).
     let results: Vec<(String, State)> = starts
         .into_par_iter()
-        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, min_delta).0))
+        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, MIN_DELTA).0))
         .collect();
     // (From the general starts: a body of revolution about a wrong axis fitted to the visible
     // points alone can be a disc as wide as the view, which would take the free space with it.)
@@ -221,21 +144,6 @@ pub fn fit_superquadric(
     // What faced the sensor must have been seen (from stage A2 on: the starts are rough); an
     // open top is not surface.
     let seen = params.viewpoint.map(|v| Seen::new(v, &points, plane, open_top));
-    // From stage C on the visible points take the distance along their rays, and their twins
-    // (mirrored through the vertical axis at `mirror`) the distance along the mirrored rays:
-    // the view a sensor at the mirrored viewpoint would have had. Only with the twins: the
-    // distance along a ray reads where the ray enters the surface and nothing behind it, so
-    // without them (no up direction) nothing holds the hidden back half.
-    let rays = |mirror: Option<(Vector3<f64>, Vector3<f64>)>| {
-        let v = params.viewpoint.filter(|_| params.along_rays)?;
-        let (c, u) = mirror?;
-        Some(Rays {
-            viewpoint: v,
-            seen: points.len(),
-            twin_viewpoint: turn_half(&v, &c, &u),
-            open: open_top,
-        })
-    };
     let problem_free = Problem {
         points: &points,
         free: &free,
@@ -246,131 +154,20 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    // Stage A2: every start again with a thinned free space (at most 1500 samples), which is
-    // what keeps a start from keeping a skirt or a back where the sensor saw through.
-    let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
-    let problem_coarse = Problem {
+    let results = stage_a2(results, &problem_free);
+    let ctx = Context {
         points: &points,
-        free: &coarse,
-        support,
-        cost: params.cost,
-        volume: None,
-        seen: seen.as_ref(),
-        rays: None,
-        fix_taper: false,
+        up,
+        open_top,
+        params,
+        problem_free: &problem_free,
+        problem_visible: &problem_visible,
     };
-    let results = refit_scored(
-        results,
-        (!coarse.is_empty()).then_some(&problem_coarse),
-        (2, 20),
-        min_delta,
-        &problem_free,
-    );
-    if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-        for (n, s, sc) in &results {
-            eprintln!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
-        }
-    }
     // Stages B and C for each family (general, revolution), then the choice between them.
-    let mut finals: Vec<FamilyResult> = Vec::new();
-    for family in [false, true] {
-        // Stage B: the best three starts again with all of the free space.
-        let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == family).cloned().collect();
-        results.sort_by(|a, b| a.2.total_cmp(&b.2));
-        // Three distinct ones: starts that converged to the same shape count once.
-        let mut distinct: Vec<(String, State, f64)> = Vec::new();
-        for r in results {
-            if distinct.len() < 3 && !distinct.iter().any(|d| same_fit(&d.1, &r.1)) {
-                distinct.push(r);
-            }
-        }
-        let results = refit_scored(
-            distinct.into_iter().map(|(n, s, _)| (n, s)).collect(),
-            (!free.is_empty()).then_some(&problem_free),
-            (3, 40),
-            min_delta,
-            &problem_free,
-        );
-        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-            for (n, s, sc) in &results {
-                eprintln!(
-                    "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
-                    free.len(),
-                    s.shape(),
-                    s.t.as_slice()
-                );
-            }
-        }
-        // Of the results as good as the best (within SMALLEST_TOLERANCE), the smallest: one view
-        // cannot tell a ball from an egg pointing at the sensor, and the mirror of stage C
-        // would fix the egg's centre, pushed back, for good.
-        let Some(top) = results.iter().map(|r| r.2).min_by(f64::total_cmp) else {
-            continue;
-        };
-        let (name, best, _) = results
-            .into_iter()
-            .filter(|r| r.2 <= top * (1.0 + SMALLEST_TOLERANCE))
-            .min_by(|a, b| volume(&a.1.shape()).total_cmp(&volume(&b.1.shape())))
-            .expect("the best is within its own tolerance");
-        // Stage C: the visible points plus their twins turned 180 degrees about the vertical
-        // axis through the stage-B centre (fixed), which fixes the hidden back half.
-        let mirror_at = match (params.mirror, up) {
-            (true, Some(u)) => Some((best.t, u)),
-            _ => None,
-        };
-        let (best, delta, fitted) = match mirror_at {
-            Some((c, u)) => {
-                let mut both = points.clone();
-                both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
-                let problem = Problem {
-                    points: &both,
-                    rays: rays(mirror_at),
-                    ..problem_free
-                };
-                let (s, d) = robust_fit(&problem, best, 3, 40, min_delta);
-                (s, d, both)
-            }
-            None => {
-                let (s, d) = robust_fit(&problem_visible, best, 2, 40, min_delta);
-                (s, d, points.clone())
-            }
-        };
-        // The families are compared on the points of stage C (with their twins) by the
-        // first-order distance along the normal (the better approximation of the true distance,
-        // so of the likelihood), whatever the fit minimised: the radial distance's bias on flat
-        // parts is what the general family's extra freedom otherwise wins on. With the rays, the
-        // distance along them.
-        let sc = score(
-            &Problem {
-                cost: Cost::Normal,
-                rays: rays(mirror_at),
-                points: &fitted,
-                ..problem_free
-            },
-            &best,
-        );
-        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-            let mut r = Vec::new();
-            problem_free.residuals(&best, &mut r);
-            let np = points.len();
-            let part = |a: usize, b: usize| r[a..b].iter().map(|v| huber(*v, 0.003)).sum::<f64>();
-            eprintln!(
-                "stage C {name}: score {sc:.6} (points {:.6}, free {:.6}, rest {:.6}) {}",
-                part(0, np),
-                part(np, np + free.len()),
-                part(np + free.len(), r.len()),
-                best.shape()
-            );
-        }
-        finals.push(FamilyResult {
-            name,
-            state: best,
-            delta,
-            score: sc,
-            fitted,
-            mirror_at,
-        });
-    }
+    let finals: Vec<FamilyResult> = [false, true]
+        .into_iter()
+        .filter_map(|family| stages_b_c(&ctx, &results, family))
+        .collect();
     let FamilyResult {
         name,
         state: best,
@@ -385,31 +182,308 @@ pub fn fit_superquadric(
         points: &fitted,
         ..problem_free
     };
-    let best = smallest_equally_good(&problem_fitted, best, min_delta);
+    let best = smallest_equally_good(&problem_fitted, best, MIN_DELTA);
     // Stage E: the shrunk shape refitted along the rays again, its taper held. Stage D's
     // distance to the nearest surface rounds the edges again (a lying shaft's e1 0.21 for 0.1);
     // D's size term along the rays would shrink an open bowl's rim away from the points on its
     // inside, whose rays cannot read it. The taper and the size of a bowl's hidden lower half
     // trade against each other freely along the rays (a = 51 mm, k 0.65 for 60 mm, 0.3 from
     // one sweep, seed 7): D chose between them, E keeps that.
-    let best = match rays(mirror_at) {
+    let best = match ctx.rays(mirror_at) {
         Some(r) => {
             let problem = Problem {
                 rays: Some(r),
                 fix_taper: true,
                 ..problem_fitted
             };
-            let (s, _) = robust_fit(&problem, best, 3, 30, min_delta);
-            if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-                eprintln!("stage E along the rays: {}", s.shape());
-            }
+            let (s, _) = robust_fit(&problem, best, 3, 30, MIN_DELTA);
+            tracing::debug!("stage E along the rays: {}", s.shape());
             s
         }
         None => best,
     };
+    Ok(recovered(&points, best, delta, name, open_top, up.as_ref(), params))
+}
+
+/// The points to fit: strays removed, the largest cluster with what lies next to it seen from
+/// above, subsampled.
+fn object_points(
+    all_points: &[Point3<f64>],
+    plane: Option<&Plane>,
+    params: &LearnParams,
+) -> Result<Vec<Point3<f64>>, LearnError> {
+    if all_points.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(all_points.len()));
+    }
+    // Strays: isolated points, then everything not connected to the largest cluster or next to
+    // it seen from above (a few stereo outliers 25 cm behind a can are a cluster of their own).
+    let kept = remove_stray_points(all_points, 0.01, 4);
+    let idx: Vec<usize> = (0..kept.len()).collect();
+    let found = clusters(&kept, &idx, 0.01);
+    let kept: Vec<Point3<f64>> = if found.is_empty() {
+        Vec::new()
+    } else {
+        // With the clusters next to it seen from above (an open container's inside).
+        with_nearby_clusters(&kept, &found, 0, MERGE_GAP, plane)
+            .into_iter()
+            .map(|i| kept[i])
+            .collect()
+    };
+    if kept.len() < MIN_POINTS {
+        return Err(LearnError::TooFewPoints(kept.len()));
+    }
+    Ok(subsample(&kept, params.max_points))
+}
+
+/// The starts: z along up and along each moment axis, three exponent pairs each, tapered ones
+/// standing on the plane, and each also as a body of revolution (as `params.shape` allows).
+fn starts(
+    points: &[Point3<f64>],
+    centroid: &Vector3<f64>,
+    axes: &[Vector3<f64>; 3],
+    up: Option<&Vector3<f64>>,
+    params: &LearnParams,
+) -> Vec<(String, State)> {
+    let mut starts: Vec<(String, State)> = Vec::new();
+    let mut zs: Vec<(String, Vector3<f64>)> = Vec::new();
+    if let Some(u) = up {
+        zs.push(("up".into(), *u));
+    }
+    for (k, a) in axes.iter().enumerate() {
+        // A moment axis within 15 degrees of up duplicates the up start.
+        if up.is_some_and(|u| a.dot(u).abs() > 0.966) {
+            continue;
+        }
+        zs.push((format!("moment{k}"), *a));
+    }
+    for (zn, z) in &zs {
+        let rot = frame_with_z(points, centroid, z);
+        for e in [(1.0, 1.0), (0.3, 1.0), (0.3, 0.3)] {
+            starts.push((
+                format!("z={zn} e=({},{})", e.0, e.1),
+                start_state(points, rot, params.viewpoint.as_ref(), e),
+            ));
+        }
+        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
+        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
+        if zn == "up" {
+            for k in [0.3, -0.3] {
+                for e in [(1.0, 1.0), (0.3, 1.0)] {
+                    let mut s = start_state(points, rot, params.viewpoint.as_ref(), e);
+                    s.k = [k, k];
+                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
+                }
+            }
+        }
+    }
+    // Every start also as a body of revolution about its z axis: the simpler family, which the
+    // end prefers unless the general shape explains the view clearly better (a hidden foot or
+    // back leaves a general shape free to bulge or flatten where nothing was seen).
+    let rev: Vec<(String, State)> = starts
+        .iter()
+        .map(|(n, s)| (format!("{n} revolution"), s.as_revolution()))
+        .collect();
+    match params.shape {
+        ShapeFamily::Auto => starts.extend(rev),
+        ShapeFamily::General => {}
+        ShapeFamily::Revolution => starts = rev,
+    }
+    starts
+}
+
+/// Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
+/// surface must not cross them. Without this nothing stops the hidden back of a flat top (a
+/// cylinder's disc, a book's cover) from growing: the points on a face say where its plane
+/// is, not where it ends. Samples around the points' bounding sphere, the same for every start.
+fn free_space(
+    points: &[Point3<f64>],
+    free_points: &[Point3<f64>],
+    centroid: &Vector3<f64>,
+    plane: Option<&Plane>,
+    params: &LearnParams,
+) -> Vec<Point3<f64>> {
+    let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
+    let mut free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, centroid, 1.5 * extent),
+        None => Vec::new(),
+    };
+    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
+        free.extend(silhouette_samples(&v, points, centroid, 1.5 * extent, 0.004));
+    }
+    if let Some(pl) = plane {
+        // Below the table nothing was seen: no free space there.
+        free.retain(|p| pl.signed_distance(p) > 0.003);
+    }
+    free
+}
+
+/// Stage A2: every start again with a thinned free space (at most 1500 samples), which is
+/// what keeps a start from keeping a skirt or a back where the sensor saw through. Scored on
+/// all of the free space.
+fn stage_a2(results: Vec<(String, State)>, problem_free: &Problem) -> Vec<(String, State, f64)> {
+    let free = problem_free.free;
+    let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
+    let problem_coarse = Problem {
+        free: &coarse,
+        ..*problem_free
+    };
+    let results = refit_scored(
+        results,
+        (!coarse.is_empty()).then_some(&problem_coarse),
+        (2, 20),
+        MIN_DELTA,
+        problem_free,
+    );
+    for (n, s, sc) in &results {
+        tracing::debug!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+    }
+    results
+}
+
+/// What stages B to E share.
+struct Context<'a> {
+    /// The visible points.
+    points: &'a [Point3<f64>],
+    up: Option<Vector3<f64>>,
+    open_top: bool,
+    params: &'a LearnParams,
+    /// The visible points with the free space, the support and the seen surface.
+    problem_free: &'a Problem<'a>,
+    /// The visible points with the support only.
+    problem_visible: &'a Problem<'a>,
+}
+
+impl Context<'_> {
+    /// From stage C on the visible points take the distance along their rays, and their twins
+    /// (mirrored through the vertical axis at `mirror`) the distance along the mirrored rays:
+    /// the view a sensor at the mirrored viewpoint would have had. Only with the twins: the
+    /// distance along a ray reads where the ray enters the surface and nothing behind it, so
+    /// without them (no up direction) nothing holds the hidden back half.
+    fn rays(&self, mirror: Option<(Vector3<f64>, Vector3<f64>)>) -> Option<Rays> {
+        let v = self.params.viewpoint.filter(|_| self.params.along_rays)?;
+        let (c, u) = mirror?;
+        Some(Rays {
+            viewpoint: v,
+            seen: self.points.len(),
+            twin_viewpoint: turn_half(&v, &c, &u),
+            open: self.open_top,
+        })
+    }
+}
+
+/// Stages B and C for one family (`rev`: bodies of revolution, else general shapes); `None`
+/// when no start of the family is left.
+fn stages_b_c(ctx: &Context, results: &[(String, State, f64)], rev: bool) -> Option<FamilyResult> {
+    let (points, params, problem_free) = (ctx.points, ctx.params, ctx.problem_free);
+    // Stage B: the best three starts again with all of the free space.
+    let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == rev).cloned().collect();
+    results.sort_by(|a, b| a.2.total_cmp(&b.2));
+    // Three distinct ones: starts that converged to the same shape count once.
+    let mut distinct: Vec<(String, State, f64)> = Vec::new();
+    for r in results {
+        if distinct.len() < 3 && !distinct.iter().any(|d| same_fit(&d.1, &r.1)) {
+            distinct.push(r);
+        }
+    }
+    let free = problem_free.free;
+    let results = refit_scored(
+        distinct.into_iter().map(|(n, s, _)| (n, s)).collect(),
+        (!free.is_empty()).then_some(problem_free),
+        (3, 40),
+        MIN_DELTA,
+        problem_free,
+    );
+    for (n, s, sc) in &results {
+        tracing::debug!(
+            "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+            free.len(),
+            s.shape(),
+            s.t.as_slice()
+        );
+    }
+    // Of the results as good as the best (within SMALLEST_TOLERANCE), the smallest: one view
+    // cannot tell a ball from an egg pointing at the sensor, and the mirror of stage C
+    // would fix the egg's centre, pushed back, for good.
+    let top = results.iter().map(|r| r.2).min_by(f64::total_cmp)?;
+    let (name, best, _) = results
+        .into_iter()
+        .filter(|r| r.2 <= top * (1.0 + SMALLEST_TOLERANCE))
+        .min_by(|a, b| volume(&a.1.shape()).total_cmp(&volume(&b.1.shape())))
+        .expect("the best is within its own tolerance");
+    // Stage C: the visible points plus their twins turned 180 degrees about the vertical
+    // axis through the stage-B centre (fixed), which fixes the hidden back half.
+    let mirror_at = match (params.mirror, ctx.up) {
+        (true, Some(u)) => Some((best.t, u)),
+        _ => None,
+    };
+    let (best, delta, fitted) = match mirror_at {
+        Some((c, u)) => {
+            let mut both = points.to_vec();
+            both.extend(points.iter().map(|p| turn_half(p, &c, &u)));
+            let problem = Problem {
+                points: &both,
+                rays: ctx.rays(mirror_at),
+                ..*problem_free
+            };
+            let (s, d) = robust_fit(&problem, best, 3, 40, MIN_DELTA);
+            (s, d, both)
+        }
+        None => {
+            let (s, d) = robust_fit(ctx.problem_visible, best, 2, 40, MIN_DELTA);
+            (s, d, points.to_vec())
+        }
+    };
+    // The families are compared on the points of stage C (with their twins) by the
+    // first-order distance along the normal (the better approximation of the true distance,
+    // so of the likelihood), whatever the fit minimised: the radial distance's bias on flat
+    // parts is what the general family's extra freedom otherwise wins on. With the rays, the
+    // distance along them.
+    let sc = score(
+        &Problem {
+            cost: Cost::Normal,
+            rays: ctx.rays(mirror_at),
+            points: &fitted,
+            ..*problem_free
+        },
+        &best,
+    );
+    if tracing::enabled!(tracing::Level::DEBUG) {
+        let mut r = Vec::new();
+        problem_free.residuals(&best, &mut r);
+        let np = points.len();
+        let part = |a: usize, b: usize| r[a..b].iter().map(|v| huber(*v, 0.003)).sum::<f64>();
+        tracing::debug!(
+            "stage C {name}: score {sc:.6} (points {:.6}, free {:.6}, rest {:.6}) {}",
+            part(0, np),
+            part(np, np + free.len()),
+            part(np + free.len(), r.len()),
+            best.shape()
+        );
+    }
+    Some(FamilyResult {
+        name,
+        state: best,
+        delta,
+        score: sc,
+        fitted,
+        mirror_at,
+    })
+}
+
+/// The result: the fit's residual statistics over the visible points, open or closed, in
+/// canonical axes.
+fn recovered(
+    points: &[Point3<f64>],
+    best: State,
+    delta: f64,
+    start: String,
+    open_top: bool,
+    up: Option<&Vector3<f64>>,
+    params: &LearnParams,
+) -> Recovered {
     let mut r = Vec::new();
     let vis = Problem {
-        points: &points,
+        points,
         free: &[],
         support: None,
         cost: params.cost,
@@ -424,17 +498,17 @@ pub fn fit_superquadric(
     let mut abs: Vec<f64> = r.iter().map(|v| v.abs()).collect();
     let median_abs = median(&mut abs).unwrap_or(0.0);
     let mut placed = best.placed();
-    let open = open_top || is_open(&placed, &points, params.viewpoint.as_ref());
-    canonicalise(&mut placed, up.as_ref());
-    Ok(Recovered {
+    let open = open_top || is_open(&placed, points, params.viewpoint.as_ref());
+    canonicalise(&mut placed, up);
+    Recovered {
         placed,
         rms,
         median_abs,
         inlier_share: inliers.len() as f64 / r.len().max(1) as f64,
         fitted_points: points.len(),
         open,
-        start: name,
-    })
+        start,
+    }
 }
 
 /// The smallest shape (by volume) whose score stays within this share of the best fit's.
@@ -458,9 +532,7 @@ pub(super) fn smallest_equally_good(problem: &Problem, best: State, min_delta: f
         };
         let s = robust_fit(&shrinking, kept, 2, 30, min_delta).0;
         let sc = score(problem, &s);
-        if std::env::var_os("SQSCAN_LEARN_DEBUG").is_some() {
-            eprintln!("smallest w {w}: score {sc:.6} (base {base:.6}) {}", s.shape());
-        }
+        tracing::debug!("smallest w {w}: score {sc:.6} (base {base:.6}) {}", s.shape());
         if sc > base * (1.0 + SMALLEST_TOLERANCE) {
             break;
         }

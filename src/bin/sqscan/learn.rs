@@ -1,4 +1,4 @@
-//! `sqscan learn`: learn a model by showing the object (issue #6): recover its superquadric(s)
+//! `sqscan learn`: learn a model by showing the object: recover its superquadric(s)
 //! from one scan and write a model file that `sqscan detect` takes as it is.
 
 use crate::detect::parse_point;
