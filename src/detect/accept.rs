@@ -10,6 +10,7 @@ use super::verify;
 use super::{Acceptance, Params, box_volume};
 use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use std::fmt;
 
 /// Turn part placements into a detection: the object pose, the acceptance test, the confidence.
 pub fn assess(
@@ -58,10 +59,7 @@ pub fn assess(
             margins.push((dmax - d) / dmax);
         }
     }
-    tracing::trace!(
-        "acceptance margins [coverage, interior, shell, rms, connections..] {:?}",
-        margins.iter().map(|m| (m * 100.0).round() / 100.0).collect::<Vec<_>>()
-    );
+    tracing::trace!("{}", Margins(&margins));
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
@@ -71,6 +69,23 @@ pub fn assess(
         pose,
         parts,
         connection_errors,
+    }
+}
+
+/// Each measure's margin to its threshold in units of its scale (negative: the test fails):
+/// `acceptance margins [coverage, interior, shell, rms, connections..] [..]`.
+struct Margins<'a>(&'a [f64]);
+
+impl fmt::Display for Margins<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("acceptance margins [coverage, interior, shell, rms, connections..] [")?;
+        for (k, m) in self.0.iter().enumerate() {
+            if k > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{m:.2}")?;
+        }
+        f.write_str("]")
     }
 }
 

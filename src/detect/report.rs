@@ -121,3 +121,48 @@ impl fmt::Display for Detection {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Superquadric;
+
+    #[test]
+    fn a_detection_logs_its_pose_connections_and_every_part_with_its_scores() {
+        let shape = Superquadric::new([0.04, 0.04, 0.05], 0.3, 1.0, 0.0, 0.0).unwrap();
+        let pose = Isometry3::translation(0.9, 0.2, 0.77);
+        let d = Detection {
+            found: true,
+            confidence: 0.9391,
+            pose,
+            parts: vec![
+                PartResult {
+                    name: "body".into(),
+                    placed: Some(PlacedSuperquadric::new(shape, pose)),
+                    scores: Scores {
+                        m: 0.07405,
+                        s: 893,
+                        i: 7,
+                        coverage: 1.0,
+                        rms: 0.00143,
+                        surface_points: 969,
+                        inside_points: 22,
+                        shell_points: 40,
+                    },
+                },
+                PartResult {
+                    name: "handle".into(),
+                    placed: None,
+                    scores: Scores::default(),
+                },
+            ],
+            connection_errors: vec![(2.6f64.to_radians(), 0.004)],
+        };
+        assert_eq!(
+            d.to_string(),
+            "found true conf 0.939 pos (0.900 0.200 0.770) z (0.00 0.00 1.00) A 2.6 deg D 0.004 \
+             | body pos (0.900 0.200 0.770) z (0.00 0.00 1.00) \
+             M 0.0741 S 893 I 7 cov 1.00 rms 0.0014 surf 969 inside 22 shell 40 | handle -"
+        );
+    }
+}
