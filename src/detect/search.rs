@@ -7,13 +7,20 @@
 //! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
 //! centroid, so a fit needs a few iterations instead of twenty; all starts get a short fit and
 //! only the best continues.
+//!
+//! [`search_part`] runs the m hypotheses of one part in parallel, each over its own compact region
+//! of the scene and from its own random stream, and keeps the distinct refined ones that are
+//! possible against the support plane.
 
 use super::fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 use crate::cloud::grid::Grid;
+use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::numeric::stream_seed;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
-use rand::RngExt;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rayon::prelude::*;
 
 /// Iterations of the short fit every start gets before the best one continues.
 const SCREEN_ITERATIONS: usize = 4;
@@ -48,7 +55,7 @@ pub struct SearchSpace<'a> {
     pub noise: f64,
     /// The support plane (normal towards the objects), when one was found: nothing the sensor
     /// saw on it can reach through it.
-    pub plane: Option<crate::cloud::plane::Plane>,
+    pub plane: Option<Plane>,
 }
 
 /// How a shape may be placed against the support plane: its surface samples, to find how deep a
@@ -78,7 +85,7 @@ impl PlaneCheck {
     }
 
     /// How far (m) the placed shape reaches through the plane (negative: it stays above).
-    pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &crate::cloud::plane::Plane) -> f64 {
+    pub fn penetration(&self, placed: &PlacedSuperquadric, plane: &Plane) -> f64 {
         let n_local = placed.pose.rotation.inverse() * plane.normal;
         let lowest = self
             .samples
@@ -359,6 +366,94 @@ fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) ->
             }
         });
     n
+}
+
+/// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.
+#[allow(clippy::too_many_arguments)]
+pub fn search_part(
+    space: &SearchSpace<'_>,
+    shape: &Superquadric,
+    seeds: &[usize],
+    m: usize,
+    settings: &SearchSettings,
+    open: bool,
+    check: &PlaneCheck,
+    seed: u64,
+) -> Vec<Hypothesis> {
+    let regions = spatial_regions(space.sub, seeds, m);
+    let fits: Vec<(usize, Fit)> = (0..m)
+        .into_par_iter()
+        .filter_map(|h| {
+            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
+            ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
+        })
+        .collect();
+    distinct(fits)
+        .par_iter()
+        .filter_map(|f| {
+            let mut h = refine(space, f, settings.fit_iterations);
+            if open && !open_side_up(&mut h.placed, space.plane.as_ref()) {
+                return None;
+            }
+            check.allows(space, &h.placed).then_some(h)
+        })
+        .collect()
+}
+
+/// An open container stands on its base: its opening (+z) must face away from the support
+/// plane. An untapered part fits the same either way up, so it is turned over; a tapered one
+/// the wrong way up is no container standing on the table. (A container upside down looks like
+/// a closed one, a mug like a canister, and is not reported as the container.)
+fn open_side_up(placed: &mut PlacedSuperquadric, plane: Option<&Plane>) -> bool {
+    let Some(plane) = plane else { return true };
+    let z = placed.pose.rotation * Vector3::z();
+    if z.dot(&plane.normal) >= 0.0 {
+        return true;
+    }
+    if placed.shape.is_tapered() {
+        return false;
+    }
+    placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
+    true
+}
+
+/// Split the seed points into `m` spatially compact regions of equal size (consecutive runs in
+/// Morton order of 1 cm voxels), one for each hypothesis.
+///
+/// The paper draws every hypothesis' trials from the whole scene and keeps each one's best fit,
+/// so the hypotheses crowd onto the few objects that fit best and a lookalike can hide the
+/// object from all m of them. Its m is chosen "to cover the whole scene": giving each hypothesis
+/// its own part of the scene does exactly that.
+fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec<usize>> {
+    if seeds.is_empty() || m <= 1 {
+        return vec![seeds.to_vec()];
+    }
+    let voxel = 0.01;
+    let spread = |v: u64| {
+        // Interleave the low 21 bits with two zero bits between each.
+        let mut x = v & 0x1f_ffff;
+        x = (x | x << 32) & 0x1f_0000_0000_ffff;
+        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
+        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
+        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
+        x = (x | x << 2) & 0x1249_2492_4924_9249;
+        x
+    };
+    let key = |p: &Point3<f64>| {
+        let c = [0, 1, 2].map(|k| ((p[k] / voxel).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u64);
+        spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
+    };
+    let mut order: Vec<(u64, usize)> = seeds.iter().map(|&i| (key(&points[i]), i)).collect();
+    order.sort_unstable();
+    let m = m.min(order.len());
+    (0..m)
+        .map(|h| {
+            order[h * order.len() / m..(h + 1) * order.len() / m]
+                .iter()
+                .map(|&(_, i)| i)
+                .collect()
+        })
+        .collect()
 }
 
 /// Drop fits that repeat a better one (the same place within half the sample radius and the

@@ -19,6 +19,7 @@ use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
+use std::fmt;
 
 /// Surface samples seen more obliquely than this (cosine) are not expected to hold points.
 const MIN_VIEW_COSINE: f64 = 0.3;
@@ -50,6 +51,18 @@ impl Scores {
     /// Inside points per surface point.
     pub fn interior_ratio(&self) -> f64 {
         self.inside_points as f64 / (self.surface_points as f64).max(1.0)
+    }
+}
+
+/// `M .. S .. I .. cov .. rms .. surf .. inside .. shell ..`: the paper's criteria, then the
+/// acceptance measures.
+impl fmt::Display for Scores {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
+            self.m, self.s, self.i, self.coverage, self.rms, self.surface_points, self.inside_points, self.shell_points
+        )
     }
 }
 
@@ -304,6 +317,15 @@ pub fn rank_sums(criteria: &[(Vec<f64>, bool)]) -> Vec<usize> {
     sums
 }
 
+/// The paper's three criteria: M ascending, S descending, I ascending.
+pub fn paper_criteria(scores: &[Scores]) -> Vec<(Vec<f64>, bool)> {
+    vec![
+        (scores.iter().map(|s| s.m).collect(), true),
+        (scores.iter().map(|s| s.s as f64).collect(), false),
+        (scores.iter().map(|s| s.i as f64).collect(), true),
+    ]
+}
+
 /// Median nearest-neighbour distance of a point set (its sampling spacing), from up to 500 points.
 pub fn median_spacing(points: &[Point3<f64>], grid: &Grid) -> f64 {
     if points.len() < 2 {
@@ -378,6 +400,22 @@ impl Visibility {
         } else {
             self.covered as f64 / could as f64
         }
+    }
+}
+
+/// `facing .. covered .. occluded .. see-through .. unknown .. seen ..`.
+impl fmt::Display for Visibility {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "facing {} covered {} occluded {} see-through {} unknown {} seen {:.2}",
+            self.facing,
+            self.covered,
+            self.occluded,
+            self.see_through,
+            self.unknown,
+            self.seen_ratio()
+        )
     }
 }
 

@@ -1,0 +1,194 @@
+//! The acceptance stage. Ranked voting always names a winner; whether a candidate is the object
+//! at all ("not here") is judged on measures that do not depend on the other candidates: the
+//! coverage of its visible surface, the points inside it and just outside it, its fit against
+//! the noise and, for a compound, its connection errors. The candidates that pass, and may be
+//! reported, are then checked against the free space the sensor saw through.
+
+use super::prepare::Prepared;
+use super::report::{Detection, PartResult};
+use super::verify;
+use super::{Acceptance, Params, box_volume};
+use crate::model::Model;
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use std::fmt;
+
+/// Turn part placements into a detection: the object pose, the acceptance test, the confidence.
+pub fn assess(
+    model: &Model,
+    parts: Vec<PartResult>,
+    connection_errors: Vec<(f64, f64)>,
+    noise: f64,
+    acc: &Acceptance,
+) -> Detection {
+    let pose = object_pose(model, &parts);
+    // Pool the measures over the parts found (a hidden part lowers coverage by its share).
+    let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
+    let mut shell = 0usize;
+    for (p, r) in model.parts.iter().zip(&parts) {
+        // Weight a part's coverage by its surface size.
+        let w = p.shape.a[0] * p.shape.a[1] + p.shape.a[1] * p.shape.a[2] + p.shape.a[0] * p.shape.a[2];
+        expected_weight += w;
+        if r.placed.is_some() {
+            covered += w * r.scores.coverage;
+            surface += r.scores.surface_points;
+            inside += r.scores.inside_points;
+            shell += r.scores.shell_points;
+            if r.scores.rms.is_finite() {
+                ss += r.scores.rms * r.scores.rms * r.scores.surface_points as f64;
+            }
+        }
+    }
+    let coverage = covered / expected_weight.max(1e-12);
+    let interior = inside as f64 / (surface as f64).max(1.0);
+    let rms = if surface > 0 {
+        (ss / surface as f64).sqrt()
+    } else {
+        f64::INFINITY
+    };
+    let max_rms = acc.max_rms_sigmas * noise.max(0.001);
+    let mut margins = vec![
+        (coverage - acc.min_coverage) / 0.15,
+        (acc.max_interior_ratio - interior) / 0.1,
+        (acc.max_shell_ratio - shell as f64 / (surface as f64).max(1.0)) / 0.04,
+        (max_rms - rms) / (0.5 * max_rms),
+    ];
+    for (c, (a, d)) in model.connections.iter().zip(&connection_errors) {
+        if a.is_finite() {
+            margins.push((acc.max_angle_error - a) / acc.max_angle_error);
+            let dmax = acc.max_distance_error * c.distance.max(0.02);
+            margins.push((dmax - d) / dmax);
+        }
+    }
+    tracing::trace!("{}", Margins(&margins));
+    let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
+    let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
+    let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
+    Detection {
+        found: worst >= 0.0,
+        confidence,
+        pose,
+        parts,
+        connection_errors,
+    }
+}
+
+/// Each measure's margin to its threshold in units of its scale (negative: the test fails):
+/// `acceptance margins [coverage, interior, shell, rms, connections..] [..]`.
+struct Margins<'a>(&'a [f64]);
+
+impl fmt::Display for Margins<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str("acceptance margins [coverage, interior, shell, rms, connections..] [")?;
+        for (k, m) in self.0.iter().enumerate() {
+            if k > 0 {
+                f.write_str(", ")?;
+            }
+            write!(f, "{m:.2}")?;
+        }
+        f.write_str("]")
+    }
+}
+
+/// The free-space check of the candidates from `first_new` on that the acceptance test passed:
+/// a part where the sensor saw through it is not there. Only the candidates that may be reported
+/// are checked (it is the most expensive test per candidate, and most candidates fail cheaper
+/// ones first): the first that passes, or with `Params::all` every one. Returns how many
+/// candidates are accepted in all.
+pub fn free_space(prep: &Prepared, candidates: &mut [Detection], first_new: usize, params: &Params) -> usize {
+    let limit = if params.all { usize::MAX } else { 1 };
+    let mut accepted = candidates[..first_new].iter().filter(|d| d.found).count();
+    for d in candidates[first_new..].iter_mut() {
+        if accepted >= limit {
+            break;
+        }
+        if !d.found {
+            continue;
+        }
+        for (k, part) in d.parts.iter().enumerate() {
+            let Some(placed) = part.placed else { continue };
+            let vis = verify::visibility(
+                &prep.scene.points,
+                &prep.all_grid,
+                &placed,
+                params.viewpoint,
+                prep.scene.plane.as_ref(),
+                &prep.samples[k],
+            );
+            tracing::debug!("visibility {} {vis}", part.name);
+            let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
+            if margin < 0.0 {
+                d.found = false;
+            }
+            d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
+        }
+        if d.found {
+            accepted += 1;
+        }
+    }
+    accepted
+}
+
+/// The object's pose from its parts' placements. The anchor part (the largest found) fixes the
+/// pose up to that part's own symmetries; the other parts choose among those symmetries and, for
+/// a body of revolution, fix the spin.
+pub fn object_pose(model: &Model, parts: &[PartResult]) -> Isometry3<f64> {
+    let Some(a) = (0..parts.len())
+        .filter(|&k| parts[k].placed.is_some())
+        .max_by(|&x, &y| box_volume(&model.parts[x].shape).total_cmp(&box_volume(&model.parts[y].shape)))
+    else {
+        return Isometry3::identity();
+    };
+    let placed = parts[a].placed.expect("filtered");
+    let shape = &model.parts[a].shape;
+    let anchor_in_object = model.parts[a].pose_in_object;
+    let others: Vec<(Point3<f64>, Vector3<f64>)> = parts
+        .iter()
+        .enumerate()
+        .filter(|(k, _)| *k != a)
+        .filter_map(|(k, r)| {
+            r.placed.map(|p| {
+                // The model's centre of part k in the anchor part's frame.
+                let rel = anchor_in_object.inverse() * model.parts[k].pose_in_object;
+                (Point3::from(rel.translation.vector), p.pose.translation.vector)
+            })
+        })
+        .collect();
+    if others.is_empty() {
+        return placed.pose * anchor_in_object.inverse();
+    }
+    let mut symmetries = vec![
+        UnitQuaternion::identity(),
+        UnitQuaternion::from_axis_angle(&Vector3::z_axis(), std::f64::consts::PI),
+    ];
+    if !shape.is_tapered() {
+        symmetries.push(UnitQuaternion::from_axis_angle(
+            &Vector3::x_axis(),
+            std::f64::consts::PI,
+        ));
+        symmetries.push(UnitQuaternion::from_axis_angle(
+            &Vector3::y_axis(),
+            std::f64::consts::PI,
+        ));
+    }
+    let mut best = (f64::INFINITY, placed.pose);
+    for g in symmetries {
+        let mut part_pose = placed.pose * Isometry3::from_parts(Default::default(), g);
+        if shape.is_revolution() {
+            // Spin about z so the first other part's centre lands at the detected azimuth.
+            let (model_c, world_c) = &others[0];
+            let local = part_pose.inverse_transform_point(&Point3::from(*world_c));
+            let spin = local.y.atan2(local.x) - model_c.y.atan2(model_c.x);
+            if model_c.x.hypot(model_c.y) > 1e-9 && local.x.hypot(local.y) > 1e-9 {
+                part_pose *= Isometry3::rotation(Vector3::z() * spin);
+            }
+        }
+        let err: f64 = others
+            .iter()
+            .map(|(mc, wc)| (part_pose.transform_point(mc).coords - wc).norm_squared())
+            .sum();
+        if err < best.0 {
+            best = (err, part_pose);
+        }
+    }
+    best.1 * anchor_in_object.inverse()
+}

@@ -1,0 +1,302 @@
+//! The compound stage: from the best distinct anchor candidates, every other part is searched
+//! only where its connection to an already-found part puts it; the combinations are ranked by
+//! the connection errors A and D (paper eq. 6, 7) together with every part's M, S and I, and the
+//! best combination of each anchor candidate is refined as one rigid object.
+
+use super::accept::{self, object_pose};
+use super::anchor::Anchors;
+use super::prepare::Prepared;
+use super::report::{ConnectionText, Detection, PartResult};
+use super::search::{self, SearchSettings, search_part};
+use super::verify::{Scores, paper_criteria, rank_sums, score};
+use super::{Params, box_volume, fit, rigid};
+use crate::model::{Connection, Model, axis_angle};
+use crate::numeric::stream_seed;
+use nalgebra::{Point3, Vector3};
+use rayon::prelude::*;
+use std::fmt;
+
+/// Anchor candidates below this coverage are not continued.
+const MIN_ANCHOR_COVERAGE: f64 = 0.35;
+/// Combinations logged per round, best first.
+const LOGGED_COMBINATIONS: usize = 12;
+
+/// One placement (or none) of every part, grown from one anchor candidate.
+pub struct Combination {
+    /// Which anchor candidate (an index into `Anchors::hypotheses`) it grew from.
+    pub anchor: usize,
+    pub parts: Vec<PartResult>,
+    /// Angle (rad) and distance (m) error of each connection; infinite where a part is missing.
+    pub errors: Vec<(f64, f64)>,
+}
+
+/// `A .. deg D .. | part | part ..`.
+impl fmt::Display for Combination {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", ConnectionText(&self.errors))?;
+        for p in &self.parts {
+            write!(f, " | {p}")?;
+        }
+        Ok(())
+    }
+}
+
+/// The best distinct anchor candidates that could be the part at all (a part seen on less than
+/// a third of its visible side is too uncertain to build on), at most
+/// `Params::compound_candidates`.
+pub fn pick(anchors: &Anchors, model: &Model, params: &Params) -> Vec<usize> {
+    let apart = model.parts[anchors.part].shape.max_size();
+    let mut picked: Vec<usize> = Vec::new();
+    for &k in &anchors.order {
+        let c = anchors.hypotheses[k].placed.pose.translation.vector;
+        let distinct = picked
+            .iter()
+            .all(|&j| (anchors.hypotheses[j].placed.pose.translation.vector - c).norm() > apart);
+        if distinct && anchors.scores[k].coverage >= MIN_ANCHOR_COVERAGE {
+            picked.push(k);
+        }
+        if picked.len() >= params.compound_candidates.max(1) {
+            break;
+        }
+    }
+    picked
+}
+
+/// For each picked anchor candidate, search the other parts where their connections put them and
+/// list every combination with its connection errors.
+pub fn combinations(
+    prep: &Prepared,
+    model: &Model,
+    anchors: &Anchors,
+    picked: &[usize],
+    params: &Params,
+    round: u64,
+) -> Vec<Combination> {
+    let space = prep.space();
+    let anchor = anchors.part;
+    // Visit parts breadth-first from the anchor along the connections.
+    let mut visit: Vec<(usize, usize, usize)> = Vec::new(); // (part, parent part, connection)
+    let mut seen = vec![false; model.parts.len()];
+    seen[anchor] = true;
+    let mut frontier = vec![anchor];
+    while let Some(p) = frontier.pop() {
+        for (ci, c) in model.connections.iter().enumerate() {
+            let other = if c.parts[0] == p {
+                c.parts[1]
+            } else if c.parts[1] == p {
+                c.parts[0]
+            } else {
+                continue;
+            };
+            if !seen[other] {
+                seen[other] = true;
+                visit.push((other, p, ci));
+                frontier.push(other);
+            }
+        }
+    }
+    // The shell around a candidate is small: half the trials find the part there as surely as
+    // all of them find it in the whole scene.
+    let settings = SearchSettings {
+        trials: params.trials.div_ceil(2).max(3),
+        sample_points: params.sample_points,
+        fit_iterations: params.fit_iterations,
+    };
+    let empty = |name: &str| PartResult {
+        name: name.to_owned(),
+        placed: None,
+        scores: Scores {
+            m: f64::INFINITY,
+            ..Default::default()
+        },
+    };
+    // Partial combinations: a placement (or none) per part.
+    let mut partial: Vec<(usize, Vec<PartResult>)> = picked
+        .iter()
+        .map(|&k| {
+            let mut v: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
+            v[anchor] = anchors.part_result(model, k);
+            (k, v)
+        })
+        .collect();
+    for (step, &(part, parent, ci)) in visit.iter().enumerate() {
+        let conn = &model.connections[ci];
+        let shape = model.parts[part].shape;
+        let mut next = Vec::new();
+        for (pi, (origin, combo)) in partial.iter().enumerate() {
+            let Some(parent_placed) = combo[parent].placed else {
+                next.push((*origin, combo.clone()));
+                continue;
+            };
+            // Seeds: subsampled points in the shell where this part's surface can be, that are
+            // not on the parent part's own surface.
+            let pc = Point3::from(parent_placed.pose.translation.vector);
+            let reach = shape.bounding_radius();
+            let band = search::refine_band(&parent_placed.shape, space.noise);
+            let mut seeds = Vec::new();
+            space
+                .sub_grid
+                .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
+                    let p = &space.sub[i];
+                    if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
+                        seeds.push(i);
+                    }
+                });
+            let m = params.local_hypotheses.max(1);
+            let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
+            let hyps = search_part(
+                &space,
+                &shape,
+                &seeds,
+                m,
+                &settings,
+                model.parts[part].open,
+                &prep.checks[part],
+                stream,
+            );
+            if hyps.is_empty() {
+                next.push((*origin, combo.clone()));
+                continue;
+            }
+            let scores: Vec<Scores> = hyps
+                .par_iter()
+                .map(|h| score(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
+                .collect();
+            for (h, s) in hyps.iter().zip(scores) {
+                let mut c = combo.clone();
+                c[part] = PartResult {
+                    name: model.parts[part].name.clone(),
+                    placed: Some(h.placed),
+                    scores: s,
+                };
+                next.push((*origin, c));
+            }
+        }
+        partial = next;
+    }
+    partial
+        .into_iter()
+        .map(|(anchor, parts)| {
+            let errors = model
+                .connections
+                .iter()
+                .map(|c| connection_error(model, c, &parts))
+                .collect();
+            Combination { anchor, parts, errors }
+        })
+        .collect()
+}
+
+/// A and D of one connection (paper eq. 6, 7); infinite when a part is missing. An untapered
+/// part's z axis has no sign, so its angle is compared folded.
+fn connection_error(model: &Model, c: &Connection, parts: &[PartResult]) -> (f64, f64) {
+    let (Some(a), Some(b)) = (parts[c.parts[0]].placed, parts[c.parts[1]].placed) else {
+        return (f64::INFINITY, f64::INFINITY);
+    };
+    let signed = model.parts[c.parts[0]].shape.is_tapered() && model.parts[c.parts[1]].shape.is_tapered();
+    let za = a.pose.rotation * Vector3::z();
+    let zb = b.pose.rotation * Vector3::z();
+    let nominal = if signed {
+        c.angle
+    } else {
+        c.angle.min(std::f64::consts::PI - c.angle)
+    };
+    let angle = axis_angle(&za, &zb, signed);
+    let dist = (a.pose.translation.vector - b.pose.translation.vector).norm();
+    ((nominal - angle).abs(), (c.distance - dist).abs())
+}
+
+/// Rank the combinations over the connection errors and every part's M, S, I; the best of every
+/// anchor candidate is refined as one rigid object and scored again, the others go through the
+/// acceptance test as they are. Candidates come best first.
+pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, params: &Params) -> Vec<Detection> {
+    let mut criteria: Vec<(Vec<f64>, bool)> = Vec::new();
+    for c in 0..model.connections.len() {
+        criteria.push((combos.iter().map(|x| x.errors[c].0).collect(), true));
+        criteria.push((combos.iter().map(|x| x.errors[c].1).collect(), true));
+    }
+    for p in 0..model.parts.len() {
+        let sc: Vec<Scores> = combos.iter().map(|x| x.parts[p].scores).collect();
+        criteria.extend(paper_criteria(&sc));
+    }
+    let sums = rank_sums(&criteria);
+    let mut idx: Vec<usize> = (0..combos.len()).collect();
+    idx.sort_by_key(|&k| sums[k]);
+    for &k in idx.iter().take(LOGGED_COMBINATIONS) {
+        tracing::debug!("combo sum {} {}", sums[k], combos[k]);
+    }
+    let mut best_of_anchor: Vec<usize> = Vec::new();
+    for &k in &idx {
+        if best_of_anchor.iter().all(|&j| combos[j].anchor != combos[k].anchor) {
+            best_of_anchor.push(k);
+        }
+    }
+    let mut out: Vec<Detection> = best_of_anchor
+        .par_iter()
+        .map(|&k| refine(prep, model, &combos[k], params))
+        .collect();
+    for d in &out {
+        tracing::debug!("refined {d}");
+    }
+    let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
+    for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
+        if let Some(c) = combos[k].take() {
+            out.push(accept::assess(
+                model,
+                c.parts,
+                c.errors,
+                prep.noise(),
+                &params.acceptance,
+            ));
+        }
+    }
+    out
+}
+
+/// Refine a combination as one rigid object, place every part by the model, score the parts
+/// again and judge the whole.
+fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) -> Detection {
+    let space = prep.space();
+    let noise = prep.noise();
+    let start = object_pose(model, &combo.parts);
+    let smallest = model
+        .parts
+        .iter()
+        .map(|p| p.shape)
+        .min_by(|a, b| box_volume(a).total_cmp(&box_volume(b)))
+        .expect("parts");
+    let coarse = 0.3 * search::sample_radius(&smallest);
+    let fine = search::refine_band(&smallest, noise);
+    let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
+    let placed = model.placed_parts(&pose);
+    let parts: Vec<PartResult> = model
+        .parts
+        .iter()
+        .zip(placed)
+        .zip(&prep.samples)
+        .map(|((p, q), samples)| {
+            let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
+            let m = fit::measure_of_fit(&q, &inliers);
+            PartResult {
+                name: p.name.clone(),
+                placed: Some(q),
+                scores: score(&space, &q, m, params.gamma, samples),
+            }
+        })
+        .collect();
+    let mut d = accept::assess(model, parts, Vec::new(), noise, &params.acceptance);
+    // The rigid fit moves parts that were not searched (a part never found is placed by the
+    // model): none may go through the support plane.
+    let possible = d
+        .parts
+        .iter()
+        .zip(&prep.checks)
+        .all(|(r, check)| r.placed.is_none_or(|q| check.allows(&space, &q)));
+    if !possible {
+        d.found = false;
+        d.confidence = d.confidence.min(0.1);
+    }
+    d.pose = pose;
+    d.connection_errors = combo.errors.clone();
+    d
+}

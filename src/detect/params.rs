@@ -1,0 +1,88 @@
+//! The detector's settings: the paper's search and voting parameters and the calibrated
+//! thresholds of the acceptance test.
+
+use nalgebra::Point3;
+
+/// Detector settings. `Default` gives the paper's settings (n = 10 trials of 30 points, 20 LM
+/// iterations, gamma = 0.2) and the calibrated acceptance thresholds.
+#[derive(Debug, Clone)]
+pub struct Params {
+    pub seed: u64,
+    /// RANSAC trials per hypothesis (paper: n = 10).
+    pub trials: usize,
+    /// Points per trial (paper: 30).
+    pub sample_points: usize,
+    /// LM iterations per fit (paper: 20).
+    pub fit_iterations: usize,
+    /// Surface tolerance of the S and I criteria (paper: 0.2).
+    pub gamma: f64,
+    /// Hypotheses for the (first) part; `None`: the model's m, else derived from the scene.
+    pub hypotheses: Option<usize>,
+    /// Hypotheses searched for each further part of a compound around each candidate.
+    pub local_hypotheses: usize,
+    /// Candidates of the first part a compound search continues from.
+    pub compound_candidates: usize,
+    pub remove_plane: bool,
+    /// Drop points farther than this from the viewpoint (or the origin) (m).
+    pub max_range: Option<f64>,
+    /// Where the sensor was: orients surface normals. Camera-frame clouds have it at the origin.
+    pub viewpoint: Option<Point3<f64>>,
+    /// Return every accepted, non-overlapping instance instead of the best one.
+    pub all: bool,
+    pub acceptance: Acceptance,
+}
+
+/// Thresholds of the "is it there" test, calibrated on simulated scenes with and without the
+/// objects (see BENCHMARKS.md).
+#[derive(Debug, Clone, Copy)]
+pub struct Acceptance {
+    /// Least share of the visible surface that must hold points.
+    pub min_coverage: f64,
+    /// Most inside points per surface point.
+    pub max_interior_ratio: f64,
+    /// Most points just outside the surface per surface point.
+    pub max_shell_ratio: f64,
+    /// Least share of each part's visible side that, where the sensor could have seen it, it
+    /// did (see [`super::verify::Visibility::seen_ratio`]).
+    pub min_seen: f64,
+    /// Largest RMS surface distance, in noise sigmas.
+    pub max_rms_sigmas: f64,
+    /// Largest connection angle error of a compound (rad).
+    pub max_angle_error: f64,
+    /// Largest connection distance error of a compound, as a share of the nominal distance.
+    pub max_distance_error: f64,
+}
+
+impl Default for Acceptance {
+    fn default() -> Self {
+        Acceptance {
+            min_coverage: 0.45,
+            max_interior_ratio: 0.15,
+            max_shell_ratio: 0.08,
+            min_seen: 0.5,
+            max_rms_sigmas: 1.6,
+            max_angle_error: 25f64.to_radians(),
+            max_distance_error: 0.25,
+        }
+    }
+}
+
+impl Default for Params {
+    fn default() -> Self {
+        Params {
+            seed: 0,
+            trials: 10,
+            sample_points: 30,
+            fit_iterations: 20,
+            gamma: 0.2,
+            hypotheses: None,
+            local_hypotheses: 8,
+            compound_candidates: 6,
+            remove_plane: true,
+            max_range: None,
+            viewpoint: None,
+            all: false,
+            acceptance: Acceptance::default(),
+        }
+    }
+}

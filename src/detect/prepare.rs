@@ -1,0 +1,185 @@
+//! The first stage: the cloud as the detector works on it. Non-finite points and points out of
+//! range are dropped, the dominant (support) plane is removed and gives the noise estimate, and
+//! the rest is subsampled and put into grids for the search and the checks.
+
+use super::Params;
+use crate::cloud::grid::{Grid, voxel_subsample};
+use crate::cloud::plane::{Plane, remove_dominant_plane};
+use super::search::{PlaneCheck, SearchSettings, SearchSpace};
+use super::verify::{SurfaceSamples, median_spacing};
+use crate::model::Model;
+use nalgebra::Point3;
+use std::fmt;
+
+/// Depth noise (m, one sigma) assumed when no plane gives an estimate.
+const DEFAULT_NOISE: f64 = 0.002;
+
+/// The cloud after filtering and plane removal.
+pub struct Scene {
+    /// Finite input points (before the range cut).
+    pub input_points: usize,
+    /// Every finite point within range, the plane's included: the lines of sight of the
+    /// free-space check end on them.
+    pub points: Vec<Point3<f64>>,
+    /// The points off the plane: where the objects are searched.
+    pub objects: Vec<Point3<f64>>,
+    /// The support plane, its normal towards the objects.
+    pub plane: Option<Plane>,
+    /// Depth noise estimate (m, one sigma) from the plane's inlier band.
+    pub noise: f64,
+}
+
+/// What plane removal found, for the log.
+pub struct RemovalSummary {
+    pub plane: Option<Plane>,
+    pub band: f64,
+    pub inliers: usize,
+    pub kept: usize,
+}
+
+/// `plane <coefficients> band .. inliers .. kept ..`.
+impl fmt::Display for RemovalSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "plane {:?} band {:.4} inliers {} kept {}",
+            self.plane.map(|p| p.coefficients()),
+            self.band,
+            self.inliers,
+            self.kept
+        )
+    }
+}
+
+/// Filter the cloud (non-finite points are skipped) and remove the support plane.
+pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
+    let origin = params.viewpoint.unwrap_or(Point3::origin());
+    let points: Vec<Point3<f64>> = cloud
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+        .collect();
+    let input_points = points.len();
+    let points: Vec<Point3<f64>> = match params.max_range {
+        Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
+        None => points,
+    };
+    if !params.remove_plane {
+        return Scene {
+            input_points,
+            objects: points.clone(),
+            points,
+            plane: None,
+            noise: DEFAULT_NOISE,
+        };
+    }
+    let removal = remove_dominant_plane(&points, false, params.viewpoint);
+    let noise = if removal.plane.is_some() {
+        (removal.band / 3.0).max(0.0005)
+    } else {
+        DEFAULT_NOISE
+    };
+    let summary = RemovalSummary {
+        plane: removal.plane,
+        band: removal.band,
+        inliers: removal.inliers,
+        kept: removal.kept.len(),
+    };
+    tracing::debug!("{summary}");
+    Scene {
+        input_points,
+        objects: removal.kept.iter().map(|&i| points[i]).collect(),
+        points,
+        plane: removal.plane,
+        noise,
+    }
+}
+
+/// The scene indexed for the search and the checks of one model.
+pub struct Prepared {
+    pub scene: Scene,
+    /// The objects' points subsampled to a quarter of the model's smallest size.
+    pub sub: Vec<Point3<f64>>,
+    /// Grid over `scene.objects`, cells the size of the model's largest part.
+    pub grid: Grid,
+    /// Grid over `sub`, cells the size of the model's smallest part.
+    pub sub_grid: Grid,
+    /// Grid over `scene.points` for the lines of sight.
+    pub all_grid: Grid,
+    pub viewpoint: Option<Point3<f64>>,
+    /// Each part's surface samples at the data's spacing.
+    pub samples: Vec<SurfaceSamples>,
+    /// Each part's placement check against the support plane.
+    pub checks: Vec<PlaneCheck>,
+    /// The search settings of a part searched over the whole scene.
+    pub settings: SearchSettings,
+    /// The largest size of any part: instances closer than this are the same one.
+    pub max_size: f64,
+}
+
+impl Prepared {
+    /// Where the search and the scores look.
+    pub fn space(&self) -> SearchSpace<'_> {
+        SearchSpace {
+            points: &self.scene.objects,
+            grid: &self.grid,
+            sub: &self.sub,
+            sub_grid: &self.sub_grid,
+            viewpoint: self.viewpoint,
+            noise: self.scene.noise,
+            plane: self.scene.plane,
+        }
+    }
+
+    pub fn noise(&self) -> f64 {
+        self.scene.noise
+    }
+}
+
+/// Subsample the scene and build the grids, surface samples and plane checks for `model`.
+pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
+    let min_size = model
+        .parts
+        .iter()
+        .map(|p| p.shape.min_size())
+        .fold(f64::INFINITY, f64::min);
+    let max_size = model.parts.iter().map(|p| p.shape.max_size()).fold(0.0, f64::max);
+    // Subsample to a quarter of the smallest size: a 30-point sample within min(a) of its seed
+    // then still spans the patch, and the trials touch a fraction of the points.
+    let objects = &scene.objects;
+    let voxel = (min_size / 4.0).clamp(0.002, 0.01);
+    let sub: Vec<Point3<f64>> = voxel_subsample(objects, voxel)
+        .into_iter()
+        .map(|i| objects[i])
+        .collect();
+    let grid = Grid::new(objects, 1.2 * max_size);
+    let sub_grid = Grid::new(&sub, min_size);
+    let spacing = median_spacing(objects, &Grid::new(objects, 0.02));
+    let samples = model
+        .parts
+        .iter()
+        .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
+        .collect();
+    let checks = model
+        .parts
+        .iter()
+        .map(|p| PlaneCheck::new(&p.shape, scene.noise))
+        .collect();
+    let all_grid = Grid::new(&scene.points, 0.01);
+    Prepared {
+        sub,
+        grid,
+        sub_grid,
+        all_grid,
+        viewpoint: params.viewpoint,
+        samples,
+        checks,
+        settings: SearchSettings {
+            trials: params.trials,
+            sample_points: params.sample_points,
+            fit_iterations: params.fit_iterations,
+        },
+        max_size,
+        scene,
+    }
+}
