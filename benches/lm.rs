@@ -23,7 +23,7 @@ use nalgebra_034 as na34;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
-use sqscan::detect::fit::{fit_pose_tol, measure_of_fit};
+use sqscan::detect::{fit_pose_tol, measure_of_fit};
 use sqscan::geometry::{PlacedSuperquadric, Superquadric};
 use sqscan::model::Model;
 use std::hint::black_box;

@@ -26,16 +26,17 @@
 mod accept;
 mod anchor;
 mod compound;
-pub mod fit;
+mod fit;
 pub mod output;
 mod params;
 mod prepare;
 mod report;
-pub mod rigid;
-pub mod search;
+mod rigid;
+mod search;
 mod select;
-pub mod verify;
+mod verify;
 
+pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
 pub use report::{Detection, PartResult, Report, Timing};
 
