@@ -57,9 +57,10 @@ fn ms(t: Instant) -> f64 {
     t.elapsed().as_secs_f64() * 1e3
 }
 
-/// The product of the half-sizes a1·a2·a3 (an eighth of the bounding box's volume), the scale by
-/// which the detector orders parts: the largest anchors the search, the smallest sets the rigid
-/// refinement's bands. It is not the superquadric's volume, which also depends on the exponents.
+/// The product of the half-sizes a1·a2·a3 (an eighth of the volume of the box the untapered
+/// shape fits in), the scale by which the detector orders parts: the largest anchors the search,
+/// the smallest sets the rigid refinement's bands. It is not the superquadric's volume, which
+/// also depends on the exponents.
 fn box_volume(s: &Superquadric) -> f64 {
     s.a[0] * s.a[1] * s.a[2]
 }
