@@ -7,8 +7,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use sqscan::calibration::Calibration;
-use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::Scene;
+use sqscan_drivers::PtuKind;
 use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::profile::SeqEvent;
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
@@ -32,7 +33,7 @@ async fn profiles_at_a_commanded_tilt_calibrate_onto_the_table() {
     let rig = RigMock::start(
         Arc::new(scene),
         &RigConfig {
-            protocol: RigProtocol::PowerCube,
+            ptu_kind: PtuKind::PowerCube,
             ..RigConfig::default()
         },
         None,

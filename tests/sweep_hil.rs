@@ -9,10 +9,11 @@ use std::time::Duration;
 use nalgebra::Point3;
 use sqscan::calibration::Calibration;
 use sqscan::geometry::PlacedSuperquadric;
-use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::{self, Scene};
 use sqscan::sweep::{AssembledSweep, SweepError, SweepSettings, acquire};
 use sqscan_drivers::PanTilt;
+use sqscan_drivers::PtuKind;
 use sqscan_drivers::mock::Faults;
 use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
@@ -167,7 +168,7 @@ async fn a_sweep_and_its_return_assemble_onto_the_scene() {
     let scene = scene();
     let cal = Calibration::for_rig(&scene.rig);
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         ..RigConfig::default()
     };
@@ -194,7 +195,7 @@ async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("ptu");
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         // Start-up and the approach take well under 100 replies; the sweep ~300.
         ptu_faults: Faults {
@@ -255,7 +256,7 @@ async fn a_sensor_unplugged_mid_sweep_fails_the_sweep_and_halts_the_ptu() {
     let scene = scene();
     let cal = Calibration::for_rig(&scene.rig);
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         // One second of the ~3 s sweep (the sensor only streams once started).
         sensor_faults: Faults {

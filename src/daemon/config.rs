@@ -10,6 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::Deserialize;
+use sqscan_drivers::PtuKind;
+use sqscan_drivers::sensor::SensorConfig;
 
 use crate::spec::{SpecError, read_toml};
 
@@ -152,20 +154,15 @@ pub enum Backend {
     Hardware(HardwareConfig),
 }
 
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PtuProtocol {
-    PowerCube,
-    Flir,
-}
-
 #[derive(Debug, Clone, PartialEq)]
 pub struct HardwareConfig {
     pub calibration: PathBuf,
     pub ptu_path: PathBuf,
-    pub ptu_protocol: PtuProtocol,
+    pub ptu_kind: PtuKind,
     pub ptu_baud: u32,
-    pub pan_module: u8,
-    pub tilt_module: u8,
+    /// PowerCube module ids; `None`: the driver's (pan 12, tilt 11).
+    pub pan_module: Option<u8>,
+    pub tilt_module: Option<u8>,
     pub sensor: SensorEndpoint,
     pub sensor_baud: u32,
 }
@@ -382,22 +379,19 @@ impl Config {
                 let h = raw.hardware.as_ref().ok_or_else(|| {
                     SpecError::invalid(path, "hardware", "backend \"hardware\" needs a [hardware] table")
                 })?;
-                let protocol = match h.ptu.protocol.as_str() {
-                    "powercube" => PtuProtocol::PowerCube,
-                    "flir" => PtuProtocol::Flir,
-                    other => {
-                        return Err(SpecError::invalid(
-                            path,
-                            "hardware.ptu.protocol",
-                            format!("{other:?}: give \"powercube\" or \"flir\""),
-                        ));
+                let kind: PtuKind = h
+                    .ptu
+                    .protocol
+                    .parse()
+                    .map_err(|e| SpecError::invalid(path, "hardware.ptu.protocol", format!("{e}")))?;
+                for (field, id) in [
+                    ("hardware.ptu.pan_module", h.ptu.pan_module),
+                    ("hardware.ptu.tilt_module", h.ptu.tilt_module),
+                ] {
+                    if id.is_some_and(|n| !(1..=31).contains(&n)) {
+                        return Err(SpecError::invalid(path, field, "give a module id from 1 to 31"));
                     }
-                };
-                let default_baud = if protocol == PtuProtocol::PowerCube {
-                    38_400
-                } else {
-                    9_600
-                };
+                }
                 let sensor = match (&h.sensor.path, &h.sensor.tcp) {
                     (Some(p), None) => SensorEndpoint::Serial(rel(p)),
                     (None, Some(a)) => SensorEndpoint::Tcp(a.clone()),
@@ -420,12 +414,12 @@ impl Config {
                 Backend::Hardware(HardwareConfig {
                     calibration: rel(&h.calibration),
                     ptu_path: rel(&h.ptu.path),
-                    ptu_protocol: protocol,
-                    ptu_baud: h.ptu.baud.unwrap_or(default_baud),
-                    pan_module: h.ptu.pan_module.unwrap_or(12),
-                    tilt_module: h.ptu.tilt_module.unwrap_or(11),
+                    ptu_kind: kind,
+                    ptu_baud: h.ptu.baud.unwrap_or(kind.default_baud()),
+                    pan_module: h.ptu.pan_module,
+                    tilt_module: h.ptu.tilt_module,
                     sensor,
-                    sensor_baud: h.sensor.baud.unwrap_or(921_600),
+                    sensor_baud: h.sensor.baud.unwrap_or(SensorConfig::default().baud),
                 })
             }
             other => {
@@ -547,7 +541,7 @@ mod tests {
             panic!("{:?}", c.backend)
         };
         assert_eq!(h.calibration, Path::new("/etc/sqscan/rig.toml"));
-        assert_eq!(h.ptu_protocol, PtuProtocol::Flir);
+        assert_eq!(h.ptu_kind, PtuKind::Flir);
         assert_eq!(h.ptu_baud, 9600);
         assert_eq!(h.sensor, SensorEndpoint::Tcp("10.0.0.2:5000".into()));
         assert_eq!(c.tcp, Some("127.0.0.1:2948".parse().unwrap()));
@@ -569,6 +563,10 @@ mod tests {
             (
                 "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
                 "sweep",
+            ),
+            (
+                "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"powercube\", tilt_module = 0 }\nsensor = { path = \"s\" }",
+                "hardware.ptu.tilt_module",
             ),
         ] {
             let e = parse(text).unwrap_err().to_string();

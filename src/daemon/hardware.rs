@@ -1,30 +1,22 @@
 //! The hardware backend: a pan-tilt unit and a profile sensor, opened (and reopened after a
 //! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire`].
 
-use std::path::PathBuf;
 use std::time::{Duration, Instant, SystemTime};
 
 use anyhow::{Context, Result};
-use sqscan_drivers::flir::{FlirConfig, FlirPtu};
-use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
-use sqscan_drivers::{Error as DriverError, Link, PanTilt, SerialLink};
+use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, SerialLink};
 
 use crate::calibration::Calibration;
 use crate::sweep::{self, SweepError, SweepSettings};
 
 use super::acquire::{SweepData, SweepFailure};
-use super::config::{HardwareConfig, PtuProtocol, SensorEndpoint, SweepConfig};
+use super::config::{HardwareConfig, SensorEndpoint, SweepConfig};
 use super::state::{DeviceStatus, Shared};
 
 /// First and longest wait before reopening a device that failed.
 const BACKOFF_MIN: Duration = Duration::from_millis(250);
 const BACKOFF_MAX: Duration = Duration::from_secs(5);
-
-enum AnyPtu {
-    PowerCube(PowerCubePtu<SerialLink>),
-    Flir(FlirPtu<SerialLink>),
-}
 
 /// Any sensor link; `Sync` because the sweep future holds references to it across awaits and
 /// must be `Send`.
@@ -65,7 +57,7 @@ pub struct HardwareBackend {
     cfg: HardwareConfig,
     calib: Calibration,
     settings: SweepSettings,
-    ptu: Slot<AnyPtu>,
+    ptu: Slot<AnyPtu<SerialLink>>,
     sensor: Slot<Sensor>,
 }
 
@@ -95,57 +87,32 @@ impl HardwareBackend {
     }
 
     pub fn devices(&self) -> Vec<DeviceStatus> {
-        let protocol = match self.cfg.ptu_protocol {
-            PtuProtocol::PowerCube => "PowerCube",
-            PtuProtocol::Flir => "PTU-D46",
-        };
         vec![
             DeviceStatus::new(
                 "ptu",
                 self.cfg.ptu_path.display().to_string(),
-                format!("{protocol} at {} baud", self.cfg.ptu_baud),
+                format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
             ),
             DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
         ]
     }
 
-    async fn open_ptu(&self) -> Result<AnyPtu, DriverError> {
-        let path: PathBuf = self.cfg.ptu_path.clone();
-        let (pan, tilt) = (self.calib.pan_axis(), self.calib.tilt_axis());
-        let mut ptu = match self.cfg.ptu_protocol {
-            PtuProtocol::PowerCube => {
-                let cfg = PowerCubeConfig {
-                    pan_module: ModuleId::new(self.cfg.pan_module).unwrap_or(PowerCubeConfig::default().pan_module),
-                    tilt_module: ModuleId::new(self.cfg.tilt_module).unwrap_or(PowerCubeConfig::default().tilt_module),
-                    baud: self.cfg.ptu_baud,
-                    pan,
-                    tilt,
-                    ..PowerCubeConfig::default()
-                };
-                AnyPtu::PowerCube(PowerCubePtu::open(&path, cfg).await?)
-            }
-            PtuProtocol::Flir => {
-                let cfg = FlirConfig {
-                    baud: self.cfg.ptu_baud,
-                    pan,
-                    tilt,
-                    ..FlirConfig::default()
-                };
-                AnyPtu::Flir(FlirPtu::open(&path, cfg).await?)
-            }
+    async fn open_ptu(&self) -> Result<AnyPtu<SerialLink>, DriverError> {
+        let path = &self.cfg.ptu_path;
+        let settings = PtuSettings {
+            baud: Some(self.cfg.ptu_baud),
+            pan: self.calib.pan_axis(),
+            tilt: self.calib.tilt_axis(),
+            pan_module: self.cfg.pan_module,
+            tilt_module: self.cfg.tilt_module,
         };
+        let mut ptu = self.cfg.ptu_kind.open(path, &settings).await?;
         // A unit that lost its reference (power cycle) or latched a fault (the unplug) must be
         // homed before it moves; one that is fine is left where it is.
-        let state = match &mut ptu {
-            AnyPtu::PowerCube(p) => p.state().await?,
-            AnyPtu::Flir(p) => p.state().await?,
-        };
+        let state = ptu.state().await?;
         if !(state.pan.homed && state.tilt.homed) || state.pan.fault || state.tilt.fault {
             tracing::info!("homing the PTU on {}", path.display());
-            match &mut ptu {
-                AnyPtu::PowerCube(p) => p.home().await?,
-                AnyPtu::Flir(p) => p.home().await?,
-            };
+            ptu.home().await?;
         }
         Ok(ptu)
     }
@@ -231,10 +198,7 @@ impl HardwareBackend {
                 message: "devices not open".into(),
             });
         };
-        let result = match ptu {
-            AnyPtu::PowerCube(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
-            AnyPtu::Flir(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
-        };
+        let result = sweep::acquire(ptu, sensor, &self.calib, &settings).await;
         match result {
             Ok(s) => {
                 let report = serde_json::to_value(&s.report).unwrap_or_default();
@@ -275,8 +239,7 @@ impl HardwareBackend {
     pub async fn stop(&mut self) {
         let halt = async {
             match self.ptu.device.as_mut() {
-                Some(AnyPtu::PowerCube(p)) => p.halt().await,
-                Some(AnyPtu::Flir(p)) => p.halt().await,
+                Some(p) => p.halt().await,
                 None => Ok(()),
             }
         };
