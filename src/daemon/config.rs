@@ -147,7 +147,7 @@ struct WatchFile {
 
 /// Which scanner the daemon drives.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Backend {
+pub enum BackendConfig {
     /// The ray-cast simulator on a scene file.
     Sim { scene: PathBuf, seed: u64, realtime: bool },
     /// A PTU and a profile sensor.
@@ -206,7 +206,7 @@ pub struct Config {
     pub models_dir: PathBuf,
     pub max_clients: usize,
     pub client_queue: usize,
-    pub backend: Backend,
+    pub backend: BackendConfig,
     /// Sweep continuously (true) or only when a client needs one.
     pub continuous: bool,
     pub sweep: SweepConfig,
@@ -277,7 +277,7 @@ impl Config {
             models_dir: crate::model::default_models_dir(),
             max_clients: 1024,
             client_queue: 64,
-            backend: Backend::Sim {
+            backend: BackendConfig::Sim {
                 scene: default_scenes_dir().join("fig3_table.toml"),
                 seed: 1,
                 realtime: true,
@@ -367,7 +367,7 @@ impl Config {
         c.backend = match backend {
             "sim" => {
                 let sim = raw.sim.as_ref();
-                Backend::Sim {
+                BackendConfig::Sim {
                     scene: sim
                         .map(|s| rel(&s.scene))
                         .unwrap_or_else(|| default_scenes_dir().join("fig3_table.toml")),
@@ -411,7 +411,7 @@ impl Config {
                         return Err(SpecError::invalid(path, field, "give a baud rate > 0"));
                     }
                 }
-                Backend::Hardware(HardwareConfig {
+                BackendConfig::Hardware(HardwareConfig {
                     calibration: rel(&h.calibration),
                     ptu_path: rel(&h.ptu.path),
                     ptu_kind: kind,
@@ -456,7 +456,7 @@ impl Config {
                 "equals tilt_from_rad: a sweep needs a range",
             ));
         }
-        if matches!(c.backend, Backend::Hardware(_))
+        if matches!(c.backend, BackendConfig::Hardware(_))
             && (c.sweep.tilt_from_rad.is_none() || c.sweep.tilt_to_rad.is_none() || c.sweep.speed_rad_s.is_none())
         {
             return Err(SpecError::invalid(
@@ -512,7 +512,7 @@ mod tests {
     #[test]
     fn empty_file_is_the_simulator() {
         let c = parse("").unwrap();
-        assert!(matches!(c.backend, Backend::Sim { .. }));
+        assert!(matches!(c.backend, BackendConfig::Sim { .. }));
         assert!(c.continuous);
         assert_eq!(c.socket_mode, 0o660);
     }
@@ -537,7 +537,7 @@ mod tests {
             "#,
         )
         .unwrap();
-        let Backend::Hardware(h) = &c.backend else {
+        let BackendConfig::Hardware(h) = &c.backend else {
             panic!("{:?}", c.backend)
         };
         assert_eq!(h.calibration, Path::new("/etc/sqscan/rig.toml"));
@@ -582,7 +582,7 @@ mod tests {
     fn the_shipped_example_parses() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("systemd/sqscand.toml");
         let c = Config::from_file(&path).unwrap();
-        assert!(matches!(c.backend, Backend::Hardware(_)));
+        assert!(matches!(c.backend, BackendConfig::Hardware(_)));
         assert_eq!(c.socket, Path::new("/run/sqscan/sqscand.sock"));
         assert_eq!(
             c.watch,

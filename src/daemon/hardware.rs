@@ -1,7 +1,7 @@
 //! The hardware backend: a pan-tilt unit and a profile sensor, opened (and reopened after a
 //! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire`].
 
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
@@ -10,9 +10,8 @@ use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, S
 use crate::calibration::Calibration;
 use crate::sweep::{self, SweepError, SweepSettings};
 
-use super::acquire::{SweepData, SweepFailure};
+use super::backend::{Backend, DeviceStatus, Devices, SweepData, SweepFailure};
 use super::config::{HardwareConfig, SensorEndpoint, SweepConfig};
-use super::state::{DeviceStatus, Shared};
 
 /// First and longest wait before reopening a device that failed.
 const BACKOFF_MIN: Duration = Duration::from_millis(250);
@@ -86,17 +85,6 @@ impl HardwareBackend {
         })
     }
 
-    pub fn devices(&self) -> Vec<DeviceStatus> {
-        vec![
-            DeviceStatus::new(
-                "ptu",
-                self.cfg.ptu_path.display().to_string(),
-                format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
-            ),
-            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
-        ]
-    }
-
     async fn open_ptu(&self) -> Result<AnyPtu<SerialLink>, DriverError> {
         let path = &self.cfg.ptu_path;
         let settings = PtuSettings {
@@ -137,22 +125,19 @@ impl HardwareBackend {
 
     /// Opens what is closed (respecting each device's backoff), waiting at most until the
     /// sooner retry when a device is still down.
-    async fn ensure_open(&mut self, shared: &Shared) -> Result<(), SweepFailure> {
+    async fn ensure_open(&mut self, devices: &Devices) -> Result<(), SweepFailure> {
         loop {
             let now = Instant::now();
             if self.ptu.device.is_none() && now >= self.ptu.next_try {
                 match self.open_ptu().await {
                     Ok(p) => {
                         self.ptu.opened(p);
-                        shared.update_device("ptu", |d| {
-                            d.connected = true;
-                            d.opens += 1;
-                        });
+                        devices.note_open("ptu");
                         tracing::info!("PTU open on {}", self.cfg.ptu_path.display());
                     }
                     Err(e) => {
                         self.ptu.failed();
-                        note_failure(shared, "ptu", &e.to_string());
+                        devices.note_failure("ptu", &e.to_string());
                     }
                 }
             }
@@ -160,15 +145,12 @@ impl HardwareBackend {
                 match self.open_sensor().await {
                     Ok(s) => {
                         self.sensor.opened(s);
-                        shared.update_device("sensor", |d| {
-                            d.connected = true;
-                            d.opens += 1;
-                        });
+                        devices.note_open("sensor");
                         tracing::info!("sensor open on {}", self.cfg.sensor);
                     }
                     Err(e) => {
                         self.sensor.failed();
-                        note_failure(shared, "sensor", &e.to_string());
+                        devices.note_failure("sensor", &e.to_string());
                     }
                 }
             }
@@ -185,9 +167,26 @@ impl HardwareBackend {
             tokio::time::sleep_until(wake.into()).await;
         }
     }
+}
 
-    pub async fn sweep(&mut self, forward: bool, shared: &Shared) -> Result<SweepData, SweepFailure> {
-        self.ensure_open(shared).await?;
+impl Backend for HardwareBackend {
+    fn name(&self) -> &'static str {
+        "hardware"
+    }
+
+    fn devices(&self) -> Vec<DeviceStatus> {
+        vec![
+            DeviceStatus::new(
+                "ptu",
+                self.cfg.ptu_path.display().to_string(),
+                format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
+            ),
+            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
+        ]
+    }
+
+    async fn sweep(&mut self, forward: bool, devices: &Devices) -> Result<SweepData, SweepFailure> {
+        self.ensure_open(devices).await?;
         let settings = if forward {
             self.settings.clone()
         } else {
@@ -219,14 +218,14 @@ impl HardwareBackend {
                     // (and homes it if it lost its reference).
                     SweepError::Ptu(d) if !d.is_transient() => {
                         self.ptu.failed();
-                        note_failure(shared, "ptu", &d.to_string());
+                        devices.note_failure("ptu", &d.to_string());
                     }
-                    SweepError::Ptu(d) => note_error(shared, "ptu", &d.to_string()),
-                    SweepError::PtuStopped { .. } => note_error(shared, "ptu", &message),
+                    SweepError::Ptu(d) => devices.note_error("ptu", &d.to_string()),
+                    SweepError::PtuStopped { .. } => devices.note_error("ptu", &message),
                     SweepError::Sensor(d) => {
                         // A silent or broken sensor is reopened: it may have been restarted.
                         self.sensor.failed();
-                        note_failure(shared, "sensor", &d.to_string());
+                        devices.note_failure("sensor", &d.to_string());
                     }
                     _ => {}
                 }
@@ -236,7 +235,7 @@ impl HardwareBackend {
     }
 
     /// Stops the unit where it is (best effort, bounded: the daemon is stopping).
-    pub async fn stop(&mut self) {
+    async fn stop(&mut self) {
         let halt = async {
             match self.ptu.device.as_mut() {
                 Some(p) => p.halt().await,
@@ -248,25 +247,4 @@ impl HardwareBackend {
             let _ = tokio::time::timeout(Duration::from_millis(200), s.stop()).await;
         }
     }
-}
-
-/// The device is down.
-fn note_failure(shared: &Shared, name: &str, message: &str) {
-    tracing::warn!("{name}: {message}");
-    shared.update_device(name, |d| {
-        d.connected = false;
-        d.failures += 1;
-        d.last_error = Some(message.to_string());
-        d.last_error_at = Some(SystemTime::now());
-    });
-}
-
-/// The device is up but a sweep failed on it.
-fn note_error(shared: &Shared, name: &str, message: &str) {
-    tracing::warn!("{name}: {message}");
-    shared.update_device(name, |d| {
-        d.failures += 1;
-        d.last_error = Some(message.to_string());
-        d.last_error_at = Some(SystemTime::now());
-    });
 }

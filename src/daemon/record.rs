@@ -80,7 +80,7 @@ fn prune(dir: &Path, keep: usize) -> Result<()> {
 mod tests {
     use super::*;
     use crate::cloud::{PointCloud, read_cloud};
-    use crate::daemon::acquire::SweepData;
+    use crate::daemon::backend::SweepData;
     use std::time::Instant;
 
     #[test]

@@ -19,7 +19,7 @@ use crate::cloud::PointCloud;
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
 
-use super::acquire::SweepData;
+use super::backend::{DeviceStatus, Devices, SweepData};
 use super::config::Config;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
@@ -39,7 +39,7 @@ pub struct SweepEntry {
     pub id: u64,
     pub started: Instant,
     pub completed: Instant,
-    /// The last profile's exposure (see `acquire::SweepData::last_profile`).
+    /// The last profile's exposure (see `SweepData::last_profile`).
     pub last_profile: Instant,
     pub completed_wall: SystemTime,
     /// Organized (profiles x columns) in the base frame, NaN where nothing returned.
@@ -161,49 +161,6 @@ pub fn round3(x: f64) -> f64 {
     (x * 1e3).round() / 1e3
 }
 
-/// Health of one device (or of the simulator).
-#[derive(Debug, Clone)]
-pub struct DeviceStatus {
-    pub name: &'static str,
-    /// Device path, address or scene file.
-    pub path: String,
-    pub kind: String,
-    pub connected: bool,
-    pub last_error: Option<String>,
-    pub last_error_at: Option<SystemTime>,
-    /// Times the device was (re)opened.
-    pub opens: u64,
-    pub failures: u64,
-}
-
-impl DeviceStatus {
-    pub fn new(name: &'static str, path: String, kind: String) -> Self {
-        DeviceStatus {
-            name,
-            path,
-            kind,
-            connected: false,
-            last_error: None,
-            last_error_at: None,
-            opens: 0,
-            failures: 0,
-        }
-    }
-
-    fn json(&self) -> Value {
-        json!({
-            "name": self.name,
-            "path": self.path,
-            "kind": self.kind,
-            "state": if self.connected { "ok" } else if self.last_error.is_some() { "fault" } else { "closed" },
-            "last_error": self.last_error,
-            "last_error_time": self.last_error_at.and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok()).map(|d| d.as_secs_f64()),
-            "opens": self.opens,
-            "failures": self.failures,
-        })
-    }
-}
-
 /// Running figures for `status`.
 #[derive(Default)]
 pub struct Stats {
@@ -275,7 +232,9 @@ pub struct Shared {
     pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
     /// Wakes an on-demand acquisition loop.
     pub sweep_wanted: Notify,
-    pub devices: Mutex<Vec<DeviceStatus>>,
+    /// What the backend calls itself (`status` shows it).
+    pub backend: &'static str,
+    pub devices: Devices,
     pub stats: Stats,
     /// Objects watched by clients, with how many watch each.
     pub watched: Mutex<BTreeMap<String, usize>>,
@@ -286,14 +245,15 @@ pub struct Shared {
 }
 
 impl Shared {
-    pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>) -> Shared {
+    pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
         let workers = config.detect_workers;
         Shared {
             config,
             models,
             latest: watch::channel(None).0,
             sweep_wanted: Notify::new(),
-            devices: Mutex::new(Vec::new()),
+            backend,
+            devices: Devices::default(),
             stats: Stats::default(),
             watched: Mutex::new(BTreeMap::new()),
             detect_slots: Semaphore::new(workers),
@@ -314,23 +274,9 @@ impl Shared {
         })
     }
 
-    pub fn update_device(&self, name: &str, f: impl FnOnce(&mut DeviceStatus)) {
-        if let Some(d) = lock(&self.devices).iter_mut().find(|d| d.name == name) {
-            f(d);
-        }
-    }
-
     /// One line on what is wrong with the devices, for error replies ("" when all is well).
     pub fn device_trouble(&self) -> String {
-        lock(&self.devices)
-            .iter()
-            .filter(|d| !d.connected)
-            .map(|d| match &d.last_error {
-                Some(e) => format!("{} {} is down: {e}", d.name, d.path),
-                None => format!("{} {} is not open yet", d.name, d.path),
-            })
-            .collect::<Vec<_>>()
-            .join("; ")
+        self.devices.trouble()
     }
 
     pub fn is_stopping(&self) -> bool {
@@ -346,12 +292,9 @@ impl Shared {
             "class": "status",
             "release": env!("CARGO_PKG_VERSION"),
             "uptime_s": round3(self.started.elapsed().as_secs_f64()),
-            "backend": match &self.config.backend {
-                super::config::Backend::Sim { .. } => "sim",
-                super::config::Backend::Hardware(_) => "hardware",
-            },
+            "backend": self.backend,
             "mode": if self.config.continuous { "continuous" } else { "on_demand" },
-            "devices": lock(&self.devices).iter().map(DeviceStatus::json).collect::<Vec<_>>(),
+            "devices": self.devices.snapshot().iter().map(DeviceStatus::json).collect::<Vec<_>>(),
             "last_sweep": self.newest().map(|e| e.summary()),
             "sweeps": {
                 "completed": s.sweeps_completed.load(Ordering::Relaxed),
