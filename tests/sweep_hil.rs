@@ -7,7 +7,6 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use nalgebra::Point3;
-use sqscan::calibration::Calibration;
 use sqscan::geometry::PlacedSuperquadric;
 use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::{self, Scene};
@@ -166,7 +165,7 @@ fn check_sweep(scene: &Scene, s: &AssembledSweep, from: f64, to: f64, corrupt_ev
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_sweep_and_its_return_assemble_onto_the_scene() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let cfg = RigConfig {
         ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
@@ -190,7 +189,7 @@ async fn a_sweep_and_its_return_assemble_onto_the_scene() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let dir = std::env::temp_dir().join(format!("sqscan-sweep-hil-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("ptu");
@@ -254,7 +253,7 @@ async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_sensor_unplugged_mid_sweep_fails_the_sweep_and_halts_the_ptu() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let cfg = RigConfig {
         ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,

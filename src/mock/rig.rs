@@ -14,7 +14,7 @@
 //!
 //! Device angles map to the joint angles the scene's rig uses through `RigConfig::pan_axis` and
 //! `tilt_axis` (how the unit is mounted): identity by default, which is what
-//! [`crate::calibration::Calibration::for_rig`] and `calibration/sim_rig.toml` assume. A PTU-D46
+//! [`crate::sim::Rig::calibration`] and `calibration/sim_rig.toml` assume. A PTU-D46
 //! tilts down at negative positions, and its tilt range (-47..+31 deg) holds a downward sweep only
 //! that way round: `tilt_axis` sign -1 with `calibration/sim_rig_flir.toml`.
 
