@@ -570,19 +570,37 @@ impl sqscan::daemon::Backend for FlatPatch {
         &mut self,
         _forward: bool,
         _devices: &sqscan::daemon::backend::Devices,
-    ) -> Result<sqscan::daemon::backend::SweepData, sqscan::daemon::backend::SweepFailure> {
+    ) -> Result<sqscan::daemon::backend::Swept, sqscan::daemon::backend::SweepFailure> {
         tokio::time::sleep(Duration::from_millis(20)).await;
         self.sweeps += 1;
         let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
         points[4] = [f32::NAN; 3];
-        let started = Instant::now();
-        Ok(sqscan::daemon::backend::SweepData {
-            started,
-            last_profile: started,
-            cloud: sqscan::cloud::PointCloud::organized(3, 2, points),
+        let range_m = points
+            .iter()
+            .map(|p| if p[0].is_nan() { f32::NAN } else { 0.86 })
+            .collect();
+        let sweep = sqscan::sweep::Sweep {
             profiles: 2,
             columns: 3,
-            report: json!({"kept": 2}),
+            start: None,
+            stamp_s: vec![0.0, 0.02],
+            seq: vec![0, 1],
+            pan_rad: vec![0.0; 2],
+            tilt_rad: vec![0.5, 0.51],
+            range_m,
+            cloud: sqscan::cloud::PointCloud::organized(3, 2, points),
+            report: sqscan::sweep::SweepReport {
+                received: 2,
+                kept: 2,
+                points: 5,
+                ..Default::default()
+            },
+        };
+        let started = Instant::now();
+        Ok(sqscan::daemon::backend::Swept {
+            sweep,
+            started,
+            last_profile: started,
         })
     }
 
@@ -635,6 +653,7 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
         (Some(2), Some(3))
     );
     assert_eq!(sweep["points"], 5, "{sweep}");
+    assert_eq!(sweep["report"]["kept"], 2, "{sweep}");
     let status = ask(json!({"cmd": "status"}));
     assert_eq!(status["backend"], "test", "{status}");
     assert_eq!(status["devices"][0]["name"], "patch", "{status}");

@@ -10,7 +10,7 @@ use nalgebra::Point3;
 use sqscan::geometry::PlacedSuperquadric;
 use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::{self, Scene};
-use sqscan::sweep::{AssembledSweep, SweepError, SweepSettings, acquire};
+use sqscan::sweep::{Sweep, SweepError, SweepSettings, acquire};
 use sqscan_drivers::PanTilt;
 use sqscan_drivers::PtuKind;
 use sqscan_drivers::mock::Faults;
@@ -75,7 +75,7 @@ fn surface_distance(scene: &Scene, parts: &[PlacedSuperquadric], p: &Point3<f64>
 }
 
 /// The sweep covers the scene's tilt range in order, and its points lie on the scene.
-fn check_sweep(scene: &Scene, s: &AssembledSweep, from: f64, to: f64, corrupt_every: usize) {
+fn check_sweep(scene: &Scene, s: &Sweep, from: f64, to: f64, corrupt_every: usize) {
     let r = &s.report;
     let dropped = r.dropped_extrapolated
         + r.dropped_duplicate

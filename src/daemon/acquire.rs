@@ -44,7 +44,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                     "sweep {}: {} points, {} profiles",
                     entry.id,
                     entry.points,
-                    entry.profiles
+                    entry.sweep.profiles
                 );
                 shared.latest.send_replace(Some(entry.clone()));
                 warm_detections(&shared, &entry);

@@ -12,7 +12,7 @@ use std::time::{Instant, SystemTime};
 
 use serde_json::{Value, json};
 
-use crate::cloud::PointCloud;
+use crate::sweep::Sweep;
 
 /// A scanner the daemon drives: one sweep at a time, from the acquisition task.
 pub trait Backend: Send + 'static {
@@ -26,27 +26,19 @@ pub trait Backend: Send + 'static {
     /// failures along the way are noted on `devices`. A failed sweep is dropped and counted by
     /// the caller, which asks again; a backend that must wait before retrying (a device's
     /// backoff) waits in here.
-    fn sweep(
-        &mut self,
-        forward: bool,
-        devices: &Devices,
-    ) -> impl Future<Output = Result<SweepData, SweepFailure>> + Send;
+    fn sweep(&mut self, forward: bool, devices: &Devices) -> impl Future<Output = Result<Swept, SweepFailure>> + Send;
 
     /// Leaves the devices quiet; bounded in time (the daemon is stopping).
     fn stop(&mut self) -> impl Future<Output = ()> + Send;
 }
 
-/// A sweep as a backend delivers it.
-pub struct SweepData {
+/// A sweep as a backend delivers it: the sweep, and when it happened on this host.
+pub struct Swept {
+    pub sweep: Sweep,
     pub started: Instant,
     /// When the last profile was exposed (hardware) or the sweep rendered (simulator): where
     /// sweep-to-answer latency starts.
     pub last_profile: Instant,
-    /// Organized, base frame, NaN = no return; `viewpoint` set to the sensor at mid-sweep.
-    pub cloud: PointCloud,
-    pub profiles: usize,
-    pub columns: usize,
-    pub report: Value,
 }
 
 /// Why a sweep failed.

@@ -10,7 +10,7 @@ use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, S
 use crate::calibration::Calibration;
 use crate::sweep::{self, SweepError, SweepSettings};
 
-use super::backend::{Backend, DeviceStatus, Devices, SweepData, SweepFailure};
+use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
 use super::config::{HardwareConfig, SensorEndpoint, SweepConfig};
 
 /// First and longest wait before reopening a device that failed.
@@ -185,7 +185,7 @@ impl Backend for HardwareBackend {
         ]
     }
 
-    async fn sweep(&mut self, forward: bool, devices: &Devices) -> Result<SweepData, SweepFailure> {
+    async fn sweep(&mut self, forward: bool, devices: &Devices) -> Result<Swept, SweepFailure> {
         self.ensure_open(devices).await?;
         let settings = if forward {
             self.settings.clone()
@@ -199,16 +199,15 @@ impl Backend for HardwareBackend {
         };
         let result = sweep::acquire(ptu, sensor, &self.calib, &settings).await;
         match result {
-            Ok(s) => {
-                let report = serde_json::to_value(&s.report).unwrap_or_default();
-                let last = s.stamp_s.last().copied().unwrap_or(0.0).max(0.0);
-                Ok(SweepData {
-                    started: s.start,
-                    last_profile: s.start + Duration::from_secs_f64(last),
-                    profiles: s.profiles,
-                    columns: s.columns,
-                    cloud: s.cloud,
-                    report,
+            Ok(sweep) => {
+                // Assembled sweeps always carry their start; now is the fallback that cannot lie
+                // by much.
+                let started = sweep.start.unwrap_or_else(Instant::now);
+                let last = sweep.stamp_s.last().copied().unwrap_or(0.0).max(0.0);
+                Ok(Swept {
+                    started,
+                    last_profile: started + Duration::from_secs_f64(last),
+                    sweep,
                 })
             }
             Err(e) => {

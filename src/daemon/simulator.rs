@@ -8,9 +8,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 
 use crate::sim::{self, Scene};
-use crate::sweep::SweepReport;
 
-use super::backend::{Backend, DeviceStatus, Devices, SweepData, SweepFailure};
+use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
 use super::config::SweepConfig;
 
 /// The simulated scanner.
@@ -71,7 +70,7 @@ impl Backend for SimBackend {
         vec![d]
     }
 
-    async fn sweep(&mut self, forward: bool, _devices: &Devices) -> Result<SweepData, SweepFailure> {
+    async fn sweep(&mut self, forward: bool, _devices: &Devices) -> Result<Swept, SweepFailure> {
         let started = Instant::now();
         let mut scene = (*self.scene).clone();
         if !forward {
@@ -89,21 +88,10 @@ impl Backend for SimBackend {
             // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest.
             tokio::time::sleep_until((started + duration).into()).await;
         }
-        // The same account as an assembled hardware sweep gives: every rendered profile kept.
-        let report = SweepReport {
-            received: sweep.profiles,
-            kept: sweep.profiles,
-            points: sweep.finite_points(),
-            duration_s: sweep.stamp_s.last().copied().unwrap_or(0.0),
-            ..SweepReport::default()
-        };
-        Ok(SweepData {
+        Ok(Swept {
+            sweep,
             started,
             last_profile: Instant::now(),
-            profiles: sweep.profiles,
-            columns: sweep.columns,
-            cloud: sweep.cloud,
-            report: serde_json::to_value(&report).unwrap_or_default(),
         })
     }
 

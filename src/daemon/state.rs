@@ -15,11 +15,11 @@ use nalgebra::Point3;
 use serde_json::{Value, json};
 use tokio::sync::{Notify, OnceCell, Semaphore, watch};
 
-use crate::cloud::PointCloud;
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
+use crate::sweep::Sweep;
 
-use super::backend::{DeviceStatus, Devices, SweepData};
+use super::backend::{DeviceStatus, Devices, Swept};
 use super::config::Config;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
@@ -39,16 +39,12 @@ pub struct SweepEntry {
     pub id: u64,
     pub started: Instant,
     pub completed: Instant,
-    /// The last profile's exposure (see `SweepData::last_profile`).
+    /// The last profile's exposure (see [`Swept::last_profile`]).
     pub last_profile: Instant,
     pub completed_wall: SystemTime,
-    /// Organized (profiles x columns) in the base frame, NaN where nothing returned.
-    pub cloud: Arc<PointCloud>,
-    pub profiles: usize,
-    pub columns: usize,
+    pub sweep: Sweep,
+    /// Points with a return in the cloud.
     pub points: usize,
-    /// The assembler's account of the sweep (profiles kept and dropped, and why).
-    pub report: Value,
     detections: Mutex<HashMap<(String, bool), DetectionCell>>,
 }
 
@@ -65,18 +61,15 @@ pub struct Detected {
 
 impl SweepEntry {
     /// The sweep a backend delivered, completed now.
-    pub fn new(id: u64, data: SweepData) -> Self {
+    pub fn new(id: u64, swept: Swept) -> Self {
         SweepEntry {
             id,
-            started: data.started,
+            started: swept.started,
             completed: Instant::now(),
-            last_profile: data.last_profile,
+            last_profile: swept.last_profile,
             completed_wall: SystemTime::now(),
-            points: data.cloud.finite_count(),
-            cloud: Arc::new(data.cloud),
-            profiles: data.profiles,
-            columns: data.columns,
-            report: data.report,
+            points: swept.sweep.cloud.finite_count(),
+            sweep: swept.sweep,
             detections: Mutex::new(HashMap::new()),
         }
     }
@@ -95,7 +88,7 @@ impl SweepEntry {
 
     /// The sensor position for the detector: the cloud's viewpoint.
     fn viewpoint(&self) -> Option<Point3<f64>> {
-        self.cloud.viewpoint_position()
+        self.sweep.cloud.viewpoint_position()
     }
 
     /// The detection of `model` on this sweep, made once however many ask; off the async
@@ -117,7 +110,7 @@ impl SweepEntry {
                 ..Params::default()
             };
             let started = Instant::now();
-            let job = tokio::task::spawn_blocking(move || detect::detect(&entry.cloud.points, &model, &params));
+            let job = tokio::task::spawn_blocking(move || detect::detect(&entry.sweep.cloud.points, &model, &params));
             let report = match job.await {
                 Ok(r) => r,
                 // A panic in the detector is a bug; answer "nothing found" rather than take the
@@ -149,10 +142,10 @@ impl SweepEntry {
             "time": self.time_s(),
             "age_s": round3(self.age().as_secs_f64()),
             "duration_s": round3(self.completed.duration_since(self.started).as_secs_f64()),
-            "profiles": self.profiles,
-            "columns": self.columns,
+            "profiles": self.sweep.profiles,
+            "columns": self.sweep.columns,
             "points": self.points,
-            "report": self.report,
+            "report": self.sweep.report,
         })
     }
 }

@@ -280,7 +280,7 @@ fn calibrated_raw_rows_are_the_simulators_points() {
         let raw = render_profile(&scene, &pose, &mut rng);
         for (col, &value) in raw.rows.iter().enumerate() {
             let want = sweep.cloud.points[i * sweep.columns + col];
-            let Some(got) = cal.point_in_base(col, value, sweep.pan_rad, tilt) else {
+            let Some(got) = cal.point_in_base(col, value, sweep.pan_rad[i], tilt) else {
                 assert!(want[0].is_nan(), "profile {i} col {col}: a point without a return");
                 continue;
             };

@@ -23,7 +23,7 @@ use std::time::Duration;
 use sqscan_drivers::sensor::{ProfileSource, ReceivedProfile};
 use sqscan_drivers::{Goal, PanTilt, PositionSample};
 
-use super::{AssembledSweep, SweepError, SweepSettings, assemble};
+use super::{Sweep, SweepError, SweepSettings, assemble};
 use crate::calibration::Calibration;
 
 /// How far short of the goal tilt the PTU may report the sweep move ended (rad).
@@ -37,7 +37,7 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
     sensor: &mut R,
     calib: &Calibration,
     settings: &SweepSettings,
-) -> Result<AssembledSweep, SweepError> {
+) -> Result<Sweep, SweepError> {
     settings.validate()?;
     let approach = Goal {
         pan_rad: settings.pan_rad,
