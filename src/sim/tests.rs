@@ -127,6 +127,27 @@ fn same_seed_same_sweep_other_seed_other_noise() {
 }
 
 #[test]
+fn a_simulated_sweep_reports_every_profile_kept() {
+    let scene = sphere_scene(0.002, 0.01, 64);
+    let s = simulate(&scene, 2);
+    let r = &s.report;
+    let n = scene.rig.profiles;
+    assert_eq!((s.profiles, r.received, r.kept), (n, n, n));
+    assert_eq!(r.points, s.finite_points());
+    assert!(r.points > 0);
+    assert_eq!(r.duration_s, *s.stamp_s.last().unwrap());
+    assert_eq!(s.seq, (0..n as u32).collect::<Vec<_>>());
+    assert_eq!(s.pan_rad, vec![scene.rig.pan; n]);
+    assert_eq!(s.start, None);
+    let dropped = r.dropped_extrapolated
+        + r.dropped_duplicate
+        + r.dropped_out_of_order
+        + r.dropped_bad_columns
+        + r.dropped_bad_encoding;
+    assert_eq!((dropped, r.missing_seq, r.position_samples), (0, 0, 0));
+}
+
+#[test]
 fn range_noise_grows_as_triangulation_does() {
     // Table only: compare each returned range with the exact range to the plane.
     let mut scene = sphere_scene(0.002, 0.0, 256);
