@@ -15,8 +15,9 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 use sqscan::daemon::Daemon;
 use sqscan::daemon::config::Config;
-use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::Scene;
+use sqscan_drivers::PtuKind;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -70,7 +71,7 @@ fn main() {
         RigMock::start(
             Arc::new(scene),
             &RigConfig {
-                protocol: RigProtocol::PowerCube,
+                ptu_kind: PtuKind::PowerCube,
                 ..RigConfig::default()
             },
             Some(&ptu),

@@ -13,8 +13,9 @@
 //!
 //! `H` is the general plane-to-image homography a real calibration fits (PROTOCOLS.md): in
 //! homogeneous coordinates `[x, y, w] = H [u, v, 1]`, the point is `(x/w, y/w)`. For the
-//! simulated sensor (`sim::SensorModel`) depth is `x = f b / (v + row_offset)` and lateral offset
-//! `y = x (cx - u) / f`, which is `H = [[0, 0, f b], [-b, 0, b cx], [0, 1, row_offset]]`.
+//! simulated sensor depth is `x = f b / (v + row_offset)` and lateral offset `y = x (cx - u) / f`,
+//! which is `H = [[0, 0, f b], [-b, 0, b cx], [0, 1, row_offset]]` (the simulator builds its exact
+//! calibration with [`Calibration::from_homography`]: `sim::Rig::calibration`).
 //!
 //! The joint angles given to [`Calibration::point_in_base`] are *joint* angles, as a
 //! [`sqscan_drivers::PanTilt`] driver reports them; the calibration's axis signs and offsets are
@@ -32,7 +33,6 @@ use serde::Deserialize;
 use sqscan_drivers::AxisConfig;
 
 use crate::pose::PoseSpec;
-use crate::sim::{Rig, SensorModel};
 use crate::spec::{SpecError, parse_toml, read_toml};
 
 /// An axis mapping as written in the file: `joint = sign * device + offset_rad`.
@@ -214,16 +214,23 @@ impl Calibration {
         })
     }
 
-    /// The calibration of a simulated rig: exact, so calibrated raw rows give the simulator's
-    /// own points.
-    pub fn for_rig(rig: &Rig) -> Calibration {
+    /// A homography calibration with the laser plane as the sensor's x-y plane, joint angles
+    /// as the driver reports them (no axis sign or offset) and no lookup table: what an exact
+    /// model of a rig (the simulator's) gives.
+    pub fn from_homography(
+        columns: usize,
+        fraction_bits: u8,
+        homography: Matrix3<f64>,
+        sensor_in_tilt: Isometry3<f64>,
+        ptu_in_base: Isometry3<f64>,
+    ) -> Calibration {
         Calibration {
-            columns: rig.sensor.columns,
-            fraction_bits: rig.sensor.fraction_bits,
-            homography: sensor_homography(&rig.sensor),
+            columns,
+            fraction_bits,
+            homography,
             laser_plane_in_sensor: Isometry3::identity(),
-            sensor_in_tilt: rig.sensor_in_tilt,
-            ptu_in_base: rig.ptu_in_base,
+            sensor_in_tilt,
+            ptu_in_base,
             pan: AxisConfig::default(),
             tilt: AxisConfig::default(),
             lookup: None,
@@ -348,86 +355,13 @@ impl Calibration {
     }
 }
 
-/// The plane-to-image homography of the simulated sensor (see the module docs).
-pub fn sensor_homography(s: &SensorModel) -> Matrix3<f64> {
-    let b = s.baseline;
-    Matrix3::new(0.0, 0.0, s.focal_px * b, -b, 0.0, b * s.cx, 0.0, 1.0, s.row_offset)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::{Scene, render_profile, simulate, stream_seed};
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
     use std::path::PathBuf;
 
     fn root() -> PathBuf {
         PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-    }
-
-    fn fig3() -> Scene {
-        Scene::from_file(&root().join("scenes/fig3_table.toml"), &root().join("models")).unwrap()
-    }
-
-    /// `sim_rig.toml` is generated from the scene's rig; `SQSCAN_REGENERATE=1` rewrites it.
-    #[test]
-    fn sim_rig_file_is_the_rig_of_fig3() {
-        let path = root().join("calibration/sim_rig.toml");
-        let derived = Calibration::for_rig(&fig3().rig);
-        if std::env::var_os("SQSCAN_REGENERATE").is_some() {
-            // Atomically: the other tests read this file in parallel.
-            let tmp = path.with_extension("toml.tmp");
-            std::fs::write(&tmp, derived.to_toml("The simulated rig of scenes/fig3_table.toml")).unwrap();
-            std::fs::rename(&tmp, &path).unwrap();
-        }
-        let file = Calibration::from_file(&path).unwrap();
-        assert!((file.homography - derived.homography).amax() < 1e-9, "{file:?}");
-        for (a, b) in [
-            (file.laser_plane_in_sensor, derived.laser_plane_in_sensor),
-            (file.sensor_in_tilt, derived.sensor_in_tilt),
-            (file.ptu_in_base, derived.ptu_in_base),
-        ] {
-            assert!((a.translation.vector - b.translation.vector).norm() < 1e-12);
-            assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
-        }
-        assert_eq!(
-            (file.columns, file.fraction_bits),
-            (derived.columns, derived.fraction_bits)
-        );
-        assert_eq!(
-            (file.pan_axis(), file.tilt_axis()),
-            (derived.pan_axis(), derived.tilt_axis())
-        );
-    }
-
-    #[test]
-    fn calibrated_raw_rows_are_the_simulators_points() {
-        let scene = fig3();
-        let rig = &scene.rig;
-        let cal = Calibration::from_file(&root().join("calibration/sim_rig.toml")).unwrap();
-        let seed = 3;
-        let sweep = simulate(&scene, seed);
-        let mut compared = 0;
-        for i in [0, 40, 75, 110, rig.profiles - 1] {
-            // The raw rows `simulate` built profile i's points from.
-            let tilt = sweep.tilt_rad[i];
-            let pose = rig.sensor_in_base(rig.pan, tilt);
-            let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, i as u64));
-            let raw = render_profile(&scene, &pose, &mut rng);
-            for (col, &value) in raw.rows.iter().enumerate() {
-                let want = sweep.cloud.points[i * sweep.columns + col];
-                let Some(got) = cal.point_in_base(col, value, sweep.pan_rad, tilt) else {
-                    assert!(want[0].is_nan(), "profile {i} col {col}: a point without a return");
-                    continue;
-                };
-                // The cloud stores f32: ~1e-7 m of rounding at these distances.
-                let want = Point3::new(f64::from(want[0]), f64::from(want[1]), f64::from(want[2]));
-                assert!((got - want).norm() < 1e-6, "profile {i} col {col}: {got} vs {want}");
-                compared += 1;
-            }
-        }
-        assert!(compared > 500, "only {compared} returns compared");
     }
 
     #[test]
@@ -524,7 +458,7 @@ mod tests {
 
     #[test]
     fn no_return_and_points_behind_the_horizon_give_none() {
-        let cal = Calibration::for_rig(&fig3().rig);
+        let cal = Calibration::from_file(&root().join("calibration/sim_rig.toml")).unwrap();
         assert_eq!(cal.point_in_sensor(10, 0), None);
         assert_eq!(cal.point_in_sensor(cal.columns, 100), None);
         let mut bad = cal.clone();

@@ -549,3 +549,116 @@ fn stalled_clients_do_not_hold_up_acquisition_or_others() {
         "{v}"
     );
 }
+
+/// A backend of the test's own: a 2 x 3 sweep of a flat patch every 20 ms.
+struct FlatPatch {
+    sweeps: u64,
+}
+
+impl sqscan::daemon::Backend for FlatPatch {
+    fn name(&self) -> &'static str {
+        "test"
+    }
+
+    fn devices(&self) -> Vec<sqscan::daemon::backend::DeviceStatus> {
+        let mut d = sqscan::daemon::backend::DeviceStatus::new("patch", "memory".into(), "flat patch".into());
+        d.connected = true;
+        vec![d]
+    }
+
+    async fn sweep(
+        &mut self,
+        _forward: bool,
+        _devices: &sqscan::daemon::backend::Devices,
+    ) -> Result<sqscan::daemon::backend::Swept, sqscan::daemon::backend::SweepFailure> {
+        tokio::time::sleep(Duration::from_millis(20)).await;
+        self.sweeps += 1;
+        let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
+        points[4] = [f32::NAN; 3];
+        let range_m = points
+            .iter()
+            .map(|p| if p[0].is_nan() { f32::NAN } else { 0.86 })
+            .collect();
+        let sweep = sqscan::sweep::Sweep {
+            profiles: 2,
+            columns: 3,
+            start: None,
+            stamp_s: vec![0.0, 0.02],
+            seq: vec![0, 1],
+            pan_rad: vec![0.0; 2],
+            tilt_rad: vec![0.5, 0.51],
+            range_m,
+            cloud: sqscan::cloud::PointCloud::organized(3, 2, points),
+            report: sqscan::sweep::SweepReport {
+                received: 2,
+                kept: 2,
+                points: 5,
+                ..Default::default()
+            },
+        };
+        let started = Instant::now();
+        Ok(sqscan::daemon::backend::Swept {
+            sweep,
+            started,
+            last_profile: started,
+        })
+    }
+
+    async fn stop(&mut self) {}
+}
+
+/// The daemon serves on a listener and a backend it is handed, and binds nothing itself.
+#[test]
+fn a_daemon_runs_on_an_injected_listener_and_backend() {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let mut config = sqscan::daemon::config::Config::embedded_default();
+    let dir = tmpdir("injected");
+    // Were the daemon to bind the configured socket, this file would appear.
+    config.socket = dir.join("not-bound.sock");
+    config.models_dir = root().join("models");
+    let models = sqscan::daemon::load_models(&config.models_dir).unwrap();
+    let (daemon, addr) = rt.block_on(async {
+        let tcp = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = tcp.local_addr().unwrap();
+        let listeners = sqscan::daemon::Listeners {
+            unix: None,
+            tcp: Some(tcp),
+        };
+        let daemon = sqscan::daemon::Daemon::serve(config, models, FlatPatch { sweeps: 0 }, listeners, None).unwrap();
+        (daemon, addr)
+    });
+    assert!(daemon.socket().is_none());
+
+    let s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    let mut ask = |v: Value| -> Value {
+        if !v.is_null() {
+            w.write_all(format!("{v}\n").as_bytes()).unwrap();
+        }
+        let mut line = String::new();
+        assert!(r.read_line(&mut line).unwrap() > 0, "the daemon closed the connection");
+        serde_json::from_str(&line).unwrap()
+    };
+    assert_eq!(ask(Value::Null)["class"], "version");
+    let sweep = ask(json!({"cmd": "scan", "timeout_s": 10}));
+    assert_eq!(sweep["class"], "sweep", "{sweep}");
+    assert_eq!(
+        (sweep["profiles"].as_u64(), sweep["columns"].as_u64()),
+        (Some(2), Some(3))
+    );
+    assert_eq!(sweep["points"], 5, "{sweep}");
+    assert_eq!(sweep["report"]["kept"], 2, "{sweep}");
+    let status = ask(json!({"cmd": "status"}));
+    assert_eq!(status["backend"], "test", "{status}");
+    assert_eq!(status["devices"][0]["name"], "patch", "{status}");
+    assert_eq!(status["devices"][0]["state"], "ok", "{status}");
+    assert!(!dir.join("not-bound.sock").exists());
+    rt.block_on(daemon.stop());
+    let _ = std::fs::remove_dir_all(&dir);
+}

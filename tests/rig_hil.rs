@@ -6,9 +6,9 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
-use sqscan::calibration::Calibration;
-use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::Scene;
+use sqscan_drivers::PtuKind;
 use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::profile::SeqEvent;
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
@@ -28,11 +28,11 @@ async fn profiles_at_a_commanded_tilt_calibrate_onto_the_table() {
     scene.rig.sensor.noise_sigma_at_1m = 0.0;
     scene.rig.sensor.dropout = 0.0;
     let table = scene.table.clone().expect("fig3 has a table");
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let rig = RigMock::start(
         Arc::new(scene),
         &RigConfig {
-            protocol: RigProtocol::PowerCube,
+            ptu_kind: PtuKind::PowerCube,
             ..RigConfig::default()
         },
         None,

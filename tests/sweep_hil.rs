@@ -7,12 +7,12 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use nalgebra::Point3;
-use sqscan::calibration::Calibration;
 use sqscan::geometry::PlacedSuperquadric;
-use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::{self, Scene};
-use sqscan::sweep::{AssembledSweep, SweepError, SweepSettings, acquire};
+use sqscan::sweep::{Sweep, SweepError, SweepSettings, acquire};
 use sqscan_drivers::PanTilt;
+use sqscan_drivers::PtuKind;
 use sqscan_drivers::mock::Faults;
 use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
@@ -75,7 +75,7 @@ fn surface_distance(scene: &Scene, parts: &[PlacedSuperquadric], p: &Point3<f64>
 }
 
 /// The sweep covers the scene's tilt range in order, and its points lie on the scene.
-fn check_sweep(scene: &Scene, s: &AssembledSweep, from: f64, to: f64, corrupt_every: usize) {
+fn check_sweep(scene: &Scene, s: &Sweep, from: f64, to: f64, corrupt_every: usize) {
     let r = &s.report;
     let dropped = r.dropped_extrapolated
         + r.dropped_duplicate
@@ -165,9 +165,9 @@ fn check_sweep(scene: &Scene, s: &AssembledSweep, from: f64, to: f64, corrupt_ev
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_sweep_and_its_return_assemble_onto_the_scene() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         ..RigConfig::default()
     };
@@ -189,12 +189,12 @@ async fn a_sweep_and_its_return_assemble_onto_the_scene() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let dir = std::env::temp_dir().join(format!("sqscan-sweep-hil-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let link = dir.join("ptu");
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         // Start-up and the approach take well under 100 replies; the sweep ~300.
         ptu_faults: Faults {
@@ -253,9 +253,9 @@ async fn a_ptu_unplugged_mid_sweep_fails_the_sweep_and_comes_back() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_sensor_unplugged_mid_sweep_fails_the_sweep_and_halts_the_ptu() {
     let scene = scene();
-    let cal = Calibration::for_rig(&scene.rig);
+    let cal = scene.rig.calibration();
     let cfg = RigConfig {
-        protocol: RigProtocol::PowerCube,
+        ptu_kind: PtuKind::PowerCube,
         rate_hz: 50.0,
         // One second of the ~3 s sweep (the sensor only streams once started).
         sensor_faults: Faults {

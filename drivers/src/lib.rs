@@ -10,6 +10,8 @@
 //!   [`flir::FlirPtu`].
 //! - [`profile`]: our own binary frame for laser profile streams (codec).
 //! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
+//! - [`kind`]: the table of PTU kinds ([`PtuKind`]): names, default line speeds, how to open
+//!   each driver ([`AnyPtu`]) and which mock device stands in for it.
 //! - [`sensor`]: the profile sensor device ([`sensor::ProfileSensor`]) and its START/STOP lines.
 //! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.
 //! - [`mock`]: mock devices written from the device's side, served on pseudo-terminals.
@@ -18,6 +20,7 @@
 
 pub mod error;
 pub mod flir;
+pub mod kind;
 pub mod link;
 pub mod mock;
 pub mod powercube;
@@ -26,5 +29,6 @@ pub mod ptu;
 pub mod sensor;
 
 pub use error::Error;
+pub use kind::{AnyPtu, PtuKind, PtuSettings};
 pub use link::{Link, SerialLink, open_serial};
 pub use ptu::{AxisConfig, AxisState, Goal, Limits, PanTilt, PositionSample, PtuState};

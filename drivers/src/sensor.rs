@@ -17,6 +17,7 @@
 //! every sequence number ([`SequenceTracker`]) and stamps each profile with the host's monotonic
 //! receive time.
 
+use std::future::Future;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -65,6 +66,23 @@ pub struct ReceivedProfile {
     pub received: Instant,
     /// What the sequence number says about the stream.
     pub seq: SeqEvent,
+}
+
+/// A source of laser profiles, whatever the sensor: the one interface a sweep is acquired
+/// through (as [`PanTilt`](crate::PanTilt) is for the unit that moves it). [`ProfileSensor`]
+/// implements it for SQPF streams; another sensor (a GigE Vision camera, a replay of recorded
+/// profiles) implements it and nothing else changes.
+pub trait ProfileSource: Send {
+    /// Starts acquisition; profiles follow at the sensor's rate.
+    fn start(&mut self) -> impl Future<Output = Result<(), Error>> + Send;
+
+    /// Stops acquisition. Profiles already on their way may still arrive.
+    fn stop(&mut self) -> impl Future<Output = Result<(), Error>> + Send;
+
+    /// The next good profile, waiting at most `wait`: [`Error::Timeout`] when none came,
+    /// another error when the sensor failed. Cancel-safe: dropping the future loses no profile
+    /// that was not returned.
+    fn next_profile(&mut self, wait: Duration) -> impl Future<Output = Result<ReceivedProfile, Error>> + Send;
 }
 
 /// A profile sensor over any byte stream.
@@ -193,6 +211,20 @@ impl<S: Link> ProfileSensor<S> {
                 Ok(Err(e)) => return Err(classify_io(e)),
             }
         }
+    }
+}
+
+impl<S: Link> ProfileSource for ProfileSensor<S> {
+    async fn start(&mut self) -> Result<(), Error> {
+        ProfileSensor::start(self).await
+    }
+
+    async fn stop(&mut self) -> Result<(), Error> {
+        ProfileSensor::stop(self).await
+    }
+
+    async fn next_profile(&mut self, wait: Duration) -> Result<ReceivedProfile, Error> {
+        ProfileSensor::next_profile(self, wait).await
     }
 }
 

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use sqscan::daemon::config::{Backend, Config, DEFAULT_CONFIG_PATH};
+use sqscan::daemon::config::{BackendConfig, Config, DEFAULT_CONFIG_PATH};
 use sqscan::daemon::{Daemon, notify::Notifier};
 
 #[derive(Parser)]
@@ -55,8 +55,8 @@ fn describe(config: &Config) -> String {
         None => "the embedded default (no config file)".into(),
     };
     let backend = match &config.backend {
-        Backend::Sim { scene, .. } => format!("the simulated scanner on {}", scene.display()),
-        Backend::Hardware(h) => format!("the PTU at {} and the sensor at {}", h.ptu_path.display(), h.sensor),
+        BackendConfig::Sim { scene, .. } => format!("the simulated scanner on {}", scene.display()),
+        BackendConfig::Hardware(h) => format!("the PTU at {} and the sensor at {}", h.ptu_path.display(), h.sensor),
     };
     format!("configuration from {source}; scanning with {backend}")
 }
@@ -65,13 +65,14 @@ async fn run(config: Config) -> Result<()> {
     let notifier = Notifier::from_env();
     tracing::info!("{}", describe(&config));
     let tcp = config.tcp;
+    let socket = config.socket.clone();
     let daemon = Daemon::start(config, notifier).await?;
     // Where to ask, on stderr (the journal under systemd), whatever the log level.
     eprintln!(
         "sqscand: listening on {}{}; try `sqscan find cup --socket {}`",
-        daemon.socket().display(),
+        socket.display(),
         tcp.map(|a| format!(" and tcp {a}")).unwrap_or_default(),
-        daemon.socket().display()
+        socket.display()
     );
     let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("cannot install the SIGTERM handler")?;
@@ -89,8 +90,7 @@ fn main() -> ExitCode {
     sqscan::logging::init(tracing::Level::INFO);
     let result = load_config(&cli).and_then(|config| {
         if cli.check {
-            let models = sqscan::daemon::load_models(&config.models_dir)?;
-            sqscan::daemon::acquire::AnyBackend::from_config(&config)?;
+            let models = sqscan::daemon::check(&config)?;
             println!(
                 "{}; {} models in {}",
                 describe(&config),

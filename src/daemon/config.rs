@@ -10,6 +10,8 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use serde::Deserialize;
+use sqscan_drivers::PtuKind;
+use sqscan_drivers::sensor::SensorConfig;
 
 use crate::spec::{SpecError, read_toml};
 
@@ -145,27 +147,22 @@ struct WatchFile {
 
 /// Which scanner the daemon drives.
 #[derive(Debug, Clone, PartialEq)]
-pub enum Backend {
+pub enum BackendConfig {
     /// The ray-cast simulator on a scene file.
     Sim { scene: PathBuf, seed: u64, realtime: bool },
     /// A PTU and a profile sensor.
     Hardware(HardwareConfig),
 }
 
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum PtuProtocol {
-    PowerCube,
-    Flir,
-}
-
 #[derive(Debug, Clone, PartialEq)]
 pub struct HardwareConfig {
     pub calibration: PathBuf,
     pub ptu_path: PathBuf,
-    pub ptu_protocol: PtuProtocol,
+    pub ptu_kind: PtuKind,
     pub ptu_baud: u32,
-    pub pan_module: u8,
-    pub tilt_module: u8,
+    /// PowerCube module ids; `None`: the driver's (pan 12, tilt 11).
+    pub pan_module: Option<u8>,
+    pub tilt_module: Option<u8>,
     pub sensor: SensorEndpoint,
     pub sensor_baud: u32,
 }
@@ -209,7 +206,7 @@ pub struct Config {
     pub models_dir: PathBuf,
     pub max_clients: usize,
     pub client_queue: usize,
-    pub backend: Backend,
+    pub backend: BackendConfig,
     /// Sweep continuously (true) or only when a client needs one.
     pub continuous: bool,
     pub sweep: SweepConfig,
@@ -280,7 +277,7 @@ impl Config {
             models_dir: crate::model::default_models_dir(),
             max_clients: 1024,
             client_queue: 64,
-            backend: Backend::Sim {
+            backend: BackendConfig::Sim {
                 scene: default_scenes_dir().join("fig3_table.toml"),
                 seed: 1,
                 realtime: true,
@@ -370,7 +367,7 @@ impl Config {
         c.backend = match backend {
             "sim" => {
                 let sim = raw.sim.as_ref();
-                Backend::Sim {
+                BackendConfig::Sim {
                     scene: sim
                         .map(|s| rel(&s.scene))
                         .unwrap_or_else(|| default_scenes_dir().join("fig3_table.toml")),
@@ -382,22 +379,19 @@ impl Config {
                 let h = raw.hardware.as_ref().ok_or_else(|| {
                     SpecError::invalid(path, "hardware", "backend \"hardware\" needs a [hardware] table")
                 })?;
-                let protocol = match h.ptu.protocol.as_str() {
-                    "powercube" => PtuProtocol::PowerCube,
-                    "flir" => PtuProtocol::Flir,
-                    other => {
-                        return Err(SpecError::invalid(
-                            path,
-                            "hardware.ptu.protocol",
-                            format!("{other:?}: give \"powercube\" or \"flir\""),
-                        ));
+                let kind: PtuKind = h
+                    .ptu
+                    .protocol
+                    .parse()
+                    .map_err(|e| SpecError::invalid(path, "hardware.ptu.protocol", format!("{e}")))?;
+                for (field, id) in [
+                    ("hardware.ptu.pan_module", h.ptu.pan_module),
+                    ("hardware.ptu.tilt_module", h.ptu.tilt_module),
+                ] {
+                    if id.is_some_and(|n| !(1..=31).contains(&n)) {
+                        return Err(SpecError::invalid(path, field, "give a module id from 1 to 31"));
                     }
-                };
-                let default_baud = if protocol == PtuProtocol::PowerCube {
-                    38_400
-                } else {
-                    9_600
-                };
+                }
                 let sensor = match (&h.sensor.path, &h.sensor.tcp) {
                     (Some(p), None) => SensorEndpoint::Serial(rel(p)),
                     (None, Some(a)) => SensorEndpoint::Tcp(a.clone()),
@@ -417,15 +411,15 @@ impl Config {
                         return Err(SpecError::invalid(path, field, "give a baud rate > 0"));
                     }
                 }
-                Backend::Hardware(HardwareConfig {
+                BackendConfig::Hardware(HardwareConfig {
                     calibration: rel(&h.calibration),
                     ptu_path: rel(&h.ptu.path),
-                    ptu_protocol: protocol,
-                    ptu_baud: h.ptu.baud.unwrap_or(default_baud),
-                    pan_module: h.ptu.pan_module.unwrap_or(12),
-                    tilt_module: h.ptu.tilt_module.unwrap_or(11),
+                    ptu_kind: kind,
+                    ptu_baud: h.ptu.baud.unwrap_or(kind.default_baud()),
+                    pan_module: h.ptu.pan_module,
+                    tilt_module: h.ptu.tilt_module,
                     sensor,
-                    sensor_baud: h.sensor.baud.unwrap_or(921_600),
+                    sensor_baud: h.sensor.baud.unwrap_or(SensorConfig::default().baud),
                 })
             }
             other => {
@@ -462,7 +456,7 @@ impl Config {
                 "equals tilt_from_rad: a sweep needs a range",
             ));
         }
-        if matches!(c.backend, Backend::Hardware(_))
+        if matches!(c.backend, BackendConfig::Hardware(_))
             && (c.sweep.tilt_from_rad.is_none() || c.sweep.tilt_to_rad.is_none() || c.sweep.speed_rad_s.is_none())
         {
             return Err(SpecError::invalid(
@@ -518,7 +512,7 @@ mod tests {
     #[test]
     fn empty_file_is_the_simulator() {
         let c = parse("").unwrap();
-        assert!(matches!(c.backend, Backend::Sim { .. }));
+        assert!(matches!(c.backend, BackendConfig::Sim { .. }));
         assert!(c.continuous);
         assert_eq!(c.socket_mode, 0o660);
     }
@@ -543,11 +537,11 @@ mod tests {
             "#,
         )
         .unwrap();
-        let Backend::Hardware(h) = &c.backend else {
+        let BackendConfig::Hardware(h) = &c.backend else {
             panic!("{:?}", c.backend)
         };
         assert_eq!(h.calibration, Path::new("/etc/sqscan/rig.toml"));
-        assert_eq!(h.ptu_protocol, PtuProtocol::Flir);
+        assert_eq!(h.ptu_kind, PtuKind::Flir);
         assert_eq!(h.ptu_baud, 9600);
         assert_eq!(h.sensor, SensorEndpoint::Tcp("10.0.0.2:5000".into()));
         assert_eq!(c.tcp, Some("127.0.0.1:2948".parse().unwrap()));
@@ -570,6 +564,10 @@ mod tests {
                 "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
                 "sweep",
             ),
+            (
+                "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"powercube\", tilt_module = 0 }\nsensor = { path = \"s\" }",
+                "hardware.ptu.tilt_module",
+            ),
         ] {
             let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(field), "{text:?}: {e}");
@@ -584,7 +582,7 @@ mod tests {
     fn the_shipped_example_parses() {
         let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("systemd/sqscand.toml");
         let c = Config::from_file(&path).unwrap();
-        assert!(matches!(c.backend, Backend::Hardware(_)));
+        assert!(matches!(c.backend, BackendConfig::Hardware(_)));
         assert_eq!(c.socket, Path::new("/run/sqscan/sqscand.sock"));
         assert_eq!(
             c.watch,

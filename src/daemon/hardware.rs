@@ -1,30 +1,21 @@
 //! The hardware backend: a pan-tilt unit and a profile sensor, opened (and reopened after a
 //! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire`].
 
-use std::path::PathBuf;
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use sqscan_drivers::flir::{FlirConfig, FlirPtu};
-use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
-use sqscan_drivers::{Error as DriverError, Link, PanTilt, SerialLink};
+use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, SerialLink};
 
 use crate::calibration::Calibration;
 use crate::sweep::{self, SweepError, SweepSettings};
 
-use super::acquire::{SweepData, SweepFailure};
-use super::config::{HardwareConfig, PtuProtocol, SensorEndpoint, SweepConfig};
-use super::state::{DeviceStatus, Shared};
+use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
+use super::config::{HardwareConfig, SensorEndpoint, SweepConfig};
 
 /// First and longest wait before reopening a device that failed.
 const BACKOFF_MIN: Duration = Duration::from_millis(250);
 const BACKOFF_MAX: Duration = Duration::from_secs(5);
-
-enum AnyPtu {
-    PowerCube(PowerCubePtu<SerialLink>),
-    Flir(FlirPtu<SerialLink>),
-}
 
 /// Any sensor link; `Sync` because the sweep future holds references to it across awaits and
 /// must be `Send`.
@@ -65,7 +56,7 @@ pub struct HardwareBackend {
     cfg: HardwareConfig,
     calib: Calibration,
     settings: SweepSettings,
-    ptu: Slot<AnyPtu>,
+    ptu: Slot<AnyPtu<SerialLink>>,
     sensor: Slot<Sensor>,
 }
 
@@ -94,58 +85,22 @@ impl HardwareBackend {
         })
     }
 
-    pub fn devices(&self) -> Vec<DeviceStatus> {
-        let protocol = match self.cfg.ptu_protocol {
-            PtuProtocol::PowerCube => "PowerCube",
-            PtuProtocol::Flir => "PTU-D46",
+    async fn open_ptu(&self) -> Result<AnyPtu<SerialLink>, DriverError> {
+        let path = &self.cfg.ptu_path;
+        let settings = PtuSettings {
+            baud: Some(self.cfg.ptu_baud),
+            pan: self.calib.pan_axis(),
+            tilt: self.calib.tilt_axis(),
+            pan_module: self.cfg.pan_module,
+            tilt_module: self.cfg.tilt_module,
         };
-        vec![
-            DeviceStatus::new(
-                "ptu",
-                self.cfg.ptu_path.display().to_string(),
-                format!("{protocol} at {} baud", self.cfg.ptu_baud),
-            ),
-            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
-        ]
-    }
-
-    async fn open_ptu(&self) -> Result<AnyPtu, DriverError> {
-        let path: PathBuf = self.cfg.ptu_path.clone();
-        let (pan, tilt) = (self.calib.pan_axis(), self.calib.tilt_axis());
-        let mut ptu = match self.cfg.ptu_protocol {
-            PtuProtocol::PowerCube => {
-                let cfg = PowerCubeConfig {
-                    pan_module: ModuleId::new(self.cfg.pan_module).unwrap_or(PowerCubeConfig::default().pan_module),
-                    tilt_module: ModuleId::new(self.cfg.tilt_module).unwrap_or(PowerCubeConfig::default().tilt_module),
-                    baud: self.cfg.ptu_baud,
-                    pan,
-                    tilt,
-                    ..PowerCubeConfig::default()
-                };
-                AnyPtu::PowerCube(PowerCubePtu::open(&path, cfg).await?)
-            }
-            PtuProtocol::Flir => {
-                let cfg = FlirConfig {
-                    baud: self.cfg.ptu_baud,
-                    pan,
-                    tilt,
-                    ..FlirConfig::default()
-                };
-                AnyPtu::Flir(FlirPtu::open(&path, cfg).await?)
-            }
-        };
+        let mut ptu = self.cfg.ptu_kind.open(path, &settings).await?;
         // A unit that lost its reference (power cycle) or latched a fault (the unplug) must be
         // homed before it moves; one that is fine is left where it is.
-        let state = match &mut ptu {
-            AnyPtu::PowerCube(p) => p.state().await?,
-            AnyPtu::Flir(p) => p.state().await?,
-        };
+        let state = ptu.state().await?;
         if !(state.pan.homed && state.tilt.homed) || state.pan.fault || state.tilt.fault {
             tracing::info!("homing the PTU on {}", path.display());
-            match &mut ptu {
-                AnyPtu::PowerCube(p) => p.home().await?,
-                AnyPtu::Flir(p) => p.home().await?,
-            };
+            ptu.home().await?;
         }
         Ok(ptu)
     }
@@ -170,22 +125,19 @@ impl HardwareBackend {
 
     /// Opens what is closed (respecting each device's backoff), waiting at most until the
     /// sooner retry when a device is still down.
-    async fn ensure_open(&mut self, shared: &Shared) -> Result<(), SweepFailure> {
+    async fn ensure_open(&mut self, devices: &Devices) -> Result<(), SweepFailure> {
         loop {
             let now = Instant::now();
             if self.ptu.device.is_none() && now >= self.ptu.next_try {
                 match self.open_ptu().await {
                     Ok(p) => {
                         self.ptu.opened(p);
-                        shared.update_device("ptu", |d| {
-                            d.connected = true;
-                            d.opens += 1;
-                        });
+                        devices.note_open("ptu");
                         tracing::info!("PTU open on {}", self.cfg.ptu_path.display());
                     }
                     Err(e) => {
                         self.ptu.failed();
-                        note_failure(shared, "ptu", &e.to_string());
+                        devices.note_failure("ptu", &e.to_string());
                     }
                 }
             }
@@ -193,15 +145,12 @@ impl HardwareBackend {
                 match self.open_sensor().await {
                     Ok(s) => {
                         self.sensor.opened(s);
-                        shared.update_device("sensor", |d| {
-                            d.connected = true;
-                            d.opens += 1;
-                        });
+                        devices.note_open("sensor");
                         tracing::info!("sensor open on {}", self.cfg.sensor);
                     }
                     Err(e) => {
                         self.sensor.failed();
-                        note_failure(shared, "sensor", &e.to_string());
+                        devices.note_failure("sensor", &e.to_string());
                     }
                 }
             }
@@ -218,9 +167,26 @@ impl HardwareBackend {
             tokio::time::sleep_until(wake.into()).await;
         }
     }
+}
 
-    pub async fn sweep(&mut self, forward: bool, shared: &Shared) -> Result<SweepData, SweepFailure> {
-        self.ensure_open(shared).await?;
+impl Backend for HardwareBackend {
+    fn name(&self) -> &'static str {
+        "hardware"
+    }
+
+    fn devices(&self) -> Vec<DeviceStatus> {
+        vec![
+            DeviceStatus::new(
+                "ptu",
+                self.cfg.ptu_path.display().to_string(),
+                format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
+            ),
+            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
+        ]
+    }
+
+    async fn sweep(&mut self, forward: bool, devices: &Devices) -> Result<Swept, SweepFailure> {
+        self.ensure_open(devices).await?;
         let settings = if forward {
             self.settings.clone()
         } else {
@@ -231,21 +197,17 @@ impl HardwareBackend {
                 message: "devices not open".into(),
             });
         };
-        let result = match ptu {
-            AnyPtu::PowerCube(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
-            AnyPtu::Flir(p) => sweep::acquire(p, sensor, &self.calib, &settings).await,
-        };
+        let result = sweep::acquire(ptu, sensor, &self.calib, &settings).await;
         match result {
-            Ok(s) => {
-                let report = serde_json::to_value(&s.report).unwrap_or_default();
-                let last = s.stamp_s.last().copied().unwrap_or(0.0).max(0.0);
-                Ok(SweepData {
-                    started: s.start,
-                    last_profile: s.start + Duration::from_secs_f64(last),
-                    profiles: s.profiles,
-                    columns: s.columns,
-                    cloud: s.cloud,
-                    report,
+            Ok(sweep) => {
+                // Assembled sweeps always carry their start; now is the fallback that cannot lie
+                // by much.
+                let started = sweep.start.unwrap_or_else(Instant::now);
+                let last = sweep.stamp_s.last().copied().unwrap_or(0.0).max(0.0);
+                Ok(Swept {
+                    started,
+                    last_profile: started + Duration::from_secs_f64(last),
+                    sweep,
                 })
             }
             Err(e) => {
@@ -255,14 +217,14 @@ impl HardwareBackend {
                     // (and homes it if it lost its reference).
                     SweepError::Ptu(d) if !d.is_transient() => {
                         self.ptu.failed();
-                        note_failure(shared, "ptu", &d.to_string());
+                        devices.note_failure("ptu", &d.to_string());
                     }
-                    SweepError::Ptu(d) => note_error(shared, "ptu", &d.to_string()),
-                    SweepError::PtuStopped { .. } => note_error(shared, "ptu", &message),
+                    SweepError::Ptu(d) => devices.note_error("ptu", &d.to_string()),
+                    SweepError::PtuStopped { .. } => devices.note_error("ptu", &message),
                     SweepError::Sensor(d) => {
                         // A silent or broken sensor is reopened: it may have been restarted.
                         self.sensor.failed();
-                        note_failure(shared, "sensor", &d.to_string());
+                        devices.note_failure("sensor", &d.to_string());
                     }
                     _ => {}
                 }
@@ -272,11 +234,10 @@ impl HardwareBackend {
     }
 
     /// Stops the unit where it is (best effort, bounded: the daemon is stopping).
-    pub async fn stop(&mut self) {
+    async fn stop(&mut self) {
         let halt = async {
             match self.ptu.device.as_mut() {
-                Some(AnyPtu::PowerCube(p)) => p.halt().await,
-                Some(AnyPtu::Flir(p)) => p.halt().await,
+                Some(p) => p.halt().await,
                 None => Ok(()),
             }
         };
@@ -285,25 +246,4 @@ impl HardwareBackend {
             let _ = tokio::time::timeout(Duration::from_millis(200), s.stop()).await;
         }
     }
-}
-
-/// The device is down.
-fn note_failure(shared: &Shared, name: &str, message: &str) {
-    tracing::warn!("{name}: {message}");
-    shared.update_device(name, |d| {
-        d.connected = false;
-        d.failures += 1;
-        d.last_error = Some(message.to_string());
-        d.last_error_at = Some(SystemTime::now());
-    });
-}
-
-/// The device is up but a sweep failed on it.
-fn note_error(shared: &Shared, name: &str, message: &str) {
-    tracing::warn!("{name}: {message}");
-    shared.update_device(name, |d| {
-        d.failures += 1;
-        d.last_error = Some(message.to_string());
-        d.last_error_at = Some(SystemTime::now());
-    });
 }

@@ -2,32 +2,47 @@
 //! completed sweep, and answers over a local socket (`docs/PROTOCOL.md`).
 //!
 //! Tasks, all on one tokio runtime:
-//! - acquisition ([`acquire::run`]): drives the backend (simulator or PTU + sensor), publishes
-//!   each sweep, reopens failed devices with backoff;
+//! - acquisition ([`acquire::run`]): drives the [`Backend`] (the simulator, a PTU and a sensor,
+//!   or whatever implements the trait), publishes each sweep;
 //! - the server ([`server::serve`]): one task a client, one a request;
 //! - detections: on the blocking pool, once per (sweep, object), at most `detect.workers` at a
 //!   time ([`state::SweepEntry::detection`]);
 //! - systemd: READY once listening, STATUS after each sweep, WATCHDOG at half the interval.
+//!
+//! [`Daemon::serve`] takes its backend and its listeners from the caller, so a test can hand it
+//! a socket bound to `127.0.0.1:0` and a backend of its own; [`Daemon::start`] builds both from
+//! the configuration, as `sqscand` does.
+//!
+//! Module arrows point one way: `backend` (the trait and the types it hands over) at the
+//! bottom; `simulator` and `hardware` implement it; `state` holds what the tasks share;
+//! `acquire` and `server` run on it.
 
 pub mod acquire;
+pub mod backend;
 pub mod config;
 pub mod hardware;
 pub mod notify;
 pub mod protocol;
 pub mod record;
 pub mod server;
+pub mod simulator;
 pub mod state;
 
 use std::collections::BTreeMap;
+use std::path::Path;
 use std::sync::Arc;
 use std::time::Duration;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Result, bail};
 
 use crate::model::{self, Model};
 
-use config::Config;
-use state::{Shared, lock};
+pub use backend::Backend;
+use config::{BackendConfig, Config};
+use hardware::HardwareBackend;
+pub use server::Listeners;
+use simulator::SimBackend;
+use state::Shared;
 
 /// Loads every model of the directory; a broken file is reported and skipped, not fatal (one
 /// bad model must not take the scanner down), but an empty set is.
@@ -47,47 +62,84 @@ pub fn load_models(dir: &std::path::Path) -> Result<BTreeMap<String, Arc<Model>>
     Ok(out)
 }
 
+/// Refuses a watch list naming an object there is no model of.
+fn check_watch(config: &Config, models: &BTreeMap<String, Arc<Model>>) -> Result<()> {
+    if let Some(w) = config.watch.iter().find(|w| !models.contains_key(*w)) {
+        bail!(
+            "{}: watch.objects: unknown object {w:?}",
+            config
+                .source
+                .as_deref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_default()
+        );
+    }
+    Ok(())
+}
+
+/// Loads what the configuration names (models, scene or calibration) without starting
+/// anything: `sqscand --check`. Returns the models.
+pub fn check(config: &Config) -> Result<BTreeMap<String, Arc<Model>>> {
+    let models = load_models(&config.models_dir)?;
+    check_watch(config, &models)?;
+    match &config.backend {
+        BackendConfig::Sim { scene, seed, realtime } => {
+            SimBackend::new(scene, &config.models_dir, *seed, *realtime, &config.sweep)?;
+        }
+        BackendConfig::Hardware(h) => {
+            HardwareBackend::new(h, &config.sweep)?;
+        }
+    }
+    Ok(models)
+}
+
 /// A running daemon's handle, for `main` and for tests that run it in-process.
 pub struct Daemon {
     pub shared: Arc<Shared>,
     tasks: Vec<tokio::task::JoinHandle<()>>,
-    socket: std::path::PathBuf,
+    socket: Option<std::path::PathBuf>,
     notifier: Option<Arc<notify::Notifier>>,
 }
 
 impl Daemon {
-    /// Loads models and the backend, binds the sockets, starts the tasks, and tells systemd
-    /// it is ready. Must run inside a tokio runtime.
+    /// `sqscand`'s way in: loads the models and the configured backend, binds the configured
+    /// sockets, and [`serve`](Self::serve)s. Must run inside a tokio runtime.
     pub async fn start(config: Config, notifier: Option<notify::Notifier>) -> Result<Daemon> {
-        let notifier = notifier.map(Arc::new);
         let models = load_models(&config.models_dir)?;
-        for w in &config.watch {
-            if !models.contains_key(w) {
-                bail!(
-                    "{}: watch.objects: unknown object {w:?}",
-                    config
-                        .source
-                        .as_deref()
-                        .map(|p| p.display().to_string())
-                        .unwrap_or_default()
-                );
+        check_watch(&config, &models)?;
+        // The backend before the sockets: a configuration that cannot scan leaves no socket.
+        match &config.backend {
+            BackendConfig::Sim { scene, seed, realtime } => {
+                let backend = SimBackend::new(scene, &config.models_dir, *seed, *realtime, &config.sweep)?;
+                let listeners = Listeners::bind(&config).await?;
+                Daemon::serve(config, models, backend, listeners, notifier)
+            }
+            BackendConfig::Hardware(h) => {
+                let backend = HardwareBackend::new(h, &config.sweep)?;
+                let listeners = Listeners::bind(&config).await?;
+                Daemon::serve(config, models, backend, listeners, notifier)
             }
         }
-        let backend = acquire::AnyBackend::from_config(&config)?;
-        let unix = server::bind_unix(&config.socket, config.socket_mode)?;
-        let tcp = match config.tcp {
-            Some(addr) => Some(
-                tokio::net::TcpListener::bind(addr)
-                    .await
-                    .with_context(|| format!("cannot listen on tcp {addr}"))?,
-            ),
-            None => None,
-        };
-        let socket = config.socket.clone();
-        let shared = Arc::new(Shared::new(config, models));
+    }
+
+    /// Runs `backend` and answers clients on `listeners` until [`stop`](Self::stop), and tells
+    /// systemd it is ready. `config` gives the rest (sweep mode, detection, recording, watch
+    /// list); its `backend`, `socket` and `tcp` are not looked at. Must run inside a tokio
+    /// runtime.
+    pub fn serve<B: Backend>(
+        config: Config,
+        models: BTreeMap<String, Arc<Model>>,
+        backend: B,
+        listeners: Listeners,
+        notifier: Option<notify::Notifier>,
+    ) -> Result<Daemon> {
+        let notifier = notifier.map(Arc::new);
+        check_watch(&config, &models)?;
+        let socket = listeners.socket_path().map(Path::to_owned);
+        let shared = Arc::new(Shared::new(config, models, backend.name()));
         let mut tasks = vec![
             tokio::spawn(acquire::run(shared.clone(), backend)),
-            tokio::spawn(server::serve(shared.clone(), unix, tcp, socket.clone())),
+            tokio::spawn(server::serve(shared.clone(), listeners)),
         ];
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {
@@ -103,8 +155,9 @@ impl Daemon {
         })
     }
 
-    pub fn socket(&self) -> &std::path::Path {
-        &self.socket
+    /// The Unix socket's path, if the daemon listens on one.
+    pub fn socket(&self) -> Option<&Path> {
+        self.socket.as_deref()
     }
 
     /// Stops every task (halting the PTU), removes the socket. Bounded in time: a detection
@@ -118,7 +171,9 @@ impl Daemon {
         if tokio::time::timeout(Duration::from_millis(1500), all).await.is_err() {
             tracing::warn!("some tasks did not stop in time");
         }
-        let _ = std::fs::remove_file(&self.socket);
+        if let Some(s) = &self.socket {
+            let _ = std::fs::remove_file(s);
+        }
     }
 }
 
@@ -144,20 +199,12 @@ async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
             r = sweeps.changed() => {
                 if r.is_err() { return; }
                 let text = match sweeps.borrow_and_update().as_ref() {
-                    Some(e) => format!("sweep {}: {} points; {}", e.id, e.points, device_line(&shared)),
-                    None => device_line(&shared),
+                    Some(e) => format!("sweep {}: {} points; {}", e.id, e.points, shared.devices.summary()),
+                    None => shared.devices.summary(),
                 };
                 let _ = n.status(&text);
             }
             () = state::stopped(&mut shutdown) => return,
         }
     }
-}
-
-fn device_line(shared: &Shared) -> String {
-    lock(&shared.devices)
-        .iter()
-        .map(|d| format!("{} {}", d.name, if d.connected { "ok" } else { "down" }))
-        .collect::<Vec<_>>()
-        .join(", ")
 }

@@ -25,18 +25,18 @@ pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize) -> Result<()> {
     fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let stem = stem(entry.id);
     write_atomic(&dir.join(format!("{stem}.pcd")), |w| {
-        write_pcd(w, &entry.cloud, PcdData::BinaryCompressed)?;
+        write_pcd(w, &entry.sweep.cloud, PcdData::BinaryCompressed)?;
         Ok(())
     })?;
     let meta = json!({
         "id": entry.id,
         "time": entry.time_s(),
         "frame": "base_link",
-        "profiles": entry.profiles,
-        "columns": entry.columns,
+        "profiles": entry.sweep.profiles,
+        "columns": entry.sweep.columns,
         "points": entry.points,
         "cloud": format!("{stem}.pcd"),
-        "report": entry.report,
+        "report": entry.sweep.report,
         "release": env!("CARGO_PKG_VERSION"),
     });
     write_atomic(&dir.join(format!("{stem}.json")), |w| {
@@ -80,7 +80,8 @@ fn prune(dir: &Path, keep: usize) -> Result<()> {
 mod tests {
     use super::*;
     use crate::cloud::{PointCloud, read_cloud};
-    use crate::daemon::acquire::SweepData;
+    use crate::daemon::backend::Swept;
+    use crate::sweep::{Sweep, SweepReport};
     use std::time::Instant;
 
     #[test]
@@ -92,15 +93,27 @@ mod tests {
         for id in 1..=4 {
             let mut cloud = PointCloud::organized(3, 2, pts.clone());
             cloud.viewpoint = Some([0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0]);
+            let sweep = Sweep {
+                profiles: 2,
+                columns: 3,
+                start: None,
+                stamp_s: vec![0.0, 0.02],
+                seq: vec![0, 1],
+                pan_rad: vec![0.0; 2],
+                tilt_rad: vec![0.5, 0.51],
+                range_m: pts.iter().map(|p| if p[0].is_nan() { f32::NAN } else { 0.8 }).collect(),
+                cloud,
+                report: SweepReport {
+                    kept: 2,
+                    ..SweepReport::default()
+                },
+            };
             let e = SweepEntry::new(
                 id,
-                SweepData {
+                Swept {
+                    sweep,
                     started: Instant::now(),
                     last_profile: Instant::now(),
-                    cloud,
-                    profiles: 2,
-                    columns: 3,
-                    report: json!({"kept": 2}),
                 },
             );
             write_sweep(&dir, &e, 2).unwrap();

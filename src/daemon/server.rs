@@ -23,7 +23,7 @@ use tokio::task::JoinSet;
 
 use crate::detect::output::report_json;
 
-use super::config::MAX_REQUEST_BYTES;
+use super::config::{Config, MAX_REQUEST_BYTES};
 use super::protocol::{self, Command, Request, error_reply, with_id};
 use super::state::{Shared, SweepEntry, lock, round3, stopped};
 
@@ -51,14 +51,52 @@ pub fn bind_unix(path: &Path, mode: u32) -> Result<UnixListener> {
     Ok(listener)
 }
 
+/// What the daemon listens on. The caller binds them (tests bind `127.0.0.1:0` or a socket in
+/// a temporary directory); [`Listeners::bind`] binds the configured ones.
+#[derive(Debug, Default)]
+pub struct Listeners {
+    /// A Unix socket, and its path: the file is removed when the daemon stops.
+    pub unix: Option<(UnixListener, PathBuf)>,
+    pub tcp: Option<TcpListener>,
+}
+
+impl Listeners {
+    /// The configured Unix socket (with its permission bits) and TCP address, if any.
+    pub async fn bind(config: &Config) -> Result<Listeners> {
+        let unix = bind_unix(&config.socket, config.socket_mode)?;
+        let tcp = match config.tcp {
+            Some(addr) => Some(
+                TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("cannot listen on tcp {addr}"))?,
+            ),
+            None => None,
+        };
+        Ok(Listeners {
+            unix: Some((unix, config.socket.clone())),
+            tcp,
+        })
+    }
+
+    /// The Unix socket's path, if there is one.
+    pub fn socket_path(&self) -> Option<&Path> {
+        self.unix.as_ref().map(|(_, p)| p.as_path())
+    }
+}
+
 /// Accepts clients until shutdown.
-pub async fn serve(shared: Arc<Shared>, unix: UnixListener, tcp: Option<TcpListener>, socket_path: PathBuf) {
+pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     let slots = Arc::new(Semaphore::new(shared.config.max_clients));
     let mut shutdown = shared.shutdown.subscribe();
+    let (unix, socket_path) = match listeners.unix {
+        Some((l, p)) => (Some(l), p),
+        None => (None, PathBuf::new()),
+    };
+    let tcp = listeners.tcp;
     loop {
         tokio::select! {
-            r = unix.accept() => match r {
-                Ok((stream, _)) => {
+            r = accept_unix(unix.as_ref()) => match r {
+                Ok(stream) => {
                     let (rd, wr) = stream.into_split();
                     spawn_client(&shared, &slots, rd, wr);
                 }
@@ -83,6 +121,15 @@ pub async fn serve(shared: Arc<Shared>, unix: UnixListener, tcp: Option<TcpListe
     }
 }
 
+/// The next client on the Unix socket; never, without one.
+async fn accept_unix(l: Option<&UnixListener>) -> std::io::Result<tokio::net::UnixStream> {
+    match l {
+        Some(l) => l.accept().await.map(|(s, _)| s),
+        None => std::future::pending().await,
+    }
+}
+
+/// The next client on TCP; never, without a TCP listener.
 async fn accept_tcp(l: Option<&TcpListener>) -> std::io::Result<tokio::net::TcpStream> {
     match l {
         Some(l) => l.accept().await.map(|(s, _)| s),
@@ -484,7 +531,7 @@ mod tests {
     #[tokio::test]
     async fn watch_updates_to_a_full_queue_are_skipped_not_waited_for() {
         let config = crate::daemon::config::Config::embedded_default();
-        let shared = Arc::new(Shared::new(config, Default::default()));
+        let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
         let (tx, mut rx) = mpsc::channel(2);
         let out = Outbox {
             tx,

@@ -15,11 +15,11 @@ use nalgebra::Point3;
 use serde_json::{Value, json};
 use tokio::sync::{Notify, OnceCell, Semaphore, watch};
 
-use crate::cloud::PointCloud;
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
+use crate::sweep::Sweep;
 
-use super::acquire::SweepData;
+use super::backend::{DeviceStatus, Devices, Swept};
 use super::config::Config;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
@@ -39,16 +39,12 @@ pub struct SweepEntry {
     pub id: u64,
     pub started: Instant,
     pub completed: Instant,
-    /// The last profile's exposure (see `acquire::SweepData::last_profile`).
+    /// The last profile's exposure (see [`Swept::last_profile`]).
     pub last_profile: Instant,
     pub completed_wall: SystemTime,
-    /// Organized (profiles x columns) in the base frame, NaN where nothing returned.
-    pub cloud: Arc<PointCloud>,
-    pub profiles: usize,
-    pub columns: usize,
+    pub sweep: Sweep,
+    /// Points with a return in the cloud.
     pub points: usize,
-    /// The assembler's account of the sweep (profiles kept and dropped, and why).
-    pub report: Value,
     detections: Mutex<HashMap<(String, bool), DetectionCell>>,
 }
 
@@ -65,18 +61,15 @@ pub struct Detected {
 
 impl SweepEntry {
     /// The sweep a backend delivered, completed now.
-    pub fn new(id: u64, data: SweepData) -> Self {
+    pub fn new(id: u64, swept: Swept) -> Self {
         SweepEntry {
             id,
-            started: data.started,
+            started: swept.started,
             completed: Instant::now(),
-            last_profile: data.last_profile,
+            last_profile: swept.last_profile,
             completed_wall: SystemTime::now(),
-            points: data.cloud.finite_count(),
-            cloud: Arc::new(data.cloud),
-            profiles: data.profiles,
-            columns: data.columns,
-            report: data.report,
+            points: swept.sweep.cloud.finite_count(),
+            sweep: swept.sweep,
             detections: Mutex::new(HashMap::new()),
         }
     }
@@ -95,7 +88,7 @@ impl SweepEntry {
 
     /// The sensor position for the detector: the cloud's viewpoint.
     fn viewpoint(&self) -> Option<Point3<f64>> {
-        self.cloud.viewpoint_position()
+        self.sweep.cloud.viewpoint_position()
     }
 
     /// The detection of `model` on this sweep, made once however many ask; off the async
@@ -117,7 +110,7 @@ impl SweepEntry {
                 ..Params::default()
             };
             let started = Instant::now();
-            let job = tokio::task::spawn_blocking(move || detect::detect(&entry.cloud.points, &model, &params));
+            let job = tokio::task::spawn_blocking(move || detect::detect(&entry.sweep.cloud.points, &model, &params));
             let report = match job.await {
                 Ok(r) => r,
                 // A panic in the detector is a bug; answer "nothing found" rather than take the
@@ -149,59 +142,16 @@ impl SweepEntry {
             "time": self.time_s(),
             "age_s": round3(self.age().as_secs_f64()),
             "duration_s": round3(self.completed.duration_since(self.started).as_secs_f64()),
-            "profiles": self.profiles,
-            "columns": self.columns,
+            "profiles": self.sweep.profiles,
+            "columns": self.sweep.columns,
             "points": self.points,
-            "report": self.report,
+            "report": self.sweep.report,
         })
     }
 }
 
 pub fn round3(x: f64) -> f64 {
     (x * 1e3).round() / 1e3
-}
-
-/// Health of one device (or of the simulator).
-#[derive(Debug, Clone)]
-pub struct DeviceStatus {
-    pub name: &'static str,
-    /// Device path, address or scene file.
-    pub path: String,
-    pub kind: String,
-    pub connected: bool,
-    pub last_error: Option<String>,
-    pub last_error_at: Option<SystemTime>,
-    /// Times the device was (re)opened.
-    pub opens: u64,
-    pub failures: u64,
-}
-
-impl DeviceStatus {
-    pub fn new(name: &'static str, path: String, kind: String) -> Self {
-        DeviceStatus {
-            name,
-            path,
-            kind,
-            connected: false,
-            last_error: None,
-            last_error_at: None,
-            opens: 0,
-            failures: 0,
-        }
-    }
-
-    fn json(&self) -> Value {
-        json!({
-            "name": self.name,
-            "path": self.path,
-            "kind": self.kind,
-            "state": if self.connected { "ok" } else if self.last_error.is_some() { "fault" } else { "closed" },
-            "last_error": self.last_error,
-            "last_error_time": self.last_error_at.and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok()).map(|d| d.as_secs_f64()),
-            "opens": self.opens,
-            "failures": self.failures,
-        })
-    }
 }
 
 /// Running figures for `status`.
@@ -275,7 +225,9 @@ pub struct Shared {
     pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
     /// Wakes an on-demand acquisition loop.
     pub sweep_wanted: Notify,
-    pub devices: Mutex<Vec<DeviceStatus>>,
+    /// What the backend calls itself (`status` shows it).
+    pub backend: &'static str,
+    pub devices: Devices,
     pub stats: Stats,
     /// Objects watched by clients, with how many watch each.
     pub watched: Mutex<BTreeMap<String, usize>>,
@@ -286,14 +238,15 @@ pub struct Shared {
 }
 
 impl Shared {
-    pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>) -> Shared {
+    pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
         let workers = config.detect_workers;
         Shared {
             config,
             models,
             latest: watch::channel(None).0,
             sweep_wanted: Notify::new(),
-            devices: Mutex::new(Vec::new()),
+            backend,
+            devices: Devices::default(),
             stats: Stats::default(),
             watched: Mutex::new(BTreeMap::new()),
             detect_slots: Semaphore::new(workers),
@@ -314,23 +267,9 @@ impl Shared {
         })
     }
 
-    pub fn update_device(&self, name: &str, f: impl FnOnce(&mut DeviceStatus)) {
-        if let Some(d) = lock(&self.devices).iter_mut().find(|d| d.name == name) {
-            f(d);
-        }
-    }
-
     /// One line on what is wrong with the devices, for error replies ("" when all is well).
     pub fn device_trouble(&self) -> String {
-        lock(&self.devices)
-            .iter()
-            .filter(|d| !d.connected)
-            .map(|d| match &d.last_error {
-                Some(e) => format!("{} {} is down: {e}", d.name, d.path),
-                None => format!("{} {} is not open yet", d.name, d.path),
-            })
-            .collect::<Vec<_>>()
-            .join("; ")
+        self.devices.trouble()
     }
 
     pub fn is_stopping(&self) -> bool {
@@ -346,12 +285,9 @@ impl Shared {
             "class": "status",
             "release": env!("CARGO_PKG_VERSION"),
             "uptime_s": round3(self.started.elapsed().as_secs_f64()),
-            "backend": match &self.config.backend {
-                super::config::Backend::Sim { .. } => "sim",
-                super::config::Backend::Hardware(_) => "hardware",
-            },
+            "backend": self.backend,
             "mode": if self.config.continuous { "continuous" } else { "on_demand" },
-            "devices": lock(&self.devices).iter().map(DeviceStatus::json).collect::<Vec<_>>(),
+            "devices": self.devices.snapshot().iter().map(DeviceStatus::json).collect::<Vec<_>>(),
             "last_sweep": self.newest().map(|e| e.summary()),
             "sweeps": {
                 "completed": s.sweeps_completed.load(Ordering::Relaxed),

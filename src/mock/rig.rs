@@ -14,7 +14,7 @@
 //!
 //! Device angles map to the joint angles the scene's rig uses through `RigConfig::pan_axis` and
 //! `tilt_axis` (how the unit is mounted): identity by default, which is what
-//! [`crate::calibration::Calibration::for_rig`] and `calibration/sim_rig.toml` assume. A PTU-D46
+//! [`crate::sim::Rig::calibration`] and `calibration/sim_rig.toml` assume. A PTU-D46
 //! tilts down at negative positions, and its tilt range (-47..+31 deg) holds a downward sweep only
 //! that way round: `tilt_axis` sign -1 with `calibration/sim_rig_flir.toml`.
 
@@ -25,27 +25,19 @@ use std::time::{Duration, Instant};
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sqscan_drivers::AxisConfig;
-use sqscan_drivers::mock::{
-    Faults, MockDevice, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
-};
+use sqscan_drivers::mock::{Faults, MockDevice, MockPort, ServeEnd};
 use sqscan_drivers::profile::Profile;
+use sqscan_drivers::{AxisConfig, PtuKind};
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
 use crate::sim::{self, Scene};
 
-/// Which PTU the rig carries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RigProtocol {
-    PowerCube,
-    Flir,
-}
-
 /// How the rig runs.
 #[derive(Clone, Debug)]
 pub struct RigConfig {
-    pub protocol: RigProtocol,
+    /// Which PTU the rig carries (its mock from the kind table).
+    pub ptu_kind: PtuKind,
     /// Profiles a second while acquiring.
     pub rate_hz: f64,
     /// Seed of the sensor noise: profile `i` uses `sim::stream_seed(seed, i)`.
@@ -64,7 +56,7 @@ pub struct RigConfig {
 impl Default for RigConfig {
     fn default() -> Self {
         Self {
-            protocol: RigProtocol::PowerCube,
+            ptu_kind: PtuKind::PowerCube,
             rate_hz: 50.0,
             seed: 1,
             ptu_faults: Faults::default(),
@@ -106,10 +98,7 @@ impl RigMock {
                 format!("rate {} Hz: give (0, 10000]", cfg.rate_hz),
             ));
         }
-        let ptu: Arc<Mutex<dyn MockDevice>> = match cfg.protocol {
-            RigProtocol::PowerCube => Arc::new(Mutex::new(MockPowerCube::new(MockPowerCubeConfig::default()))),
-            RigProtocol::Flir => Arc::new(Mutex::new(MockFlirPtu::new(MockFlirConfig::default()))),
-        };
+        let ptu = cfg.ptu_kind.mock().device;
         let ptu_port = MockPort::create(ptu_link)?;
         let sensor_port = MockPort::create(sensor_link)?;
         let (ptu_path, sensor_path) = (ptu_port.path().to_owned(), sensor_port.path().to_owned());

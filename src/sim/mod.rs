@@ -18,6 +18,7 @@ pub use sensor::*;
 
 use crate::cloud::{Field, FieldData, PointCloud};
 use crate::geometry::PlacedSuperquadric;
+use crate::sweep::{Sweep, SweepReport};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -45,31 +46,6 @@ pub struct RawProfile {
     pub intensity: Vec<u8>,
     /// What each column hit (the simulator's ground truth, not part of a real sensor's output).
     pub labels: Vec<u32>,
-}
-
-/// One assembled sweep.
-#[derive(Debug, Clone)]
-pub struct Sweep {
-    pub profiles: usize,
-    pub columns: usize,
-    /// Each profile's exposure time from the start of the sweep (s).
-    pub stamp_s: Vec<f64>,
-    /// Each profile's tilt (rad).
-    pub tilt_rad: Vec<f64>,
-    pub pan_rad: f64,
-    /// The organized range image, profile-major: distance from the sensor origin within the laser
-    /// plane (m), NaN where nothing returned.
-    pub range_m: Vec<f32>,
-    /// The organized point cloud in the base frame (`width = columns`, `height = profiles`),
-    /// with `intensity` (u8) and `label` (u32) fields.
-    pub cloud: PointCloud,
-}
-
-impl Sweep {
-    /// Points with a return.
-    pub fn finite_points(&self) -> usize {
-        self.range_m.iter().filter(|r| r.is_finite()).count()
-    }
 }
 
 /// Mix a seed and an index into an independent stream seed (SplitMix64 finaliser), so profiles
@@ -320,7 +296,9 @@ fn render_with(caster: &Caster<'_>, sensor_in_base: &Isometry3<f64>, rng: &mut C
     out
 }
 
-/// Simulate one sweep of the scene's rig. The same scene and seed give the same sweep.
+/// Simulate one sweep of the scene's rig. The same scene and seed give the same sweep. Every
+/// rendered profile is kept, numbered by its index, at the rig's pan and exact tilt; the report
+/// counts them as the assembler would (no position samples: the simulator needs none).
 pub fn simulate(scene: &Scene, seed: u64) -> Sweep {
     let rig = &scene.rig;
     let sensor = &rig.sensor;
@@ -377,14 +355,24 @@ pub fn simulate(scene: &Scene, seed: u64) -> Sweep {
         ],
         viewpoint: Some(viewpoint_of(rig)),
     };
+    let report = SweepReport {
+        received: profiles,
+        kept: profiles,
+        points: range_m.iter().filter(|r| r.is_finite()).count(),
+        duration_s: stamp_s.last().copied().unwrap_or(0.0),
+        ..SweepReport::default()
+    };
     Sweep {
         profiles,
         columns,
+        start: None,
+        seq: (0..profiles).map(|i| u32::try_from(i).unwrap_or(u32::MAX)).collect(),
+        pan_rad: vec![rig.pan; profiles],
         stamp_s,
         tilt_rad,
-        pan_rad: rig.pan,
         range_m,
         cloud,
+        report,
     }
 }
 

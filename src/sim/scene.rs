@@ -1,6 +1,7 @@
 //! Scene files (`scenes/*.toml`, format in `scenes/README.md`): a table, objects placed by model
 //! and pose, free superquadric parts for clutter, and the scanning rig.
 
+use crate::calibration::Calibration;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::{Model, resolve};
 use crate::pose::PoseSpec;
@@ -158,6 +159,18 @@ pub struct Rig {
 }
 
 impl Rig {
+    /// The rig's exact calibration: calibrated raw rows give the simulator's own points
+    /// (`calibration/sim_rig.toml` is this, written out).
+    pub fn calibration(&self) -> Calibration {
+        Calibration::from_homography(
+            self.sensor.columns,
+            self.sensor.fraction_bits,
+            self.sensor.homography(),
+            self.sensor_in_tilt,
+            self.ptu_in_base,
+        )
+    }
+
     /// The sensor frame in the base frame at the given joint angles.
     pub fn sensor_in_base(&self, pan: f64, tilt: f64) -> Isometry3<f64> {
         let pan_rot = Isometry3::rotation(Vector3::z() * pan);

@@ -10,7 +10,7 @@
 //! they are reported with `fraction_bits` of sub-pixel resolution, 0 meaning "no return", as
 //! IVP/SICK Ranger units deliver them.
 
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// The measurement model of a laser triangulation profile sensor.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,6 +40,23 @@ pub struct SensorModel {
 }
 
 impl SensorModel {
+    /// The plane-to-image homography `H` of this model (see `crate::calibration`): `[x, y, w] =
+    /// H [col + 0.5, row px, 1]`, the laser-plane point is `(x/w, y/w)`.
+    pub fn homography(&self) -> Matrix3<f64> {
+        let b = self.baseline;
+        Matrix3::new(
+            0.0,
+            0.0,
+            self.focal_px * b,
+            -b,
+            0.0,
+            b * self.cx,
+            0.0,
+            1.0,
+            self.row_offset,
+        )
+    }
+
     /// A validated model; on error, the offending field and what is wrong.
     #[allow(clippy::too_many_arguments)]
     pub fn new(

@@ -1,4 +1,5 @@
 use super::*;
+use crate::calibration::Calibration;
 use std::path::{Path, PathBuf};
 
 fn models_dir() -> PathBuf {
@@ -126,6 +127,27 @@ fn same_seed_same_sweep_other_seed_other_noise() {
 }
 
 #[test]
+fn a_simulated_sweep_reports_every_profile_kept() {
+    let scene = sphere_scene(0.002, 0.01, 64);
+    let s = simulate(&scene, 2);
+    let r = &s.report;
+    let n = scene.rig.profiles;
+    assert_eq!((s.profiles, r.received, r.kept), (n, n, n));
+    assert_eq!(r.points, s.finite_points());
+    assert!(r.points > 0);
+    assert_eq!(r.duration_s, *s.stamp_s.last().unwrap());
+    assert_eq!(s.seq, (0..n as u32).collect::<Vec<_>>());
+    assert_eq!(s.pan_rad, vec![scene.rig.pan; n]);
+    assert_eq!(s.start, None);
+    let dropped = r.dropped_extrapolated
+        + r.dropped_duplicate
+        + r.dropped_out_of_order
+        + r.dropped_bad_columns
+        + r.dropped_bad_encoding;
+    assert_eq!((dropped, r.missing_seq, r.position_samples), (0, 0, 0));
+}
+
+#[test]
 fn range_noise_grows_as_triangulation_does() {
     // Table only: compare each returned range with the exact range to the plane.
     let mut scene = sphere_scene(0.002, 0.0, 256);
@@ -222,4 +244,72 @@ fn the_inside_of_an_open_mug_is_seen_through_its_opening() {
     assert!(far > 100, "open mug: {far} far-wall points");
     let far = far_wall(&scene_with("cup_body"));
     assert!(far == 0, "closed cup: {far} far-wall points");
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn fig3() -> Scene {
+    Scene::from_file(&root().join("scenes/fig3_table.toml"), &root().join("models")).unwrap()
+}
+
+/// `sim_rig.toml` is generated from the scene's rig; `SQSCAN_REGENERATE=1` rewrites it.
+#[test]
+fn sim_rig_file_is_the_rig_of_fig3() {
+    let path = root().join("calibration/sim_rig.toml");
+    let derived = fig3().rig.calibration();
+    if std::env::var_os("SQSCAN_REGENERATE").is_some() {
+        // Atomically: the other tests read this file in parallel.
+        let tmp = path.with_extension("toml.tmp");
+        std::fs::write(&tmp, derived.to_toml("The simulated rig of scenes/fig3_table.toml")).unwrap();
+        std::fs::rename(&tmp, &path).unwrap();
+    }
+    let file = Calibration::from_file(&path).unwrap();
+    assert!((file.homography - derived.homography).amax() < 1e-9, "{file:?}");
+    for (a, b) in [
+        (file.laser_plane_in_sensor, derived.laser_plane_in_sensor),
+        (file.sensor_in_tilt, derived.sensor_in_tilt),
+        (file.ptu_in_base, derived.ptu_in_base),
+    ] {
+        assert!((a.translation.vector - b.translation.vector).norm() < 1e-12);
+        assert!(a.rotation.angle_to(&b.rotation) < 1e-12);
+    }
+    assert_eq!(
+        (file.columns, file.fraction_bits),
+        (derived.columns, derived.fraction_bits)
+    );
+    assert_eq!(
+        (file.pan_axis(), file.tilt_axis()),
+        (derived.pan_axis(), derived.tilt_axis())
+    );
+}
+
+#[test]
+fn calibrated_raw_rows_are_the_simulators_points() {
+    let scene = fig3();
+    let rig = &scene.rig;
+    let cal = Calibration::from_file(&root().join("calibration/sim_rig.toml")).unwrap();
+    let seed = 3;
+    let sweep = simulate(&scene, seed);
+    let mut compared = 0;
+    for i in [0, 40, 75, 110, rig.profiles - 1] {
+        // The raw rows `simulate` built profile i's points from.
+        let tilt = sweep.tilt_rad[i];
+        let pose = rig.sensor_in_base(rig.pan, tilt);
+        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, i as u64));
+        let raw = render_profile(&scene, &pose, &mut rng);
+        for (col, &value) in raw.rows.iter().enumerate() {
+            let want = sweep.cloud.points[i * sweep.columns + col];
+            let Some(got) = cal.point_in_base(col, value, sweep.pan_rad[i], tilt) else {
+                assert!(want[0].is_nan(), "profile {i} col {col}: a point without a return");
+                continue;
+            };
+            // The cloud stores f32: ~1e-7 m of rounding at these distances.
+            let want = Point3::new(f64::from(want[0]), f64::from(want[1]), f64::from(want[2]));
+            assert!((got - want).norm() < 1e-6, "profile {i} col {col}: {got} vs {want}");
+            compared += 1;
+        }
+    }
+    assert!(compared > 500, "only {compared} returns compared");
 }

@@ -20,23 +20,24 @@
 
 use std::time::Duration;
 
-use sqscan_drivers::sensor::{ProfileSensor, ReceivedProfile};
+use sqscan_drivers::sensor::{ProfileSource, ReceivedProfile};
 use sqscan_drivers::{Goal, PanTilt, PositionSample};
-use tokio::io::{AsyncRead, AsyncWrite};
 
-use super::{AssembledSweep, SweepError, SweepSettings, assemble};
+use super::{Sweep, SweepError, SweepSettings, assemble};
 use crate::calibration::Calibration;
 
 /// How far short of the goal tilt the PTU may report the sweep move ended (rad).
 const GOAL_SLACK_RAD: f64 = 0.01;
 
-/// Runs one sweep and assembles it. See the module docs for the order of events.
-pub async fn acquire<P: PanTilt, S: AsyncRead + AsyncWrite + Unpin + Send>(
+/// Runs one sweep and assembles it. See the module docs for the order of events. Any PTU
+/// driver and any profile sensor will do: the sweep only needs [`PanTilt`] and
+/// [`ProfileSource`].
+pub async fn acquire<P: PanTilt, R: ProfileSource>(
     ptu: &mut P,
-    sensor: &mut ProfileSensor<S>,
+    sensor: &mut R,
     calib: &Calibration,
     settings: &SweepSettings,
-) -> Result<AssembledSweep, SweepError> {
+) -> Result<Sweep, SweepError> {
     settings.validate()?;
     let approach = Goal {
         pan_rad: settings.pan_rad,

@@ -1,7 +1,7 @@
 //! Sweep assembly: PTU position samples and laser profiles, taken while the unit moves, into one
 //! organized range image and its point cloud in the base frame.
 //!
-//! [`assemble`] is pure and synchronous (samples and profiles in, [`AssembledSweep`] out), so it
+//! [`assemble`] is pure and synchronous (samples and profiles in, a [`Sweep`] out), so it
 //! is tested without devices; [`acquire::acquire`] drives a PTU and a profile sensor through one
 //! sweep and hands what it collected to [`assemble`]. `docs/SWEEP.md` tells the same story for
 //! people.
@@ -82,35 +82,40 @@ pub struct SweepReport {
     pub max_extra_delay_s: f64,
 }
 
-/// One assembled sweep: an organized range image, rows = profiles in exposure order, columns =
-/// sensor columns.
+/// One sweep: an organized range image, rows = profiles in exposure order, columns = sensor
+/// columns, and its point cloud. The one sweep type: [`assemble`] makes it from what the devices
+/// delivered, `sim::simulate` from a scene, and the daemon carries it.
 #[derive(Clone, Debug)]
-pub struct AssembledSweep {
-    /// Kept profiles (rows).
+pub struct Sweep {
+    /// Profiles (rows).
     pub profiles: usize,
     pub columns: usize,
-    /// Host time of the first kept profile's exposure (of the first position sample when no
-    /// profile was kept).
-    pub start: Instant,
-    /// Each profile's exposure time since the first kept profile's (s).
+    /// Host time of the first profile's exposure (of the first position sample when no profile
+    /// was kept) for a sweep taken with devices on this host; `None` for a simulated one, whose
+    /// stamps are on no host's clock.
+    pub start: Option<Instant>,
+    /// Each profile's exposure time since the first profile's (s).
     pub stamp_s: Vec<f64>,
-    /// Each profile's sensor sequence number.
+    /// Each profile's sequence number (the sensor's; the profile index for a simulated sweep).
     pub seq: Vec<u32>,
-    /// Each profile's interpolated joint angles (rad).
+    /// Each profile's joint angles (rad): interpolated between position samples, or the
+    /// simulated rig's exact ones.
     pub pan_rad: Vec<f64>,
     pub tilt_rad: Vec<f64>,
     /// Profile-major `profiles x columns`: distance from the sensor origin (m), NaN = no return.
     pub range_m: Vec<f32>,
     /// Organized cloud in the base frame (`width = columns`, `height = profiles`, NaN = no
-    /// return), with an `intensity` (u8) field when every kept profile carried intensities, and
-    /// the sensor pose at mid-sweep as viewpoint.
+    /// return), with the sensor pose at mid-sweep as viewpoint. An assembled sweep has an
+    /// `intensity` (u8) field when every kept profile carried intensities; a simulated one has
+    /// `intensity` and the ground truth `label` (u32, see `sim::LABEL_NONE`).
     pub cloud: PointCloud,
+    /// What happened to the profiles.
     pub report: SweepReport,
 }
 
-impl AssembledSweep {
+impl Sweep {
     /// The sweep if it kept at least `needed` profiles, else [`SweepError::TooFewProfiles`].
-    pub fn require_profiles(self, needed: usize) -> Result<AssembledSweep, SweepError> {
+    pub fn require_profiles(self, needed: usize) -> Result<Sweep, SweepError> {
         if self.profiles < needed {
             return Err(SweepError::TooFewProfiles {
                 kept: self.profiles,
@@ -120,10 +125,15 @@ impl AssembledSweep {
         }
         Ok(self)
     }
+
+    /// Points with a return.
+    pub fn finite_points(&self) -> usize {
+        self.range_m.iter().filter(|r| r.is_finite()).count()
+    }
 }
 
 /// Why a sweep failed. A sweep cut short by a fault is always one of these, never a partial
-/// [`AssembledSweep`].
+/// [`Sweep`].
 #[derive(Debug, thiserror::Error)]
 pub enum SweepError {
     /// The pan-tilt unit failed (timeout, fault, unplugged, IO).
@@ -335,7 +345,7 @@ pub fn assemble(
     profiles: &[ReceivedProfile],
     calib: &Calibration,
     sensor_latency_s: f64,
-) -> Result<AssembledSweep, SweepError> {
+) -> Result<Sweep, SweepError> {
     let origin = samples.iter().map(|s| s.t).min().ok_or(SweepError::NoPositionSamples)?;
     let track = sample_track(origin, samples);
     if track.is_empty() {
@@ -468,10 +478,10 @@ pub fn assemble(
         cloud.viewpoint = Some([t.x, t.y, t.z, q.w, q.i, q.j, q.k]);
     }
     let start = if n > 0 { instant_at(origin, t0) } else { origin };
-    Ok(AssembledSweep {
+    Ok(Sweep {
         profiles: n,
         columns,
-        start,
+        start: Some(start),
         stamp_s,
         seq,
         pan_rad,

@@ -72,7 +72,7 @@ fn dropped(r: &SweepReport) -> usize {
 
 /// Every point is the calibration chain at the sweep's angles, every range the sensor-frame
 /// distance, the cloud organized.
-fn check_points(s: &AssembledSweep, profiles: &[&ReceivedProfile], cal: &Calibration) {
+fn check_points(s: &Sweep, profiles: &[&ReceivedProfile], cal: &Calibration) {
     assert_eq!(s.cloud.width, s.columns);
     assert_eq!(s.cloud.height, s.profiles);
     assert_eq!(s.range_m.len(), s.profiles * s.columns);
@@ -126,7 +126,7 @@ fn joint_angles_are_interpolated_between_the_bracketing_samples() {
         assert!((got - want).abs() < 1e-6, "stamp {got} vs {want}");
     }
     assert_eq!(s.seq, [0, 1, 2]);
-    assert!((secs_since(rig.t0, s.start) - 0.05).abs() < 1e-6);
+    assert!((secs_since(rig.t0, s.start.unwrap()) - 0.05).abs() < 1e-6);
     assert!((s.report.duration_s - 0.15).abs() < 1e-6);
     assert!((s.report.max_extra_delay_s - 0.007).abs() < 1e-6);
     assert_eq!(s.report.position_samples, 3);
@@ -165,7 +165,7 @@ fn profiles_outside_the_samples_are_dropped_never_extrapolated() {
     let s = assemble(&samples[..1], &profiles, &cal, 0.001).unwrap();
     assert_eq!((s.profiles, s.report.dropped_extrapolated), (0, 5));
     assert_eq!(s.cloud.height, 0);
-    assert_eq!(s.start, samples[0].t);
+    assert_eq!(s.start, Some(samples[0].t));
 
     // No samples at all is an error, not an empty sweep.
     assert!(matches!(

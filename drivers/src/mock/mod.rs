@@ -22,7 +22,7 @@ use tokio_serial::{SerialPort, SerialStream};
 
 pub use flir::{MockFlirAxisConfig, MockFlirConfig, MockFlirPtu};
 pub use powercube::{MockModule, MockModuleConfig, MockPowerCube, MockPowerCubeConfig};
-pub use sensor::ProfileSource;
+pub use sensor::SensorView;
 
 /// The device side of a protocol.
 pub trait MockDevice: Send {

@@ -1,7 +1,7 @@
 //! A mock profile sensor on a pty: it reads `START`/`STOP` lines and, while started, sends one
 //! SQPF frame every period, with the sensor's own clock and sequence numbers.
 //!
-//! What a profile contains is the caller's business (a [`ProfileSource`]): the main crate's rig
+//! What a profile contains is the caller's business (a [`SensorView`]): the main crate's rig
 //! mock renders the scene at the mock PTU's current angles; tests use synthetic profiles.
 
 use std::io;
@@ -15,11 +15,11 @@ use crate::profile::{Profile, encode_profile};
 
 /// What the sensor sees: a profile's range rows (and intensity) at host time `now`. The mock
 /// fills in the sequence number and the timestamp.
-pub trait ProfileSource: Send {
+pub trait SensorView: Send {
     fn render(&mut self, now: Instant) -> Profile;
 }
 
-impl<F: FnMut(Instant) -> Profile + Send> ProfileSource for F {
+impl<F: FnMut(Instant) -> Profile + Send> SensorView for F {
     fn render(&mut self, now: Instant) -> Profile {
         self(now)
     }
@@ -32,7 +32,7 @@ impl MockPort {
     /// Faults count frames: garbage before a frame, a dropped frame (its sequence number is
     /// used up, so the host sees a gap), a corrupted frame (one payload byte flipped: a CRC
     /// failure), an unplug after N frames. Runs until unplugged, an IO error, or dropped.
-    pub async fn stream<P: ProfileSource>(
+    pub async fn stream<P: SensorView>(
         mut self,
         mut source: P,
         period: Duration,

@@ -1,13 +1,13 @@
 //! `sqscan mock ...`: mock devices on pseudo-terminals, used exactly like hardware.
 
 use anyhow::{Context, Result};
-use clap::{Args, Subcommand, ValueEnum};
-use sqscan_drivers::mock::{
-    Faults, MockFlirConfig, MockFlirPtu, MockPort, MockPowerCube, MockPowerCubeConfig, ServeEnd,
-};
+use clap::{Args, Subcommand};
+use sqscan_drivers::PtuKind;
+use sqscan_drivers::mock::{Faults, MockPort, ServeEnd};
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
+
+use super::ptu::ptu_kind_parser;
 
 #[derive(Args)]
 pub struct MockArgs {
@@ -29,8 +29,8 @@ pub struct MockRigArgs {
     /// Scene file whose table, objects and rig the sensor sees
     #[arg(long, value_name = "SCENE")]
     scene: PathBuf,
-    #[arg(long, value_enum)]
-    protocol: MockProtocol,
+    #[arg(long, value_parser = ptu_kind_parser())]
+    protocol: PtuKind,
     /// Keep a symlink to the PTU's pty here
     #[arg(long, value_name = "PATH")]
     ptu_link: Option<PathBuf>,
@@ -74,19 +74,10 @@ pub struct SensorFaultArgs {
     sensor_disconnect_after: Option<u64>,
 }
 
-/// PTU protocols with a mock device.
-#[derive(Clone, Copy, ValueEnum)]
-pub enum MockProtocol {
-    /// AMTEC/Schunk PowerCube modules (pan 12, tilt 11), RS-232 telegrams
-    Powercube,
-    /// FLIR / Directed Perception PTU-D46, ASCII commands
-    Flir,
-}
-
 #[derive(Args)]
 pub struct MockPtuArgs {
-    #[arg(long, value_enum)]
-    protocol: MockProtocol,
+    #[arg(long, value_parser = ptu_kind_parser())]
+    protocol: PtuKind,
     /// Keep a symlink to the pty here (replaced if it is a symlink)
     #[arg(long, value_name = "PATH")]
     link: Option<PathBuf>,
@@ -149,7 +140,7 @@ pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
 }
 
 async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
-    use sqscan::mock::rig::{RigConfig, RigMock, RigProtocol};
+    use sqscan::mock::rig::{RigConfig, RigMock};
     if a.faults.replug_after_ms.is_some() {
         anyhow::bail!(
             "--replug-after-ms is for `sqscan mock ptu`: the rig's PTU comes back with --ptu-replug-after SECS"
@@ -166,10 +157,7 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         .transpose()?;
     let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
     let cfg = RigConfig {
-        protocol: match a.protocol {
-            MockProtocol::Powercube => RigProtocol::PowerCube,
-            MockProtocol::Flir => RigProtocol::Flir,
-        },
+        ptu_kind: a.protocol,
         rate_hz: a.rate,
         seed: a.faults.seed,
         ptu_faults: a.faults.faults(),
@@ -204,8 +192,8 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         )
     };
     println!(
-        "mock rig: {} on {}",
-        a.protocol.name(),
+        "mock rig: {} PTU on {}",
+        a.protocol.model(),
         shown(&rig.ptu_path, &a.ptu_link)
     );
     println!(
@@ -246,15 +234,6 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     result
 }
 
-impl MockProtocol {
-    fn name(self) -> &'static str {
-        match self {
-            MockProtocol::Powercube => "PowerCube PTU",
-            MockProtocol::Flir => "PTU-D46 PTU",
-        }
-    }
-}
-
 async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
     let faults = a.faults.faults();
     let result = tokio::select! {
@@ -268,51 +247,19 @@ async fn mock_ptu(a: MockPtuArgs) -> Result<()> {
     result
 }
 
-/// A fresh mock unit of `protocol`, and the line announcing it.
-fn new_unit(protocol: MockProtocol) -> (Arc<Mutex<dyn sqscan_drivers::mock::MockDevice>>, String) {
-    match protocol {
-        MockProtocol::Powercube => {
-            let cfg = MockPowerCubeConfig::default();
-            let text = format!(
-                "mock PowerCube: pan module {}, tilt module {}",
-                cfg.pan.id.get(),
-                cfg.tilt.id.get()
-            );
-            (Arc::new(Mutex::new(MockPowerCube::new(cfg))), text)
-        }
-        MockProtocol::Flir => {
-            let cfg = MockFlirConfig::default();
-            let text = format!(
-                "mock PTU-D46: pan [{}, {}] steps at {} arcsec/step, tilt [{}, {}] steps at {} arcsec/step",
-                cfg.pan.min_steps,
-                cfg.pan.max_steps,
-                cfg.pan.resolution_arcsec,
-                cfg.tilt.min_steps,
-                cfg.tilt.max_steps,
-                cfg.tilt.resolution_arcsec
-            );
-            (Arc::new(Mutex::new(MockFlirPtu::new(cfg))), text)
-        }
-    }
-}
-
 /// One mock unit after another: a new one is plugged in after each unplug if asked to.
-async fn serve_ptu(
-    protocol: MockProtocol,
-    link: Option<&Path>,
-    faults: &Faults,
-    replug_after_ms: Option<u64>,
-) -> Result<()> {
+async fn serve_ptu(kind: PtuKind, link: Option<&Path>, faults: &Faults, replug_after_ms: Option<u64>) -> Result<()> {
     loop {
         let port = MockPort::create(link).context("cannot create a pty")?;
-        let (device, text) = new_unit(protocol);
+        let unit = kind.mock();
         println!(
-            "{text} on {}{}",
+            "{} on {}{}",
+            unit.description,
             port.path().display(),
             link.map(|l| format!(" (link {})", l.display())).unwrap_or_default()
         );
         match port
-            .serve(device, faults.clone())
+            .serve(unit.device, faults.clone())
             .await
             .context("mock PTU line failed")?
         {

@@ -1,19 +1,16 @@
 //! `sqscan ptu ...`: bring-up tool for a pan-tilt unit: status, home, move, sweep.
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, Subcommand, ValueEnum};
-use sqscan_drivers::flir::{FlirConfig, FlirPtu};
-use sqscan_drivers::powercube::{ModuleId, PowerCubeConfig, PowerCubePtu};
-use sqscan_drivers::{AxisConfig, AxisState, Goal, PanTilt, PositionSample};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
+use clap::{Args, Subcommand};
+use sqscan_drivers::{AxisConfig, AxisState, Goal, PanTilt, PositionSample, PtuKind, PtuSettings};
 use std::path::PathBuf;
 use std::time::Duration;
 
-#[derive(Clone, Copy, ValueEnum)]
-pub enum PtuProtocol {
-    /// AMTEC/Schunk PowerCube modules over RS-232
-    Powercube,
-    /// FLIR / Directed Perception PTU-D46 (ASCII)
-    Flir,
+/// `--protocol`: the names of the PTU kind table, listed in the help with their descriptions.
+pub fn ptu_kind_parser() -> impl TypedValueParser<Value = PtuKind> {
+    PossibleValuesParser::new(PtuKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description())))
+        .try_map(|s| s.parse::<PtuKind>())
 }
 
 #[derive(Args)]
@@ -21,17 +18,17 @@ pub struct PtuArgs {
     /// Serial port (or a mock's pty link)
     #[arg(long, value_name = "PATH")]
     device: PathBuf,
-    #[arg(long, value_enum)]
-    protocol: PtuProtocol,
+    #[arg(long, value_parser = ptu_kind_parser())]
+    protocol: PtuKind,
     /// Line speed [default: 38400 for powercube, 9600 for flir]
     #[arg(long)]
     baud: Option<u32>,
-    /// PowerCube module id of the pan joint
-    #[arg(long, default_value_t = 12)]
-    pan_module: u8,
-    /// PowerCube module id of the tilt joint
-    #[arg(long, default_value_t = 11)]
-    tilt_module: u8,
+    /// PowerCube module id of the pan joint [default: 12]
+    #[arg(long)]
+    pan_module: Option<u8>,
+    /// PowerCube module id of the tilt joint [default: 11]
+    #[arg(long)]
+    tilt_module: Option<u8>,
     /// Pan axis sign (+1 or -1): joint = sign * device + offset
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pan_sign: f64,
@@ -82,37 +79,25 @@ pub fn run(a: PtuArgs) -> Result<()> {
     let pan = AxisConfig::new(a.pan_sign, a.pan_offset).context("--pan-sign/--pan-offset")?;
     let tilt = AxisConfig::new(a.tilt_sign, a.tilt_offset).context("--tilt-sign/--tilt-offset")?;
     let timeout = Duration::try_from_secs_f64(a.timeout).context("--timeout: give a number of seconds >= 0")?;
-    rt.block_on(async {
-        match a.protocol {
-            PtuProtocol::Flir => {
-                let cfg = FlirConfig {
-                    baud: a.baud.unwrap_or(9600),
-                    pan,
-                    tilt,
-                    ..FlirConfig::default()
-                };
-                let mut ptu = FlirPtu::open(&a.device, cfg)
-                    .await
-                    .with_context(|| format!("no PTU-D46 on {}", a.device.display()))?;
-                act(&mut ptu, &a.action, timeout).await
-            }
-            PtuProtocol::Powercube => {
-                let module =
-                    |n: u8, what: &str| ModuleId::new(n).with_context(|| format!("--{what}-module {n}: give 1 to 31"));
-                let cfg = PowerCubeConfig {
-                    pan_module: module(a.pan_module, "pan")?,
-                    tilt_module: module(a.tilt_module, "tilt")?,
-                    baud: a.baud.unwrap_or(38400),
-                    pan,
-                    tilt,
-                    ..PowerCubeConfig::default()
-                };
-                let mut ptu = PowerCubePtu::open(&a.device, cfg)
-                    .await
-                    .with_context(|| format!("no PowerCube unit on {}", a.device.display()))?;
-                act(&mut ptu, &a.action, timeout).await
-            }
+    for (what, id) in [("pan", a.pan_module), ("tilt", a.tilt_module)] {
+        if let Some(n) = id.filter(|n| !(1..=31).contains(n)) {
+            bail!("--{what}-module {n}: give 1 to 31");
         }
+    }
+    let settings = PtuSettings {
+        baud: a.baud,
+        pan,
+        tilt,
+        pan_module: a.pan_module,
+        tilt_module: a.tilt_module,
+    };
+    rt.block_on(async {
+        let mut ptu = a
+            .protocol
+            .open(&a.device, &settings)
+            .await
+            .with_context(|| format!("no {} unit on {}", a.protocol.model(), a.device.display()))?;
+        act(&mut ptu, &a.action, timeout).await
     })
 }
 

@@ -1,0 +1,170 @@
+//! What the daemon needs of a scanner, and the types a scanner hands it: the bottom of the
+//! daemon's modules, which the backends (simulator, hardware), the acquisition loop and the
+//! shared state all use and which uses none of them.
+//!
+//! A new way of getting sweeps (a replay of recorded sweeps, another rig) implements
+//! [`Backend`] and is handed to [`Daemon::serve`](super::Daemon::serve); nothing else in the
+//! daemon changes.
+
+use std::future::Future;
+use std::sync::Mutex;
+use std::time::{Instant, SystemTime};
+
+use serde_json::{Value, json};
+
+use crate::sweep::Sweep;
+
+/// A scanner the daemon drives: one sweep at a time, from the acquisition task.
+pub trait Backend: Send + 'static {
+    /// What `status` calls it: `"sim"`, `"hardware"`, ...
+    fn name(&self) -> &'static str;
+
+    /// Its devices as `status` shows them before the first sweep.
+    fn devices(&self) -> Vec<DeviceStatus>;
+
+    /// One sweep, from the configured start to the end (`forward`) or back. Device opens and
+    /// failures along the way are noted on `devices`. A failed sweep is dropped and counted by
+    /// the caller, which asks again; a backend that must wait before retrying (a device's
+    /// backoff) waits in here.
+    fn sweep(&mut self, forward: bool, devices: &Devices) -> impl Future<Output = Result<Swept, SweepFailure>> + Send;
+
+    /// Leaves the devices quiet; bounded in time (the daemon is stopping).
+    fn stop(&mut self) -> impl Future<Output = ()> + Send;
+}
+
+/// A sweep as a backend delivers it: the sweep, and when it happened on this host.
+pub struct Swept {
+    pub sweep: Sweep,
+    pub started: Instant,
+    /// When the last profile was exposed (hardware) or the sweep rendered (simulator): where
+    /// sweep-to-answer latency starts.
+    pub last_profile: Instant,
+}
+
+/// Why a sweep failed.
+#[derive(Debug)]
+pub struct SweepFailure {
+    pub message: String,
+}
+
+/// Health of one device (or of the simulator).
+#[derive(Debug, Clone)]
+pub struct DeviceStatus {
+    pub name: &'static str,
+    /// Device path, address or scene file.
+    pub path: String,
+    pub kind: String,
+    pub connected: bool,
+    pub last_error: Option<String>,
+    pub last_error_at: Option<SystemTime>,
+    /// Times the device was (re)opened.
+    pub opens: u64,
+    pub failures: u64,
+}
+
+impl DeviceStatus {
+    pub fn new(name: &'static str, path: String, kind: String) -> Self {
+        DeviceStatus {
+            name,
+            path,
+            kind,
+            connected: false,
+            last_error: None,
+            last_error_at: None,
+            opens: 0,
+            failures: 0,
+        }
+    }
+
+    /// As `status` shows it (docs/PROTOCOL.md).
+    pub fn json(&self) -> Value {
+        json!({
+            "name": self.name,
+            "path": self.path,
+            "kind": self.kind,
+            "state": if self.connected { "ok" } else if self.last_error.is_some() { "fault" } else { "closed" },
+            "last_error": self.last_error,
+            "last_error_time": self.last_error_at.and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok()).map(|d| d.as_secs_f64()),
+            "opens": self.opens,
+            "failures": self.failures,
+        })
+    }
+}
+
+/// The devices' health, written by the backend and read by `status`, error replies and systemd.
+#[derive(Debug, Default)]
+pub struct Devices(Mutex<Vec<DeviceStatus>>);
+
+impl Devices {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<DeviceStatus>> {
+        // Status texts and counters, consistent between statements: a panic elsewhere leaves
+        // nothing half-written.
+        self.0.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    pub fn set(&self, devices: Vec<DeviceStatus>) {
+        *self.lock() = devices;
+    }
+
+    pub fn snapshot(&self) -> Vec<DeviceStatus> {
+        self.lock().clone()
+    }
+
+    /// Changes the device called `name` (nothing if there is none).
+    pub fn update(&self, name: &str, f: impl FnOnce(&mut DeviceStatus)) {
+        if let Some(d) = self.lock().iter_mut().find(|d| d.name == name) {
+            f(d);
+        }
+    }
+
+    /// The device is up: it was (re)opened.
+    pub fn note_open(&self, name: &str) {
+        self.update(name, |d| {
+            d.connected = true;
+            d.opens += 1;
+        });
+    }
+
+    /// The device is down.
+    pub fn note_failure(&self, name: &str, message: &str) {
+        tracing::warn!("{name}: {message}");
+        self.update(name, |d| {
+            d.connected = false;
+            d.failures += 1;
+            d.last_error = Some(message.to_string());
+            d.last_error_at = Some(SystemTime::now());
+        });
+    }
+
+    /// The device is up but a sweep failed on it.
+    pub fn note_error(&self, name: &str, message: &str) {
+        tracing::warn!("{name}: {message}");
+        self.update(name, |d| {
+            d.failures += 1;
+            d.last_error = Some(message.to_string());
+            d.last_error_at = Some(SystemTime::now());
+        });
+    }
+
+    /// One line on what is wrong, for error replies ("" when all is well).
+    pub fn trouble(&self) -> String {
+        self.lock()
+            .iter()
+            .filter(|d| !d.connected)
+            .map(|d| match &d.last_error {
+                Some(e) => format!("{} {} is down: {e}", d.name, d.path),
+                None => format!("{} {} is not open yet", d.name, d.path),
+            })
+            .collect::<Vec<_>>()
+            .join("; ")
+    }
+
+    /// `ptu ok, sensor down`, for systemd's STATUS.
+    pub fn summary(&self) -> String {
+        self.lock()
+            .iter()
+            .map(|d| format!("{} {}", d.name, if d.connected { "ok" } else { "down" }))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
+}

@@ -1,0 +1,99 @@
+//! The simulator backend: the ray-cast model of the rig on a scene file, paced like the real rig
+//! unless told otherwise.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+
+use crate::sim::{self, Scene};
+
+use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
+use super::config::SweepConfig;
+
+/// The simulated scanner.
+pub struct SimBackend {
+    scene: Arc<Scene>,
+    seed: u64,
+    realtime: bool,
+    index: u64,
+}
+
+impl SimBackend {
+    /// Loads the scene; the `[sweep]` table, where given, moves the simulated rig as it would
+    /// the real one.
+    pub fn new(
+        scene_path: &Path,
+        models_dir: &Path,
+        seed: u64,
+        realtime: bool,
+        sweep: &SweepConfig,
+    ) -> Result<SimBackend> {
+        let mut scene = Scene::from_file(scene_path, models_dir)
+            .map_err(|e| anyhow::anyhow!(e.with_causes()))
+            .context("loading the simulated scene")?;
+        if let Some(p) = sweep.pan_rad {
+            scene.rig.pan = p;
+        }
+        if let Some(t) = sweep.tilt_from_rad {
+            scene.rig.tilt_start = t;
+        }
+        if let Some(t) = sweep.tilt_to_rad {
+            scene.rig.tilt_end = t;
+        }
+        if let Some(v) = sweep.speed_rad_s {
+            scene.rig.tilt_speed = v;
+        }
+        Ok(SimBackend {
+            scene: Arc::new(scene),
+            seed,
+            realtime,
+            index: 0,
+        })
+    }
+}
+
+impl Backend for SimBackend {
+    fn name(&self) -> &'static str {
+        "sim"
+    }
+
+    fn devices(&self) -> Vec<DeviceStatus> {
+        let mut d = DeviceStatus::new(
+            "simulator",
+            self.scene.source.display().to_string(),
+            "ray-cast scanner".into(),
+        );
+        d.connected = true;
+        d.opens = 1;
+        vec![d]
+    }
+
+    async fn sweep(&mut self, forward: bool, _devices: &Devices) -> Result<Swept, SweepFailure> {
+        let started = Instant::now();
+        let mut scene = (*self.scene).clone();
+        if !forward {
+            std::mem::swap(&mut scene.rig.tilt_start, &mut scene.rig.tilt_end);
+        }
+        let duration = Duration::from_secs_f64(scene.rig.sweep_duration());
+        let seed = sim::stream_seed(self.seed, self.index);
+        self.index += 1;
+        let sweep = tokio::task::spawn_blocking(move || sim::simulate(&scene, seed))
+            .await
+            .map_err(|e| SweepFailure {
+                message: format!("simulator failed: {e}"),
+            })?;
+        if self.realtime {
+            // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest.
+            tokio::time::sleep_until((started + duration).into()).await;
+        }
+        Ok(Swept {
+            sweep,
+            started,
+            last_profile: Instant::now(),
+        })
+    }
+
+    async fn stop(&mut self) {}
+}
