@@ -1,17 +1,23 @@
 //! sqscan: find known objects in laser range scans by fitting tapered superquadrics.
 //!
-//! The library behind the `sqscand` daemon and the `sqscan` tool. Modules by job:
+//! The library behind the `sqscand` daemon and the `sqscan` tool; `docs/ARCHITECTURE.md` draws
+//! the data flow. The public API, by job, down the data flow:
+//! - [`numeric`]: one Levenberg-Marquardt solver behind [`numeric::LeastSquares`], medians and
+//!   quantiles, robust weights, seeded streams.
 //! - [`geometry`]: the tapered superellipsoid (inside-outside function, distances, pose
-//!   Jacobian, surface sampling, ray queries).
-//! - [`model`]: object models (one to three superquadric parts) loaded from `models/*.toml`.
-//! - [`cloud`]: point clouds, organized range images, PLY/PCD/text IO.
-//! - [`calibration`]: from a sensor column and raw row to a point in the base frame.
-//! - [`mock`]: the mock scanning rig (mock PTU + mock sensor seeing a simulated scene).
-//! - [`sweep`]: assembling PTU position samples and laser profiles into one organized sweep,
-//!   and acquiring a sweep with the devices.
-//! - [`sim`]: scene files and the ray-cast model of the laser triangulation scanner.
-//! - [`detect`]: the superquadric detector; [`eval`] scores it against the simulator's truth.
-//! - [`daemon`]: `sqscand`: configuration, acquisition, the socket server, systemd notification.
+//!   Jacobian, surface sampling, ray queries); [`pose`] and [`spec`]: poses in files and on the
+//!   wire, file errors that name file, field and fault.
+//! - [`cloud`]: point clouds, PLY/PCD/text IO, the voxel grid and plane removal; [`model`]:
+//!   object models (one to three superquadric parts) and their files.
+//! - [`calibration`]: from a sensor column and raw row to a point in the base frame;
+//!   [`sweep`]: the one [`sweep::Sweep`] type, assembled from profiles and PTU samples, and
+//!   acquired with any PTU and [`sqscan_drivers::sensor::ProfileSource`].
+//! - [`sim`]: scene files and the ray-cast scanner, which delivers the same `Sweep`; [`mock`]:
+//!   the mock rig on pseudo-terminals.
+//! - [`detect`]: the superquadric detector; [`eval`] scores it against the simulator's truth;
+//!   [`learn`]: a model from a scan.
+//! - [`daemon`]: `sqscand`, handed a [`daemon::Backend`] and its [`daemon::Listeners`].
+//! - [`logging`], [`atomic`]: what both binaries share.
 //!
 //! Conventions: SI units (metres, radians, seconds); frames follow ROS REP-103 (x forward,
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
@@ -33,4 +39,4 @@ pub mod pose;
 pub mod sim;
 pub mod spec;
 pub mod sweep;
-pub mod symmetry;
+mod symmetry;

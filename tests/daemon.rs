@@ -560,8 +560,8 @@ impl sqscan::daemon::Backend for FlatPatch {
         "test"
     }
 
-    fn devices(&self) -> Vec<sqscan::daemon::backend::DeviceStatus> {
-        let mut d = sqscan::daemon::backend::DeviceStatus::new("patch", "memory".into(), "flat patch".into());
+    fn devices(&self) -> Vec<sqscan::daemon::DeviceStatus> {
+        let mut d = sqscan::daemon::DeviceStatus::new("patch", "memory".into(), "flat patch".into());
         d.connected = true;
         vec![d]
     }
@@ -569,8 +569,8 @@ impl sqscan::daemon::Backend for FlatPatch {
     async fn sweep(
         &mut self,
         _forward: bool,
-        _devices: &sqscan::daemon::backend::Devices,
-    ) -> Result<sqscan::daemon::backend::Swept, sqscan::daemon::backend::SweepFailure> {
+        _devices: &sqscan::daemon::Devices,
+    ) -> Result<sqscan::daemon::Swept, sqscan::daemon::SweepFailure> {
         tokio::time::sleep(Duration::from_millis(20)).await;
         self.sweeps += 1;
         let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
@@ -597,7 +597,7 @@ impl sqscan::daemon::Backend for FlatPatch {
             },
         };
         let started = Instant::now();
-        Ok(sqscan::daemon::backend::Swept {
+        Ok(sqscan::daemon::Swept {
             sweep,
             started,
             last_profile: started,

@@ -17,16 +17,16 @@
 //! bottom; `simulator` and `hardware` implement it; `state` holds what the tasks share;
 //! `acquire` and `server` run on it.
 
-pub mod acquire;
-pub mod backend;
+mod acquire;
+mod backend;
 pub mod config;
-pub mod hardware;
+mod hardware;
 pub mod notify;
-pub mod protocol;
-pub mod record;
-pub mod server;
-pub mod simulator;
-pub mod state;
+mod protocol;
+mod record;
+mod server;
+mod simulator;
+mod state;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -37,7 +37,7 @@ use anyhow::{Result, bail};
 
 use crate::model::{self, Model};
 
-pub use backend::Backend;
+pub use backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
 use config::{BackendConfig, Config};
 use hardware::HardwareBackend;
 pub use server::Listeners;

@@ -7,6 +7,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
+use crate::numeric::stream_seed;
 use crate::sim::{self, Scene};
 
 use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
@@ -77,7 +78,7 @@ impl Backend for SimBackend {
             std::mem::swap(&mut scene.rig.tilt_start, &mut scene.rig.tilt_end);
         }
         let duration = Duration::from_secs_f64(scene.rig.sweep_duration());
-        let seed = sim::stream_seed(self.seed, self.index);
+        let seed = stream_seed(self.seed, self.index);
         self.index += 1;
         let sweep = tokio::task::spawn_blocking(move || sim::simulate(&scene, seed))
             .await

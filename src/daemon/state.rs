@@ -17,6 +17,7 @@ use tokio::sync::{Notify, OnceCell, Semaphore, watch};
 
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
+use crate::numeric::median;
 use crate::sweep::Sweep;
 
 use super::backend::{DeviceStatus, Devices, Swept};
@@ -187,13 +188,9 @@ fn push_recent(q: &mut VecDeque<f64>, x: f64) {
     q.push_back(x);
 }
 
-fn median(q: &VecDeque<f64>) -> Option<f64> {
-    if q.is_empty() {
-        return None;
-    }
-    let mut v: Vec<f64> = q.iter().copied().collect();
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
+/// The median of a window of recent values.
+fn median_of(q: &VecDeque<f64>) -> Option<f64> {
+    median(&mut q.iter().copied().collect::<Vec<f64>>())
 }
 
 impl Stats {
@@ -280,7 +277,7 @@ impl Shared {
         let s = &self.stats;
         let det = lock(&s.detections);
         let periods = lock(&s.sweep_periods);
-        let sweep_rate = median(&periods).filter(|p| *p > 0.0).map(|p| round3(60.0 / p));
+        let sweep_rate = median_of(&periods).filter(|p| *p > 0.0).map(|p| round3(60.0 / p));
         json!({
             "class": "status",
             "release": env!("CARGO_PKG_VERSION"),
@@ -296,8 +293,8 @@ impl Shared {
             },
             "detections": {
                 "count": det.count,
-                "median_run_ms": median(&det.run).map(|x| round3(x * 1e3)),
-                "median_latency_ms": median(&det.latency).map(|x| round3(x * 1e3)),
+                "median_run_ms": median_of(&det.run).map(|x| round3(x * 1e3)),
+                "median_latency_ms": median_of(&det.latency).map(|x| round3(x * 1e3)),
             },
             "clients": {
                 "connected": s.clients.load(Ordering::Relaxed),

@@ -3,10 +3,10 @@
 //! the rest is subsampled and put into grids for the search and the checks.
 
 use super::Params;
-use crate::cloud::grid::{Grid, voxel_subsample};
-use crate::cloud::plane::{Plane, remove_dominant_plane};
 use super::search::{PlaneCheck, SearchSettings, SearchSpace};
 use super::verify::{SurfaceSamples, median_spacing};
+use crate::cloud::grid::{Grid, voxel_subsample};
+use crate::cloud::plane::{Plane, remove_dominant_plane};
 use crate::model::Model;
 use nalgebra::Point3;
 use std::fmt;

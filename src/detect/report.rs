@@ -2,8 +2,8 @@
 //! the time each stage took. The `Display` impls are the one-line summaries the stages log at
 //! `SQSCAN_LOG=debug`.
 
-use crate::cloud::plane::Plane;
 use super::verify::Scores;
+use crate::cloud::plane::Plane;
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Isometry3, Vector3};
 use std::fmt;

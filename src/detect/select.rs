@@ -1,8 +1,8 @@
 //! The selection stage: what the detector reports from its ranked, judged candidates, and in
 //! which of the object's equivalent poses.
 
-use crate::cloud::plane::Plane;
 use super::report::Detection;
+use crate::cloud::plane::Plane;
 use crate::model::Model;
 use crate::symmetry::Symmetry;
 use nalgebra::Vector3;

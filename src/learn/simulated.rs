@@ -186,3 +186,55 @@ pub fn learn_simulated(
         seconds,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::FieldData;
+    use crate::sim::simulate;
+    use std::path::PathBuf;
+
+    fn models_dir() -> PathBuf {
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("models")
+    }
+
+    /// An open container is seen into: the laser goes in through the opening and the camera sees the
+    /// inner far wall through it, as a real scanner does. The far wall of a closed one
+    /// stays hidden.
+    #[test]
+    fn the_inside_of_an_open_mug_is_seen_through_its_opening() {
+        // The learner's single-object scene (the fig3 rig, 2 mm noise).
+        let scene_with = |model: &str| {
+            let text = scene_toml(&models_dir().join(format!("{model}.toml")), [0.85, 0.05], [0.0; 3]);
+            Scene::from_toml_str(&text, Path::new("test.toml"), &models_dir()).unwrap()
+        };
+        // Object points behind the vertical axis as seen from the sensor, off the bottom and the rim.
+        let far_wall = |scene: &Scene| {
+            let sweep = simulate(scene, 1);
+            let part = scene.objects[0].model.placed_parts(&scene.objects[0].pose)[0];
+            let c = part.pose.translation.vector;
+            let v = sweep.cloud.viewpoint_position().unwrap().coords;
+            let away = Vector3::new(c.x - v.x, c.y - v.y, 0.0).normalize();
+            let labels = match &sweep.cloud.fields[1].data {
+                FieldData::U32(l) => l.clone(),
+                _ => unreachable!(),
+            };
+            let mut far = 0;
+            for (p, l) in sweep.cloud.points.iter().zip(&labels) {
+                if !p[0].is_finite() || *l < 20 {
+                    continue;
+                }
+                let p = Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                let d = p - c;
+                if d.dot(&away) > 0.01 && d.z.abs() < 0.8 * part.shape.a[2] {
+                    far += 1;
+                }
+            }
+            far
+        };
+        let far = far_wall(&scene_with("mug"));
+        assert!(far > 100, "open mug: {far} far-wall points");
+        let far = far_wall(&scene_with("cup_body"));
+        assert!(far == 0, "closed cup: {far} far-wall points");
+    }
+}

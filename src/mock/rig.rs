@@ -31,6 +31,7 @@ use sqscan_drivers::{AxisConfig, PtuKind};
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
+use crate::numeric::stream_seed;
 use crate::sim::{self, Scene};
 
 /// How the rig runs.
@@ -40,7 +41,7 @@ pub struct RigConfig {
     pub ptu_kind: PtuKind,
     /// Profiles a second while acquiring.
     pub rate_hz: f64,
-    /// Seed of the sensor noise: profile `i` uses `sim::stream_seed(seed, i)`.
+    /// Seed of the sensor noise: profile `i` uses `stream_seed(seed, i)`.
     pub seed: u64,
     pub ptu_faults: Faults,
     pub sensor_faults: Faults,
@@ -169,7 +170,7 @@ fn scene_source(
         let pose = scene
             .rig
             .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
-        let mut rng = ChaCha8Rng::seed_from_u64(sim::stream_seed(seed, index));
+        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, index));
         index += 1;
         let raw = sim::render_profile(&scene, &pose, &mut rng);
         Profile {

@@ -18,6 +18,7 @@ pub use sensor::*;
 
 use crate::cloud::{Field, FieldData, PointCloud};
 use crate::geometry::PlacedSuperquadric;
+use crate::numeric::stream_seed;
 use crate::sweep::{Sweep, SweepReport};
 use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -46,15 +47,6 @@ pub struct RawProfile {
     pub intensity: Vec<u8>,
     /// What each column hit (the simulator's ground truth, not part of a real sensor's output).
     pub labels: Vec<u32>,
-}
-
-/// Mix a seed and an index into an independent stream seed (SplitMix64 finaliser), so profiles
-/// can be rendered in any order, in parallel, with the same result.
-pub fn stream_seed(seed: u64, index: u64) -> u64 {
-    let mut z = seed ^ index.wrapping_add(1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
 }
 
 struct Caster<'a> {
