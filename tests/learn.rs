@@ -7,6 +7,8 @@ use sqscan::learn::simulated::learn_simulated;
 use sqscan::model::Model;
 use std::path::PathBuf;
 
+mod common;
+
 fn model(name: &str) -> Model {
     Model::load(name, &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
 }
@@ -120,8 +122,7 @@ fn learned_mug_lands_on_a_mug_in_test34() {
     use nalgebra::{Point3, Vector3};
     use sqscan::cloud::{FieldData, read_cloud};
     use sqscan::detect::{Params, detect};
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    let cloud = read_cloud(&dir.join("test34.pcd")).unwrap();
+    let cloud = read_cloud(&common::real_data("test34.pcd")).unwrap();
     let labels = match cloud.field("label").map(|f| &f.data) {
         Some(FieldData::U32(l)) => l.clone(),
         _ => panic!("no label field"),
@@ -266,8 +267,7 @@ fn three_parts_from_a_pot_with_two_handles() {
 fn a_real_segmented_can_is_learned_as_a_can() {
     use nalgebra::{Point3, Vector3};
     use sqscan::learn::{learn, support_below};
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    let cloud = sqscan::cloud::read_cloud(&dir.join("cylinder")).unwrap();
+    let cloud = sqscan::cloud::read_cloud(&common::real_data("cylinder")).unwrap();
     let points: Vec<Point3<f64>> = cloud.finite_points();
     let up = Vector3::z();
     let params = LearnParams {
