@@ -50,31 +50,18 @@ macro_rules! cases {
     };
 }
 
-// Within 5 mm and 0.1 from one sweep (BENCHMARKS.md, "Learning models", has every model's
-// numbers, seeds 1-3).
-cases!(
-    ball,
-    book,
-    bowl,
-    cup_body,
-    large_wooden_bowl,
-    mallet_head,
-    mallet_shaft,
-    mouse,
-    mug,
-    pen,
-    spray_tin,
-    white_bowl,
-    wooden_bowl
-);
+// Within 5 mm and 0.1 from one sweep. All 13 shipped single-part models meet this
+// (`benches/learn_table.sh 1`; BENCHMARKS.md, "Learning models", has every model's numbers,
+// seeds 1-3); the tests keep the hardest of each kind, so that the suite stays short: the two
+// rods lying on their side (the largest errors), the tapered bowl (stands on its narrow end:
+// the flipped-taper starts), the open mug and the open, tapered white bowl (seen through their
+// openings), the mouse (a general shape, not of revolution, with tapers of the other sign) and
+// the ball (e1 = e2 = 1: any axis is its z). The box is `a_carton_seen_at_its_corner_is_a_box`.
+cases!(ball, bowl, mallet_shaft, mouse, mug, pen, white_bowl);
 
-// The two rods from the per-pixel median of 32 sweeps of the one view (`sqscan learn --cloud`
-// with several files): the noise drops to about 0.4 mm, and the ends come out right.
-#[test]
-fn mallet_shaft_from_32_sweeps() {
-    check("mallet_shaft", 32);
-}
-
+// The pen, the rod with the largest error from one sweep, from the per-pixel median of 32 sweeps
+// of the one view (`sqscan learn --cloud` with several files): the noise drops to about 0.4 mm,
+// and the ends come out right. The mallet shaft does the same (BENCHMARKS.md).
 #[test]
 fn pen_from_32_sweeps() {
     check("pen", 32);
