@@ -7,6 +7,8 @@ use sqscan::learn::simulated::learn_simulated;
 use sqscan::model::Model;
 use std::path::PathBuf;
 
+mod common;
+
 fn model(name: &str) -> Model {
     Model::load(name, &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
 }
@@ -48,31 +50,18 @@ macro_rules! cases {
     };
 }
 
-// Within 5 mm and 0.1 from one sweep (BENCHMARKS.md, "Learning models", has every model's
-// numbers, seeds 1-3).
-cases!(
-    ball,
-    book,
-    bowl,
-    cup_body,
-    large_wooden_bowl,
-    mallet_head,
-    mallet_shaft,
-    mouse,
-    mug,
-    pen,
-    spray_tin,
-    white_bowl,
-    wooden_bowl
-);
+// Within 5 mm and 0.1 from one sweep. All 13 shipped single-part models meet this
+// (`benches/learn_table.sh 1`; BENCHMARKS.md, "Learning models", has every model's numbers,
+// seeds 1-3); the tests keep the hardest of each kind, so that the suite stays short: the two
+// rods lying on their side (the largest errors), the tapered bowl (stands on its narrow end:
+// the flipped-taper starts), the open mug and the open, tapered white bowl (seen through their
+// openings), the mouse (a general shape, not of revolution, with tapers of the other sign) and
+// the ball (e1 = e2 = 1: any axis is its z). The box is `a_carton_seen_at_its_corner_is_a_box`.
+cases!(ball, bowl, mallet_shaft, mouse, mug, pen, white_bowl);
 
-// The two rods from the per-pixel median of 32 sweeps of the one view (`sqscan learn --cloud`
-// with several files): the noise drops to about 0.4 mm, and the ends come out right.
-#[test]
-fn mallet_shaft_from_32_sweeps() {
-    check("mallet_shaft", 32);
-}
-
+// The pen, the rod with the largest error from one sweep, from the per-pixel median of 32 sweeps
+// of the one view (`sqscan learn --cloud` with several files): the noise drops to about 0.4 mm,
+// and the ends come out right. The mallet shaft does the same (BENCHMARKS.md).
 #[test]
 fn pen_from_32_sweeps() {
     check("pen", 32);
@@ -120,8 +109,7 @@ fn learned_mug_lands_on_a_mug_in_test34() {
     use nalgebra::{Point3, Vector3};
     use sqscan::cloud::{FieldData, read_cloud};
     use sqscan::detect::{Params, detect};
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    let cloud = read_cloud(&dir.join("test34.pcd")).unwrap();
+    let cloud = read_cloud(&common::real_data("test34.pcd")).unwrap();
     let labels = match cloud.field("label").map(|f| &f.data) {
         Some(FieldData::U32(l)) => l.clone(),
         _ => panic!("no label field"),
@@ -266,8 +254,7 @@ fn three_parts_from_a_pot_with_two_handles() {
 fn a_real_segmented_can_is_learned_as_a_can() {
     use nalgebra::{Point3, Vector3};
     use sqscan::learn::{learn, support_below};
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    let cloud = sqscan::cloud::read_cloud(&dir.join("cylinder")).unwrap();
+    let cloud = sqscan::cloud::read_cloud(&common::real_data("cylinder")).unwrap();
     let points: Vec<Point3<f64>> = cloud.finite_points();
     let up = Vector3::z();
     let params = LearnParams {

@@ -1,4 +1,4 @@
-//! The detector on real scans nobody here made (`../shared/data/real`, see its SOURCES.md): the
+//! The detector on real scans nobody here made (`tests/data/real`, see its SOURCES.md): the
 //! mOSD table scenes carry per-point labels for each mug and bowl. The detector, with the shipped
 //! mug and bowl models (sized from these scans), must land on a labelled mug or bowl: its centre
 //! within 4 cm of the centre of that object's labelled points. These are camera-frame clouds from
@@ -10,15 +10,8 @@ use sqscan::detect::{Params, detect};
 use sqscan::model::Model;
 use std::path::PathBuf;
 
-fn data(name: &str) -> PathBuf {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/real");
-    assert!(
-        dir.is_dir(),
-        "{} is missing: the real-data tests need ../shared/data/real beside the repository",
-        dir.display()
-    );
-    dir.join(name)
-}
+mod common;
+use common::real_data as data;
 
 /// Centroids of the labelled objects `label / 10` in `objects`.
 fn centroids(cloud: &PointCloud, objects: &[u32]) -> Vec<(u32, Point3<f64>)> {
