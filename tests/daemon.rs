@@ -1,6 +1,9 @@
 //! End to end: the `sqscand` binary as a separate process, asked over its Unix socket as a
 //! client on the robot would, on the embedded simulator and on mock devices on ptys (the mock rig
 //! as a separate `sqscan mock rig` process, so the daemon opens them exactly like hardware).
+//!
+//! Over 600 lines on purpose: every test here shares the daemon process harness at the top
+//! (spawn, socket, JSON-lines client, readiness), which is the point of one file.
 
 use std::io::{BufRead, BufReader, Write};
 use std::os::unix::net::{UnixDatagram, UnixStream};

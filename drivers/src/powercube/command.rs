@@ -1,5 +1,8 @@
 //! Typed PowerCube commands, parameters and replies (the data bytes of a telegram).
 //!
+//! Over 600 lines on purpose: one command table (the datasheet's, above) with its encoders,
+//! reply parsers and byte-literal tests; split by command, the table would no longer read as one.
+//!
 //! ```text
 //!  command      D0    request data                       reply data
 //!  RESET        0x00  [00]                               [00]            (echo)

@@ -1,5 +1,9 @@
 //! PowerCube RS-232 telegram framing: escaping, TelID, checksum, and an incremental decoder.
 //!
+//! Over 600 lines on purpose: the datasheet's telegram layout, the encoder, the incremental
+//! decoder and their byte-literal tests belong together; split, the layout table would be read in
+//! one file and checked in another.
+//!
 //! ```text
 //! on the wire:   STX | escaped( TelID0 TelID1 D0 .. Dn-1 BCC ) | ETX
 //!
