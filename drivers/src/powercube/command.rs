@@ -1,6 +1,6 @@
 //! Typed PowerCube commands, parameters and replies (the data bytes of a telegram).
 //!
-//! Over 600 lines on purpose: one command table (the datasheet's, above) with its encoders,
+//! Over 600 lines on purpose: one command table (the datasheet's, below) with its encoders,
 //! reply parsers and byte-literal tests; split by command, the table would no longer read as one.
 //!
 //! ```text
