@@ -1,16 +1,18 @@
 //! Learning a model by showing the object: full superquadric recovery from a single-view scan.
 //! See `docs/LEARN.md` for the method and its choices.
 //!
-//! 1. [`segment`]: remove the supporting plane and keep the largest connected cluster standing on
-//!    it (a voxel flood fill).
-//! 2. [`fit_superquadric`]: Levenberg-Marquardt over all 13 parameters (a1 a2 a3, e1 e2, kx ky, 3
-//!    rotation, 3 translation) from several starts (the plane normal and the three moment axes as
-//!    the z axis, three shape-exponent pairs), with Huber weights re-estimated from the residuals
-//!    (iteratively reweighted), the support plane as a residual (the bottom must touch the plane)
-//!    and the visible points mirrored through the vertical axis of the current centre (the
-//!    180-degree turn about the up direction is a symmetry of any superquadric that rests on a
-//!    table with one of its axes vertical).
-//! 3. [`model_toml`]: the result as a model file that `sqscan detect` takes as it is.
+//! 1. [`segment`] (`segment.rs`): remove the supporting plane and keep the largest connected
+//!    cluster standing on it (a voxel flood fill).
+//! 2. The fit (`stages.rs`): robust Levenberg-Marquardt (`robust.rs`) over the 13 parameters of
+//!    `state.rs` (a1 a2 a3, e1 e2, kx ky, 3 rotation, 3 translation) from several starts, on the
+//!    residuals of `residual.rs`: the visible points (in the later stages along their sensor
+//!    rays), the free space and the surface that must have been seen (`seen.rs`), the support
+//!    plane, and the visible points' twins turned 180 degrees about the vertical axis (a symmetry
+//!    of any superquadric that rests on a table with one of its axes vertical). `family.rs`
+//!    chooses between a general shape and a body of revolution.
+//! 3. [`learn_parts`] (`compound.rs`): two or three parts, each fitted to what the others leave.
+//! 4. [`model_toml`] (`model_file.rs`): the result as a model file that `sqscan detect` takes as
+//!    it is.
 
 mod compound;
 mod family;
