@@ -4,6 +4,7 @@
 mod client;
 mod detect;
 mod eval;
+mod eval_real;
 mod files;
 mod learn;
 mod mock;
@@ -39,6 +40,8 @@ enum Command {
     Learn(learn::LearnArgs),
     /// Measure detection rate, false "found" rate, time and pose error on simulated sweeps
     Eval(eval::EvalArgs),
+    /// Measure the detector on real scans labelled by object class: recall, false answers, time
+    EvalReal(eval_real::EvalRealArgs),
     /// Run mock devices on pseudo-terminals (use their paths like hardware)
     Mock(mock::MockArgs),
     /// Bring-up tool for a pan-tilt unit: status, home, move, sweep
@@ -75,6 +78,7 @@ fn main() -> ExitCode {
         Command::Info(a) => files::info(a),
         Command::Detect(a) => detect::detect(a, &models_dir),
         Command::Eval(a) => eval::eval(a, &models_dir),
+        Command::EvalReal(a) => eval_real::run(a, &models_dir),
         Command::Learn(a) => learn::run(a, &models_dir),
         Command::Mock(a) => mock::run(a, &models_dir),
         Command::Ptu(a) => ptu::run(a),

@@ -1,6 +1,8 @@
 //! Evaluation against the simulator's ground truth: re-simulate a scene with new sensor noise,
 //! detect with a new search seed, and score the pose modulo the object's symmetries.
 
+pub mod real;
+
 use crate::detect::{self, Params, Report};
 use crate::model::Model;
 use crate::numeric::quantile;
