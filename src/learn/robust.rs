@@ -3,8 +3,7 @@
 
 use super::residual::Problem;
 use super::state::{Mat, NP, STEPS, State, Vect, sk_param};
-use crate::numeric::lm::Budget;
-use crate::numeric::{Damping, LeastSquares, LmSettings, huber_weight, median, minimize};
+use crate::numeric::{Budget, Damping, LeastSquares, LmSettings, huber_weight, median, minimize};
 use rayon::prelude::*;
 
 /// Weighted LM with a forward-difference Jacobian, bounds by projection.

@@ -5,7 +5,7 @@
 pub mod lm;
 pub mod stats;
 
-pub use lm::{Damping, LeastSquares, LmSettings, Minimum, minimize};
+pub use lm::{Budget, Damping, LeastSquares, LmSettings, Minimum, minimize};
 pub use stats::{huber, huber_weight, median, quantile};
 
 /// Mix a seed and an index into an independent stream seed (SplitMix64 finaliser), so profiles,

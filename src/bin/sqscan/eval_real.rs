@@ -108,7 +108,7 @@ fn summarise(rows: &[Row], class: &str, times: &[f64]) -> Value {
     let mut by_visibility: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     let mut misses = Vec::new();
     let mut false_answers = Vec::new();
-    let mut false_per_scene = Vec::new();
+    let mut scenes_with_false = 0;
     for (s, answers, score) in rows {
         for &(i, found) in &score.targets {
             let o = &s.objects[i];
@@ -128,7 +128,7 @@ fn summarise(rows: &[Row], class: &str, times: &[f64]) -> Value {
                 );
             }
         }
-        false_per_scene.push(score.false_answers.len());
+        scenes_with_false += usize::from(!score.false_answers.is_empty());
         for (k, f) in &score.false_answers {
             let p = answers[*k].position;
             false_answers.push(json!({"scene": s.scene, "why": reason(f, &s.objects),
@@ -147,7 +147,7 @@ fn summarise(rows: &[Row], class: &str, times: &[f64]) -> Value {
             "by_visibility": by_visibility.into_iter().map(|(k, v)| (k, rate(v))).collect::<serde_json::Map<_, _>>(),
         },
         "false_answers": false_answers.len(),
-        "scenes_with_false_answers": false_per_scene.iter().filter(|n| **n > 0).count(),
+        "scenes_with_false_answers": scenes_with_false,
         "time_ms": {"median": median, "p95": p95},
         "misses": misses,
         "false": false_answers,
