@@ -29,6 +29,20 @@ pub fn same_shape(a: &Superquadric, b: &Superquadric) -> bool {
 /// Whether `g` (a rotation of the object frame about its origin) leaves the model unchanged,
 /// checked on surface samples: each moved sample must lie on some part's surface.
 fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
+    // An open part's opening is not a surface, so turning it to face the other way changes the
+    // object even where the shape is the same (a mug's cylinder upside down is a mug on its rim).
+    let opening_kept = model.parts.iter().filter(|p| p.open).all(|p| {
+        let axis = p.pose_in_object.rotation * Vector3::z();
+        let moved_axis = g * axis;
+        model
+            .parts
+            .iter()
+            .filter(|q| q.open && same_shape(&q.shape, &p.shape))
+            .any(|q| (q.pose_in_object.rotation * Vector3::z()).dot(&moved_axis) > 1.0 - 1e-6)
+    });
+    if !opening_kept {
+        return false;
+    }
     let moved = Isometry3::from_parts(Default::default(), *g);
     let parts = model.placed_parts(&Isometry3::identity());
     let parts_moved = model.placed_parts(&moved);

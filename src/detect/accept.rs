@@ -69,6 +69,7 @@ pub fn assess(
         pose,
         parts,
         connection_errors,
+        upright: None,
     }
 }
 

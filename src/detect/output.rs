@@ -38,6 +38,9 @@ pub fn detection_json(d: &Detection) -> Value {
         "pose": pose(&d.pose),
         "parts": parts,
     });
+    if let Some(up) = d.upright {
+        v["upright"] = json!(up);
+    }
     if !d.connection_errors.is_empty() {
         v["connections"] = d
             .connection_errors

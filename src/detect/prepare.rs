@@ -163,7 +163,7 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
     let checks = model
         .parts
         .iter()
-        .map(|p| PlaneCheck::new(&p.shape, scene.noise))
+        .map(|p| PlaneCheck::new(&p.shape, scene.noise, p.open))
         .collect();
     let all_grid = Grid::new(&scene.points, 0.01);
     Prepared {

@@ -28,6 +28,9 @@ pub struct Detection {
     pub parts: Vec<PartResult>,
     /// For compounds: angle (rad) and distance (m) errors of each connection.
     pub connection_errors: Vec<(f64, f64)>,
+    /// For a model with an open part, on a support plane: whether its opening faces up (false:
+    /// it stands on its rim).
+    pub upright: Option<bool>,
 }
 
 /// Milliseconds spent in each stage.
@@ -157,6 +160,7 @@ mod tests {
                 },
             ],
             connection_errors: vec![(2.6f64.to_radians(), 0.004)],
+            upright: None,
         };
         assert_eq!(
             d.to_string(),

@@ -63,7 +63,16 @@ pub struct SearchSpace<'a> {
 pub struct PlaneCheck {
     samples: Vec<Vector3<f64>>,
     tolerance: f64,
+    /// The part is an open container: it rests on its base or on its rim.
+    open: bool,
 }
+
+/// How far (rad) an open container's axis may lean from the support plane's normal. A mug or a
+/// bowl at rest stands on its base or on its rim; one lying on its side would show its opening
+/// to the side, and a container model laid on its side fits the faces of boxes and lying cans
+/// (mOSD learn6, learn30). The tolerance takes the plane's and the fit's errors and a container
+/// standing on something uneven.
+pub const MAX_REST_TILT: f64 = 0.35;
 
 /// How far, beyond the noise, a real object's surface may lie from the superquadric that models
 /// it: a tenth of the smallest size. The model approximates the object (a bowl's curved wall by
@@ -73,7 +82,7 @@ pub fn approximation_tolerance(shape: &Superquadric) -> f64 {
 }
 
 impl PlaneCheck {
-    pub fn new(shape: &Superquadric, noise: f64) -> PlaneCheck {
+    pub fn new(shape: &Superquadric, noise: f64, open: bool) -> PlaneCheck {
         // The model approximates the object: allow the approximation tolerance of overlap beyond
         // the noise before calling a pose impossible.
         // Samples half the smallest size apart find the lowest point to well within the
@@ -81,7 +90,13 @@ impl PlaneCheck {
         PlaneCheck {
             samples: shape.sample_surface(shape.min_size() / 2.0),
             tolerance: 3.0 * noise + approximation_tolerance(shape),
+            open,
         }
+    }
+
+    /// The axis an open container's z must lie along (either way): the plane's normal.
+    pub fn rest_axis(&self, space: &SearchSpace<'_>) -> Option<Vector3<f64>> {
+        if self.open { space.plane.map(|p| p.normal) } else { None }
     }
 
     /// How far (m) the placed shape reaches through the plane (negative: it stays above).
@@ -95,12 +110,13 @@ impl PlaneCheck {
         -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + lowest)
     }
 
-    /// Whether the pose is possible for an object resting on or above the plane.
+    /// Whether the pose is possible for an object resting on or above the plane: it does not
+    /// reach through it, and an open container stands on its base or its rim.
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
-        space
-            .plane
-            .as_ref()
-            .is_none_or(|p| self.penetration(placed, p) <= self.tolerance)
+        space.plane.as_ref().is_none_or(|p| {
+            let z = placed.pose.rotation * Vector3::z();
+            self.penetration(placed, p) <= self.tolerance && (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
+        })
     }
 }
 
@@ -123,14 +139,37 @@ pub struct Hypothesis {
 /// Initial poses for a patch: z along each central-moment axis (both signs when the taper makes
 /// the sign observable, both spins of the x axis when the cross-section is not round), the
 /// centre one half-size behind the patch along its normal (on both sides when no viewpoint says
-/// which side faces the sensor).
+/// which side faces the sensor). With a `rest_axis` (an open container on a plane), z lies along
+/// it, both ways.
 pub fn initial_poses(
     shape: &Superquadric,
     sample: &[Point3<f64>],
     viewpoint: Option<Point3<f64>>,
+    rest_axis: Option<Vector3<f64>>,
 ) -> Vec<Isometry3<f64>> {
     // Axes sorted by variance: e[0] the smallest (the patch normal).
     let (c, e) = crate::geometry::principal_axes(sample);
+    let axes: Vec<(Vector3<f64>, Vector3<f64>)> = match rest_axis {
+        // x along the patch's longest direction across the axis (any will do for a round part).
+        Some(n) => [n, -n]
+            .into_iter()
+            .map(|z| {
+                let x0 = if (e[2] - z * z.dot(&e[2])).norm() > 0.3 { e[2] } else { e[1] };
+                (z, x0)
+            })
+            .collect(),
+        None => {
+            let round = shape.is_revolution();
+            let mut v = Vec::with_capacity(6);
+            for k in 0..3 {
+                let spins: &[usize] = if round { &[1] } else { &[1, 2] };
+                for &s in spins {
+                    v.push((e[k], e[(k + s) % 3]));
+                }
+            }
+            v
+        }
+    };
     let normal = e[0];
     let outward: Vec<Vector3<f64>> = match viewpoint {
         Some(v) => {
@@ -139,18 +178,14 @@ pub fn initial_poses(
         }
         None => vec![normal, -normal],
     };
-    let round = shape.is_revolution();
     let mut out = Vec::with_capacity(24);
-    for k in 0..3 {
-        let z = e[k];
-        let spins: &[usize] = if round { &[1] } else { &[1, 2] };
-        for &s in spins {
-            let x0 = e[(k + s) % 3];
+    for (z, x0) in axes {
+        {
             let x = (x0 - z * z.dot(&x0)).normalize();
             let y = z.cross(&x);
             let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
             let mut rots = vec![r];
-            if shape.is_tapered() {
+            if shape.is_tapered() && rest_axis.is_none() {
                 // Half a turn about x flips z (and y), keeping the frame right-handed.
                 rots.push(r * Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
             }
@@ -337,7 +372,7 @@ pub fn ransac(
         }
         sample.clear();
         sample.extend(near[..k].iter().map(|&i| space.sub[i]));
-        let starts = initial_poses(shape, &sample, space.viewpoint);
+        let starts = initial_poses(shape, &sample, space.viewpoint, check.rest_axis(space));
         if let Some(f) = fit_from_starts(shape, &starts, &sample, settings.fit_iterations) {
             if !check.allows(space, &f.placed) {
                 continue;
@@ -392,29 +427,49 @@ pub fn search_part(
         .par_iter()
         .filter_map(|f| {
             let mut h = refine(space, f, settings.fit_iterations);
-            if open && !open_side_up(&mut h.placed, space.plane.as_ref()) {
-                return None;
+            if open {
+                orient_opening(space, &mut h.placed);
             }
             check.allows(space, &h.placed).then_some(h)
         })
         .collect()
 }
 
-/// An open container stands on its base: its opening (+z) must face away from the support
-/// plane. An untapered part fits the same either way up, so it is turned over; a tapered one
-/// the wrong way up is no container standing on the table. (A container upside down looks like
-/// a closed one, a mug like a canister, and is not reported as the container.)
-fn open_side_up(placed: &mut PlacedSuperquadric, plane: Option<&Plane>) -> bool {
-    let Some(plane) = plane else { return true };
+/// Turn an untapered open container the way up that what the sensor saw at its top end says. A
+/// tapered part's fit settles which end is wide, and so which is its opening; an untapered one
+/// (a mug's cylinder) fits the same either way up. A container standing on its base shows its
+/// inside (its inner wall and bottom) through the opening; one standing on its rim shows its
+/// solid base there, a flat cap at the top of the wall.
+fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
+    let Some(plane) = space.plane else { return };
+    let shape = placed.shape;
+    if shape.is_tapered() {
+        return;
+    }
     let z = placed.pose.rotation * Vector3::z();
-    if z.dot(&plane.normal) >= 0.0 {
-        return true;
+    let up = if z.dot(&plane.normal) >= 0.0 { 1.0 } else { -1.0 };
+    let a3 = shape.a[2];
+    let band = (2.5 * space.noise).max(0.002);
+    let (mut cap, mut inside) = (0usize, 0usize);
+    let centre = Point3::from(placed.pose.translation.vector);
+    let e = 2.0 / shape.e2;
+    space.grid.for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
+        let q = placed.to_local(&space.points[k]);
+        // Well inside the wall, across the axis.
+        let rho = ((q.x.abs() / shape.a[0]).powf(e) + (q.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0);
+        if rho > 0.8 {
+            return;
+        }
+        let h = up * q.z;
+        if (h - a3).abs() < band {
+            cap += 1;
+        } else if h < a3 - band && h > -a3 {
+            inside += 1;
+        }
+    });
+    if (up > 0.0) != (inside >= cap) {
+        placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
     }
-    if placed.shape.is_tapered() {
-        return false;
-    }
-    placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-    true
 }
 
 /// Split the seed points into `m` spatially compact regions of equal size (consecutive runs in

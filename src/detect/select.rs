@@ -37,10 +37,13 @@ pub fn select(mut candidates: Vec<Detection>, all: bool, max_size: f64) -> Vec<D
 pub fn stand_on_plane(detections: &mut [Detection], model: &Model, plane: &Plane) {
     let up = plane.normal;
     let mut symmetry = None;
+    let opening = model.parts.iter().find(|p| p.open);
     for d in detections {
         if (d.pose.rotation * Vector3::z()).dot(&up) < 0.0 {
             let s = symmetry.get_or_insert_with(|| Symmetry::of(model));
             d.pose.rotation = s.canonical_up(&d.pose.rotation, &up);
         }
+        // Opening turned to the plane's side: the container stands on its rim.
+        d.upright = opening.map(|p| (d.pose.rotation * p.pose_in_object.rotation * Vector3::z()).dot(&up) > 0.0);
     }
 }

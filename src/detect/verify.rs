@@ -98,6 +98,12 @@ pub fn score(
     } else {
         band
     };
+    // A container standing on its rim shows neither its inside nor its opening: its points are
+    // scored as those of a closed part.
+    let opening_up = samples.open
+        && space
+            .plane
+            .is_none_or(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal) >= 0.0);
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
     space.grid.for_each_within(
@@ -116,7 +122,7 @@ pub fn score(
                 }
             }
             let d = placed.surface_distance(p);
-            if samples.open && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
+            if opening_up && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
                 lid += 1;
@@ -125,7 +131,7 @@ pub fn score(
                 ss += d * d;
             } else if d < 0.0 {
                 // Inside an open container is its inner wall, seen through the opening.
-                if !samples.open {
+                if !opening_up {
                     inside_points += 1;
                 }
             } else if d < tolerance {
@@ -164,7 +170,7 @@ pub fn score(
     };
     let coverage = coverage(placed, &near_surface, space.viewpoint, samples);
     // For an open part the paper's I (points that should not be there) are the lid points.
-    let (i, inside_points) = if samples.open { (lid, lid) } else { (i, inside_points) };
+    let (i, inside_points) = if opening_up { (lid, lid) } else { (i, inside_points) };
     Scores {
         m,
         s,

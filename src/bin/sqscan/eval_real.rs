@@ -63,10 +63,13 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
             .filter(|d| d.found)
             .map(|d| Answer {
                 position: d.pose.translation.vector.into(),
-                // Upright: the model's z axis on the side of the support plane the objects are on.
-                upright: report
-                    .plane
-                    .is_none_or(|p| (d.pose.rotation * nalgebra::Vector3::z()).dot(&p.normal) > 0.0),
+                // The detector's own flag for a container; otherwise the model's z axis on the
+                // side of the support plane the objects are on.
+                upright: d.upright.unwrap_or_else(|| {
+                    report
+                        .plane
+                        .is_none_or(|p| (d.pose.rotation * nalgebra::Vector3::z()).dot(&p.normal) > 0.0)
+                }),
             })
             .collect();
         let score = score_scene(&s.objects, &a.class, &answers);
