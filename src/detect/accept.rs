@@ -24,6 +24,7 @@ pub fn assess(
     // Pool the measures over the parts found (a hidden part lowers coverage by its share).
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
     let mut shell = 0usize;
+    let mut faces = f64::INFINITY;
     for (p, r) in model.parts.iter().zip(&parts) {
         // Weight a part's coverage by its surface size.
         let w = p.shape.a[0] * p.shape.a[1] + p.shape.a[1] * p.shape.a[2] + p.shape.a[0] * p.shape.a[2];
@@ -33,6 +34,7 @@ pub fn assess(
             surface += r.scores.surface_points;
             inside += r.scores.inside_points;
             shell += r.scores.shell_points;
+            faces = faces.min(r.scores.faces);
             if r.scores.rms.is_finite() {
                 ss += r.scores.rms * r.scores.rms * r.scores.surface_points as f64;
             }
@@ -51,6 +53,8 @@ pub fn assess(
         (acc.max_interior_ratio - interior) / 0.1,
         (acc.max_shell_ratio - shell as f64 / (surface as f64).max(1.0)) / 0.04,
         (max_rms - rms) / (0.5 * max_rms),
+        // A round wall that two flat faces explain better is a box's edge.
+        (faces - 1.0) / 0.3,
     ];
     for (c, (a, d)) in model.connections.iter().zip(&connection_errors) {
         if a.is_finite() {
@@ -74,12 +78,12 @@ pub fn assess(
 }
 
 /// Each measure's margin to its threshold in units of its scale (negative: the test fails):
-/// `acceptance margins [coverage, interior, shell, rms, connections..] [..]`.
+/// `acceptance margins [coverage, interior, shell, rms, faces, connections..] [..]`.
 struct Margins<'a>(&'a [f64]);
 
 impl fmt::Display for Margins<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("acceptance margins [coverage, interior, shell, rms, connections..] [")?;
+        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, connections..] [")?;
         for (k, m) in self.0.iter().enumerate() {
             if k > 0 {
                 f.write_str(", ")?;

@@ -45,6 +45,11 @@ pub struct Scores {
     /// Points just outside the band (within 0.3 of the sample radius) that continue the explained
     /// surface: a larger object of the same shape around a too-small fit leaves its surface here.
     pub shell_points: usize,
+    /// For a part with a rounded cross-section: the RMS distance of its side wall's points from
+    /// the best two straight lines across the axis, over their RMS distance from the model's
+    /// surface (see [`flat_faces`]). Below 1 the wall is better explained by flat faces: a box
+    /// edge, not a can. Infinite when there is nothing to compare.
+    pub faces: f64,
 }
 
 impl Scores {
@@ -54,14 +59,22 @@ impl Scores {
     }
 }
 
-/// `M .. S .. I .. cov .. rms .. surf .. inside .. shell ..`: the paper's criteria, then the
+/// `M .. S .. I .. cov .. rms .. surf .. inside .. shell .. faces ..`: the paper's criteria, then the
 /// acceptance measures.
 impl fmt::Display for Scores {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {}",
-            self.m, self.s, self.i, self.coverage, self.rms, self.surface_points, self.inside_points, self.shell_points
+            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} faces {:.2}",
+            self.m,
+            self.s,
+            self.i,
+            self.coverage,
+            self.rms,
+            self.surface_points,
+            self.inside_points,
+            self.shell_points,
+            self.faces
         )
     }
 }
@@ -161,7 +174,8 @@ pub fn score(
             .count()
     };
     let shell_points =
-        shell_points + beyond_the_ends(space, placed, band + super::search::approximation_tolerance(shape));
+        shell_points + beyond_the_ends(space, placed, band + super::search::approximation_tolerance(shape), samples.open);
+    let faces = flat_faces(placed, &near_surface);
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
         (ss / surface_points as f64).sqrt()
@@ -180,7 +194,78 @@ pub fn score(
         surface_points,
         inside_points,
         shell_points,
+        faces,
     }
+}
+
+/// Whether the side wall is round or made of flat faces. A can fitted to the edge of a box (or
+/// a mug to a tea box) can reach a surface RMS within the noise when the box is small and its
+/// faces are seen at a slant, yet the wall's cross-section is two straight lines meeting at a
+/// corner, where a round object's is an arc. Both explanations see the same noise, so their
+/// ratio does not depend on it: the points of the side wall (away from the ends), taken across
+/// the axis (untapered), are fitted with two straight lines split at the best azimuth (total
+/// least squares each), and the RMS of that fit is divided by the RMS of their distances from
+/// the model's surface. A round wall seen over a good part of its circumference leaves the
+/// lines centimetres of sagitta; flat faces leave them the noise alone. Only shapes with a
+/// rounded cross-section (e2 above 0.5) are tested; fewer than 20 wall points say nothing.
+pub fn flat_faces(placed: &PlacedSuperquadric, near_surface: &[Point3<f64>]) -> f64 {
+    let shape = &placed.shape;
+    if shape.e2 < 0.5 {
+        return f64::INFINITY;
+    }
+    let mut wall: Vec<(f64, [f64; 2])> = Vec::new();
+    let mut ss = 0.0;
+    for p in near_surface {
+        let q = placed.to_local(p);
+        if q.z.abs() > 0.8 * shape.a[2] {
+            continue;
+        }
+        let u = shape.untaper(&q);
+        wall.push((u.y.atan2(u.x), [q.x, q.y]));
+        let d = placed.surface_distance(p);
+        ss += d * d;
+    }
+    const MIN_SIDE: usize = 10;
+    if wall.len() < 2 * MIN_SIDE {
+        return f64::INFINITY;
+    }
+    let model_rms = (ss / wall.len() as f64).sqrt().max(1e-6);
+    // Sort round the axis, starting in the widest gap, so that a run of azimuths is a run of
+    // the wall.
+    wall.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let n = wall.len();
+    let gap_end = (0..n)
+        .max_by(|&i, &j| {
+            let gap = |k: usize| {
+                let prev = wall[(k + n - 1) % n].0;
+                (wall[k].0 - prev).rem_euclid(std::f64::consts::TAU)
+            };
+            gap(i).total_cmp(&gap(j))
+        })
+        .unwrap_or(0);
+    wall.rotate_left(gap_end);
+    // Prefix moments for the total least squares line of any run.
+    let mut pre = vec![[0.0f64; 5]; n + 1];
+    for (k, (_, [x, y])) in wall.iter().enumerate() {
+        let m = pre[k];
+        pre[k + 1] = [m[0] + x, m[1] + y, m[2] + x * x, m[3] + x * y, m[4] + y * y];
+    }
+    let sse = |lo: usize, hi: usize| {
+        let c = (hi - lo) as f64;
+        let m: Vec<f64> = (0..5).map(|i| pre[hi][i] - pre[lo][i]).collect();
+        let (mx, my) = (m[0] / c, m[1] / c);
+        let sxx = m[2] - c * mx * mx;
+        let sxy = m[3] - c * mx * my;
+        let syy = m[4] - c * my * my;
+        // The smaller eigenvalue of the scatter matrix: the squared distances from the line.
+        let tr = sxx + syy;
+        let det = sxx * syy - sxy * sxy;
+        (0.5 * tr - (0.25 * tr * tr - det).max(0.0).sqrt()).max(0.0)
+    };
+    let best = (MIN_SIDE..=n - MIN_SIDE)
+        .map(|k| sse(0, k) + sse(k, n))
+        .fold(f64::INFINITY, f64::min);
+    (best / n as f64).sqrt() / model_rms
 }
 
 /// For an open container (a mug, a bowl), the points that continue its side wall past either
@@ -192,7 +277,12 @@ pub fn score(
 /// removed table below its base. The margin (a fifth of the height, at least 1 cm) lets a real
 /// container be somewhat taller than its model, and keeps a supporting surface under the base
 /// (a book under a mug) out: that lies at the base's height, not below it.
-fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, tolerance: f64) -> usize {
+///
+/// An open container on a support plane stands on its base or its rim, so the space above its
+/// top end, across its whole cross-section, is free as well: data there is the top of a taller
+/// object (a tea box, a canister) whose side the container's wall was fitted to. Those points
+/// count too.
+fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, tolerance: f64, open: bool) -> usize {
     let shape = &placed.shape;
     let (a1, a2, a3) = (shape.a[0], shape.a[1], shape.a[2]);
     let margin = (0.2 * a3).max(0.01);
@@ -201,6 +291,12 @@ fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, toleran
         return 0;
     }
     let centre = Point3::from(placed.pose.translation.vector);
+    // The local sign of the up direction, for a container standing on the plane.
+    let top = if open {
+        space.plane.map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
+    } else {
+        None
+    };
     let mut count = 0usize;
     space
         .grid
@@ -214,7 +310,8 @@ fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, toleran
             let end = shape.untaper(&nalgebra::Vector3::new(q.x, q.y, a3.copysign(q.z)));
             let e = 2.0 / shape.e2;
             let rho = ((end.x.abs() / a1).powf(e) + (end.y.abs() / a2).powf(e)).powf(shape.e2 / 2.0);
-            if ((rho - 1.0) * a1.min(a2)).abs() < tolerance {
+            let over_the_top = top.is_some_and(|s| q.z * s > 0.0) && rho < 1.0;
+            if over_the_top || ((rho - 1.0) * a1.min(a2)).abs() < tolerance {
                 count += 1;
             }
         });
