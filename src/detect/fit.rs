@@ -44,7 +44,32 @@ pub fn fit_pose_tol(
     five_dof: bool,
     rel_tol: f64,
 ) -> Fit {
-    let problem = PoseFit { points, five_dof };
+    let frozen = if five_dof { Freedom::FiveDof } else { Freedom::Free };
+    fit_pose_with(start, points, max_iterations, frozen, rel_tol)
+}
+
+/// Which of the pose's six degrees of freedom a fit may move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Freedom {
+    /// All six.
+    Free,
+    /// All but the spin about the local z axis (a body of revolution, whose spin nothing
+    /// observes).
+    FiveDof,
+    /// The position and the spin about the local z axis: the axis keeps its direction (a
+    /// container standing on the support plane).
+    AxisFixed,
+}
+
+/// [`fit_pose_tol`] with the degrees of freedom given.
+pub fn fit_pose_with(
+    start: &PlacedSuperquadric,
+    points: &[Point3<f64>],
+    max_iterations: usize,
+    freedom: Freedom,
+    rel_tol: f64,
+) -> Fit {
+    let problem = PoseFit { points, freedom };
     let found = minimize(&problem, *start, &LmSettings::attempts(max_iterations, rel_tol));
     let m = (found.cost / points.len().max(1) as f64).sqrt();
     Fit {
@@ -57,8 +82,7 @@ pub fn fit_pose_tol(
 /// The pose of a superquadric over points, the paper's eq. (2).
 struct PoseFit<'a> {
     points: &'a [Point3<f64>],
-    /// The spin about the local z axis held (a body of revolution).
-    five_dof: bool,
+    freedom: Freedom,
 }
 
 impl LeastSquares<6> for PoseFit<'_> {
@@ -68,7 +92,7 @@ impl LeastSquares<6> for PoseFit<'_> {
     type Evaluation = (Matrix6<f64>, Vector6<f64>);
 
     fn evaluate(&self, placed: &PlacedSuperquadric) -> (f64, Self::Evaluation) {
-        let (cost, h, g) = normal_equations(placed, self.points, self.five_dof);
+        let (cost, h, g) = normal_equations(placed, self.points, self.freedom);
         (cost, (h, g))
     }
 
@@ -86,7 +110,7 @@ impl LeastSquares<6> for PoseFit<'_> {
 fn normal_equations(
     placed: &PlacedSuperquadric,
     points: &[Point3<f64>],
-    five_dof: bool,
+    freedom: Freedom,
 ) -> (f64, Matrix6<f64>, Vector6<f64>) {
     let mut h = Matrix6::<f64>::zeros();
     let mut g = Vector6::<f64>::zeros();
@@ -98,13 +122,18 @@ fn normal_equations(
         g += j * r;
         cost += r * r;
     }
-    if five_dof {
+    let frozen: &[usize] = match freedom {
+        Freedom::Free => &[],
+        Freedom::FiveDof => &[5],
+        Freedom::AxisFixed => &[3, 4],
+    };
+    for &f in frozen {
         for k in 0..6 {
-            h[(5, k)] = 0.0;
-            h[(k, 5)] = 0.0;
+            h[(f, k)] = 0.0;
+            h[(k, f)] = 0.0;
         }
-        h[(5, 5)] = 1.0;
-        g[5] = 0.0;
+        h[(f, f)] = 1.0;
+        g[f] = 0.0;
     }
     (cost, h, g)
 }

@@ -12,7 +12,7 @@
 //! of the scene and from its own random stream, and keeps the distinct refined ones that are
 //! possible against the support plane.
 
-use super::fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
+use super::fit::{Fit, Freedom, fit_pose_tol, fit_pose_with, measure_of_fit};
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
@@ -267,9 +267,25 @@ pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
         .max(0.002)
 }
 
-/// Refine a pose on the full-resolution points near it until M stops improving.
-pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothesis {
+/// Refine a pose on the full-resolution points near it until M stops improving. With a
+/// `rest_axis` (an open container on the support plane) the part's axis is turned onto it first
+/// and keeps that direction: only the position and the spin are fitted.
+pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: Option<Vector3<f64>>) -> Hypothesis {
     let shape = fit.placed.shape;
+    let mut fit = *fit;
+    let freedom = match rest_axis {
+        Some(n) => {
+            let z = fit.placed.pose.rotation * Vector3::z();
+            let target = if z.dot(&n) >= 0.0 { n } else { -n };
+            if let Some(turn) = UnitQuaternion::rotation_between(&z, &target) {
+                fit.placed.pose.rotation = turn * fit.placed.pose.rotation;
+            }
+            Freedom::AxisFixed
+        }
+        None if shape.is_revolution() => Freedom::FiveDof,
+        None => Freedom::Free,
+    };
+    let fit = &fit;
     let final_band = refine_band(&shape, space.noise);
     // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
     // size, so the first round gathers points in a wide band and each round halves it.
@@ -300,19 +316,14 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize) -> Hypothes
             // the points anew in a band half as wide and fits again. (Converging each coarse
             // round to 1e-6 took up to the full 20 iterations over 600 points, a third of the
             // search's time.)
-            placed = fit_pose_tol(&placed, &inliers, iterations, shape.is_revolution(), 1e-3).placed;
+            placed = fit_pose_with(&placed, &inliers, iterations, freedom, 1e-3).placed;
             continue;
         }
         if before >= best.m {
             break;
         }
         best = Hypothesis { placed, m: before };
-        let f = fit_pose(
-            &placed,
-            &inliers,
-            iterations.min(FINE_ITERATIONS),
-            shape.is_revolution(),
-        );
+        let f = fit_pose_with(&placed, &inliers, iterations.min(FINE_ITERATIONS), freedom, 1e-6);
         if f.m >= before * 0.99 {
             break;
         }
@@ -426,7 +437,7 @@ pub fn search_part(
     distinct(fits)
         .par_iter()
         .filter_map(|f| {
-            let mut h = refine(space, f, settings.fit_iterations);
+            let mut h = refine(space, f, settings.fit_iterations, check.rest_axis(space));
             if open {
                 orient_opening(space, &mut h.placed);
             }
