@@ -118,6 +118,7 @@ pub fn score(
             .plane
             .is_none_or(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal) >= 0.0);
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
+    let mut inner_wall: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
     space.grid.for_each_within(
         space.points,
@@ -146,6 +147,8 @@ pub fn score(
                 // Inside an open container is its inner wall, seen through the opening.
                 if !opening_up {
                     inside_points += 1;
+                } else if d > -tolerance {
+                    inner_wall.push(*p);
                 }
             } else if d < tolerance {
                 tolerated.push(*p);
@@ -182,7 +185,12 @@ pub fn score(
     } else {
         f64::INFINITY
     };
-    let coverage = coverage(placed, &near_surface, space.viewpoint, samples);
+    let coverage = if opening_up {
+        let wall: Vec<Point3<f64>> = near_surface.iter().chain(&inner_wall).copied().collect();
+        coverage(placed, &wall, space.viewpoint, samples, true)
+    } else {
+        coverage(placed, &near_surface, space.viewpoint, samples, false)
+    };
     // For an open part the paper's I (points that should not be there) are the lid points.
     let (i, inside_points) = if opening_up { (lid, lid) } else { (i, inside_points) };
     Scores {
@@ -348,12 +356,16 @@ impl SurfaceSamples {
     }
 }
 
-/// Share of the visible model surface that has a measured point within reach.
+/// Share of the visible model surface that has a measured point within reach. With
+/// `opening_up` (an open container standing on its base), the inside of its wall is visible too
+/// where the line of sight leaves through the opening: a bowl seen from above shows little of
+/// its outside and most of its inside, and the wall is one surface to the model.
 fn coverage(
     placed: &PlacedSuperquadric,
     observed: &[Point3<f64>],
     viewpoint: Option<Point3<f64>>,
     samples: &SurfaceSamples,
+    opening_up: bool,
 ) -> f64 {
     if observed.is_empty() {
         return 0.0;
@@ -371,7 +383,11 @@ fn coverage(
             Some(v) => (v - p).normalize(),
             None => mean_dir.try_normalize(1e-300).unwrap_or(Vector3::z()),
         };
-        if n.dot(&view) < MIN_VIEW_COSINE {
+        let outside_seen = n.dot(&view) >= MIN_VIEW_COSINE;
+        let inside_seen = opening_up
+            && n.dot(&view) <= -MIN_VIEW_COSINE
+            && through_opening(&placed.shape, q, &(placed.pose.rotation.inverse() * view));
+        if !outside_seen && !inside_seen {
             continue;
         }
         expected += 1;
@@ -386,6 +402,19 @@ fn coverage(
     } else {
         covered as f64 / expected as f64
     }
+}
+
+/// Whether the line from the local surface point `q` along the local direction `d` leaves an
+/// open part through its opening (the top end's cross-section) rather than through its wall.
+fn through_opening(shape: &crate::geometry::Superquadric, q: &Vector3<f64>, d: &Vector3<f64>) -> bool {
+    if d.z <= 1e-9 {
+        return false;
+    }
+    let a3 = shape.a[2];
+    let t = (a3 - q.z) / d.z;
+    let top = shape.untaper(&Vector3::new(q.x + t * d.x, q.y + t * d.y, a3));
+    let e = 2.0 / shape.e2;
+    ((top.x.abs() / shape.a[0]).powf(e) + (top.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0) < 1.0
 }
 
 /// Ranks of values (1 = best), ties sharing the better rank.
