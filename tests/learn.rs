@@ -101,16 +101,16 @@ fn the_written_model_loads() {
     );
 }
 
-/// The mug learned from the labelled white mug (object 5) of mOSD learn33 (`models/learned_mug.toml`,
-/// see its comment block) finds a labelled mug of test34: its centre within 4 cm of the centroid
+/// The mug learned from the labelled white mug (object 5) of mOSD test34 (`models/learned_mug.toml`,
+/// see its comment block) finds a labelled mug of learn33: its centre within 4 cm of the centroid
 /// of that mug's labelled points, as tests/real_data.rs asks of the shipped mug; asked for every
-/// instance, it finds both of test34's mugs.
+/// instance, it finds both of learn33's mugs.
 #[test]
-fn learned_mug_lands_on_a_mug_in_test34() {
+fn learned_mug_lands_on_a_mug_in_learn33() {
     use nalgebra::{Point3, Vector3};
     use sqscan::cloud::{FieldData, read_cloud};
     use sqscan::detect::{Params, detect};
-    let cloud = read_cloud(&common::real_data("test34.pcd")).unwrap();
+    let cloud = read_cloud(&common::real_data("learn33.pcd")).unwrap();
     let labels = match cloud.field("label").map(|f| &f.data) {
         Some(FieldData::U32(l)) => l.clone(),
         _ => panic!("no label field"),
@@ -130,11 +130,11 @@ fn learned_mug_lands_on_a_mug_in_test34() {
         ..Params::default()
     };
     let report = detect(&cloud.points, &model("learned_mug"), &params);
-    let best = report.best_found().expect("the learned mug is found in test34");
+    let best = report.best_found().expect("the learned mug is found in learn33");
     let c = Point3::from(best.pose.translation.vector);
     let d = [5, 6].map(|o| (centroid(o) - c).norm());
     eprintln!(
-        "learned mug in test34 at {c:?}: {:.3} m / {:.3} m from mugs 5 / 6",
+        "learned mug in learn33 at {c:?}: {:.3} m / {:.3} m from mugs 5 / 6",
         d[0], d[1]
     );
     assert!(d[0].min(d[1]) < 0.04, "{d:?}");
