@@ -112,6 +112,9 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             break;
         }
     }
+    if let Some(plane) = &report.plane {
+        select::flag_upright(&mut candidates, model, plane);
+    }
     report.detections = select::select(candidates, params.all, prep.max_size);
     if let Some(plane) = &report.plane {
         select::stand_on_plane(&mut report.detections, model, plane);

@@ -7,10 +7,32 @@ use crate::model::Model;
 use crate::symmetry::Symmetry;
 use nalgebra::Vector3;
 
+/// A container standing on its rim shows only its outside, which a closed can of its size
+/// shows as well: it is the weaker answer. Its confidence is held at this, and any container
+/// found standing on its base, whose open top the sensor saw, is preferred to it.
+pub const ON_RIM_CONFIDENCE: f64 = 0.5;
+
+/// Flag each candidate of a model with an open part as standing on its base or on its rim (see
+/// [`Detection::upright`]), and hold the confidence of those on their rims.
+pub fn flag_upright(candidates: &mut [Detection], model: &Model, plane: &Plane) {
+    let Some(opening) = model.parts.iter().find(|p| p.open) else { return };
+    for d in candidates {
+        let up = (d.pose.rotation * opening.pose_in_object.rotation * Vector3::z()).dot(&plane.normal) > 0.0;
+        d.upright = Some(up);
+        if !up {
+            d.confidence = d.confidence.min(ON_RIM_CONFIDENCE);
+        }
+    }
+}
+
 /// With `all`, every accepted instance that does not overlap a better one (centres closer than
-/// `max_size`). Otherwise the voting winner, unless a lower-ranked candidate passes the
-/// acceptance test and the winner does not (voting is relative; acceptance is absolute).
+/// `max_size`), those standing on their base before those on their rim. Otherwise the voting
+/// winner, unless a lower-ranked candidate passes the acceptance test and the winner does not
+/// (voting is relative; acceptance is absolute), and a container on its base before one on its
+/// rim.
 pub fn select(mut candidates: Vec<Detection>, all: bool, max_size: f64) -> Vec<Detection> {
+    // Stable: the ranking holds within each kind.
+    candidates.sort_by_key(|d| d.upright == Some(false));
     if all {
         let mut kept: Vec<Detection> = Vec::new();
         for d in candidates {
@@ -37,13 +59,10 @@ pub fn select(mut candidates: Vec<Detection>, all: bool, max_size: f64) -> Vec<D
 pub fn stand_on_plane(detections: &mut [Detection], model: &Model, plane: &Plane) {
     let up = plane.normal;
     let mut symmetry = None;
-    let opening = model.parts.iter().find(|p| p.open);
     for d in detections {
         if (d.pose.rotation * Vector3::z()).dot(&up) < 0.0 {
             let s = symmetry.get_or_insert_with(|| Symmetry::of(model));
             d.pose.rotation = s.canonical_up(&d.pose.rotation, &up);
         }
-        // Opening turned to the plane's side: the container stands on its rim.
-        d.upright = opening.map(|p| (d.pose.rotation * p.pose_in_object.rotation * Vector3::z()).dot(&up) > 0.0);
     }
 }
