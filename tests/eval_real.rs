@@ -141,6 +141,10 @@ fn eval_real_on_mosd_scenes() {
     let summary: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["scenes"], 4);
     assert_eq!(summary["recall"]["all"], json!({"found": 3, "of": 3}), "{summary}");
-    assert_eq!(summary["recall"]["upside_down"], json!({"found": 2, "of": 2}), "{summary}");
+    assert_eq!(
+        summary["recall"]["upside_down"],
+        json!({"found": 2, "of": 2}),
+        "{summary}"
+    );
     assert_eq!(summary["false_answers"], 0, "{summary}");
 }

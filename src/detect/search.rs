@@ -115,7 +115,8 @@ impl PlaneCheck {
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
         space.plane.as_ref().is_none_or(|p| {
             let z = placed.pose.rotation * Vector3::z();
-            self.penetration(placed, p) <= self.tolerance && (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
+            self.penetration(placed, p) <= self.tolerance
+                && (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
         })
     }
 }
@@ -154,7 +155,11 @@ pub fn initial_poses(
         Some(n) => [n, -n]
             .into_iter()
             .map(|z| {
-                let x0 = if (e[2] - z * z.dot(&e[2])).norm() > 0.3 { e[2] } else { e[1] };
+                let x0 = if (e[2] - z * z.dot(&e[2])).norm() > 0.3 {
+                    e[2]
+                } else {
+                    e[1]
+                };
                 (z, x0)
             })
             .collect(),
@@ -465,20 +470,22 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let (mut cap, mut inside) = (0usize, 0usize);
     let centre = Point3::from(placed.pose.translation.vector);
     let e = 2.0 / shape.e2;
-    space.grid.for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
-        let q = placed.to_local(&space.points[k]);
-        // Well inside the wall, across the axis.
-        let rho = ((q.x.abs() / shape.a[0]).powf(e) + (q.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0);
-        if rho > 0.8 {
-            return;
-        }
-        let h = up * q.z;
-        if (h - a3).abs() < band {
-            cap += 1;
-        } else if h < a3 - band && h > -a3 {
-            inside += 1;
-        }
-    });
+    space
+        .grid
+        .for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
+            let q = placed.to_local(&space.points[k]);
+            // Well inside the wall, across the axis.
+            let rho = ((q.x.abs() / shape.a[0]).powf(e) + (q.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0);
+            if rho > 0.8 {
+                return;
+            }
+            let h = up * q.z;
+            if (h - a3).abs() < band {
+                cap += 1;
+            } else if h < a3 - band && h > -a3 {
+                inside += 1;
+            }
+        });
     if (up > 0.0) != (inside >= cap) {
         placed.pose.rotation *= UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
     }

@@ -15,7 +15,9 @@ pub const ON_RIM_CONFIDENCE: f64 = 0.5;
 /// Flag each candidate of a model with an open part as standing on its base or on its rim (see
 /// [`Detection::upright`]), and hold the confidence of those on their rims.
 pub fn flag_upright(candidates: &mut [Detection], model: &Model, plane: &Plane) {
-    let Some(opening) = model.parts.iter().find(|p| p.open) else { return };
+    let Some(opening) = model.parts.iter().find(|p| p.open) else {
+        return;
+    };
     for d in candidates {
         let up = (d.pose.rotation * opening.pose_in_object.rotation * Vector3::z()).dot(&plane.normal) > 0.0;
         d.upright = Some(up);

@@ -176,8 +176,13 @@ pub fn score(
             })
             .count()
     };
-    let shell_points =
-        shell_points + beyond_the_ends(space, placed, band + super::search::approximation_tolerance(shape), samples.open);
+    let shell_points = shell_points
+        + beyond_the_ends(
+            space,
+            placed,
+            band + super::search::approximation_tolerance(shape),
+            samples.open,
+        );
     let faces = flat_faces(placed, &near_surface);
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
@@ -301,7 +306,9 @@ fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, toleran
     let centre = Point3::from(placed.pose.translation.vector);
     // The local sign of the up direction, for a container standing on the plane.
     let top = if open {
-        space.plane.map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
+        space
+            .plane
+            .map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
     } else {
         None
     };
