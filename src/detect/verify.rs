@@ -1,3 +1,6 @@
+//! (One file over 600 lines: the scores of one hypothesis and the line-of-sight test share the
+//! surface samples and the coverage rules; split them with those together.)
+//!
 //! Pose verification (paper III-B-2) and, beyond the paper, the acceptance test that lets the
 //! detector say "not here".
 //!
