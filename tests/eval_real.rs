@@ -3,13 +3,34 @@
 //! upside-down (so the cup found standing is a false answer there, and a miss).
 
 use serde_json::{Value, json};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod common;
 
 fn sqscan(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sqscan")).args(args).output().unwrap()
+}
+
+/// `sqscan eval-real` of the shipped model `model` as `class` over `labels` and the clouds in
+/// `clouds`, with `--json` when `json`.
+fn eval_real(labels: &Path, clouds: &Path, model: &str, class: &str, json: bool) -> std::process::Output {
+    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("models/{model}.toml"));
+    let mut args = vec![
+        "eval-real",
+        "--labels",
+        labels.to_str().unwrap(),
+        "--clouds",
+        clouds.to_str().unwrap(),
+        "--model",
+        model.to_str().unwrap(),
+        "--class",
+        class,
+    ];
+    if json {
+        args.push("--json");
+    }
+    sqscan(&args)
 }
 
 #[test]
@@ -56,20 +77,7 @@ fn eval_real_scores_a_labelled_simulated_set() {
     for scene in ["standing", "flipped"] {
         std::fs::copy(sim.join("cloud.pcd"), dir.join(format!("{scene}.pcd"))).unwrap();
     }
-    let out = sqscan(&[
-        "--models-dir",
-        root.join("models").to_str().unwrap(),
-        "eval-real",
-        "--labels",
-        dir.join("labels.json").to_str().unwrap(),
-        "--clouds",
-        dir.to_str().unwrap(),
-        "--model",
-        "cup",
-        "--class",
-        "cup",
-        "--json",
-    ]);
+    let out = eval_real(&dir.join("labels.json"), &dir, "cup", "cup", true);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let r: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(r["scenes"], 2);
@@ -86,17 +94,7 @@ fn eval_real_scores_a_labelled_simulated_set() {
 
     // A scene without its cloud is named.
     std::fs::remove_file(dir.join("flipped.pcd")).unwrap();
-    let out = sqscan(&[
-        "eval-real",
-        "--labels",
-        dir.join("labels.json").to_str().unwrap(),
-        "--clouds",
-        dir.to_str().unwrap(),
-        "--model",
-        root.join("models/cup.toml").to_str().unwrap(),
-        "--class",
-        "cup",
-    ]);
+    let out = eval_real(&dir.join("labels.json"), &dir, "cup", "cup", false);
     assert!(!out.status.success());
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("scene flipped") && e.contains("flipped.pcd"), "{e}");
@@ -123,19 +121,7 @@ fn eval_real_on_mosd_scenes() {
     assert_eq!(subset.len(), chosen.len());
     let file = std::env::temp_dir().join(format!("sqscan-eval-real-mosd-{}.json", std::process::id()));
     std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
-    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    let out = sqscan(&[
-        "eval-real",
-        "--labels",
-        file.to_str().unwrap(),
-        "--clouds",
-        dir.to_str().unwrap(),
-        "--model",
-        root.join("models/mug.toml").to_str().unwrap(),
-        "--class",
-        "mug",
-        "--json",
-    ]);
+    let out = eval_real(&file, &dir, "mug", "mug", true);
     let _ = std::fs::remove_file(&file);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let summary: Value = serde_json::from_slice(&out.stdout).unwrap();

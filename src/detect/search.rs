@@ -185,29 +185,27 @@ pub fn initial_poses(
     };
     let mut out = Vec::with_capacity(24);
     for (z, x0) in axes {
-        {
-            let x = (x0 - z * z.dot(&x0)).normalize();
-            let y = z.cross(&x);
-            let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
-            let mut rots = vec![r];
-            if shape.is_tapered() && rest_axis.is_none() {
-                // Half a turn about x flips z (and y), keeping the frame right-handed.
-                rots.push(r * Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
-            }
-            for r in rots {
-                // The half-size along the patch normal: how far behind the patch the centre lies.
-                let local_n = r.inverse() * normal;
-                let depth = (local_n.x * shape.a[0])
-                    .abs()
-                    .max((local_n.y * shape.a[1]).abs())
-                    .max((local_n.z * shape.a[2]).abs());
-                for o in &outward {
-                    let centre = c - o * depth;
-                    out.push(Isometry3::from_parts(
-                        centre.into(),
-                        UnitQuaternion::from_rotation_matrix(&r),
-                    ));
-                }
+        let x = (x0 - z * z.dot(&x0)).normalize();
+        let y = z.cross(&x);
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z]));
+        let mut rots = vec![r];
+        if shape.is_tapered() && rest_axis.is_none() {
+            // Half a turn about x flips z (and y), keeping the frame right-handed.
+            rots.push(r * Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        }
+        for r in rots {
+            // The half-size along the patch normal: how far behind the patch the centre lies.
+            let local_n = r.inverse() * normal;
+            let depth = (local_n.x * shape.a[0])
+                .abs()
+                .max((local_n.y * shape.a[1]).abs())
+                .max((local_n.z * shape.a[2]).abs());
+            for o in &outward {
+                let centre = c - o * depth;
+                out.push(Isometry3::from_parts(
+                    centre.into(),
+                    UnitQuaternion::from_rotation_matrix(&r),
+                ));
             }
         }
     }
@@ -453,9 +451,10 @@ pub fn search_part(
 
 /// Turn an untapered open container the way up that what the sensor saw at its top end says. A
 /// tapered part's fit settles which end is wide, and so which is its opening; an untapered one
-/// (a mug's cylinder) fits the same either way up, and so does one tapered by a few percent. A container standing on its base shows its
-/// inside (its inner wall and bottom) through the opening; one standing on its rim shows its
-/// solid base there, a flat cap at the top of the wall.
+/// (a mug's cylinder) fits the same either way up, and so does one tapered by a few percent. A
+/// container standing on its base shows its inside (its inner wall and bottom) through the
+/// opening; one standing on its rim shows its solid base there, a flat cap at the top of the
+/// wall.
 fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let Some(plane) = space.plane else { return };
     let shape = placed.shape;
@@ -469,14 +468,12 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let band = (2.5 * space.noise).max(0.002);
     let (mut cap, mut inside) = (0usize, 0usize);
     let centre = Point3::from(placed.pose.translation.vector);
-    let e = 2.0 / shape.e2;
     space
         .grid
         .for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
             let q = placed.to_local(&space.points[k]);
             // Well inside the wall, across the axis.
-            let rho = ((q.x.abs() / shape.a[0]).powf(e) + (q.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0);
-            if rho > 0.8 {
+            if shape.section_radius(q.x, q.y) > 0.8 {
                 return;
             }
             let h = up * q.z;

@@ -96,6 +96,8 @@ pub fn score(
     let band = (2.5 * space.noise).max(0.002);
     let (mut s, mut i) = (0usize, 0usize);
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
+    // Their surface distances, for the faces test.
+    let mut near_distance: Vec<f64> = Vec::new();
     let mut ss = 0.0;
     let mut inside_points = 0usize;
     let mut lid = 0usize;
@@ -116,10 +118,15 @@ pub fn score(
     };
     // A container standing on its rim shows neither its inside nor its opening: its points are
     // scored as those of a closed part.
-    let opening_up = samples.open
-        && space
+    // The local sign of the up direction, for a container standing on the plane.
+    let up_sign = if samples.open {
+        space
             .plane
-            .is_none_or(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal) >= 0.0);
+            .map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
+    } else {
+        None
+    };
+    let opening_up = samples.open && up_sign.is_none_or(|s| s > 0.0);
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
     let mut inner_wall: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
@@ -145,6 +152,7 @@ pub fn score(
                 lid += 1;
             } else if d.abs() < band {
                 near_surface.push(*p);
+                near_distance.push(d);
                 ss += d * d;
             } else if d < 0.0 {
                 // Inside an open container is its inner wall, seen through the opening.
@@ -184,9 +192,9 @@ pub fn score(
             space,
             placed,
             band + super::search::approximation_tolerance(shape),
-            samples.open,
+            up_sign,
         );
-    let faces = flat_faces(placed, &near_surface);
+    let faces = flat_faces(placed, &near_surface, &near_distance);
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
         (ss / surface_points as f64).sqrt()
@@ -224,21 +232,21 @@ pub fn score(
 /// the model's surface. A round wall seen over a good part of its circumference leaves the
 /// lines centimetres of sagitta; flat faces leave them the noise alone. Only shapes with a
 /// rounded cross-section (e2 above 0.5) are tested; fewer than 20 wall points say nothing.
-pub fn flat_faces(placed: &PlacedSuperquadric, near_surface: &[Point3<f64>]) -> f64 {
+/// `distances` are the points' surface distances.
+pub fn flat_faces(placed: &PlacedSuperquadric, near_surface: &[Point3<f64>], distances: &[f64]) -> f64 {
     let shape = &placed.shape;
     if shape.e2 < 0.5 {
         return f64::INFINITY;
     }
     let mut wall: Vec<(f64, [f64; 2])> = Vec::new();
     let mut ss = 0.0;
-    for p in near_surface {
+    for (p, d) in near_surface.iter().zip(distances) {
         let q = placed.to_local(p);
         if q.z.abs() > 0.8 * shape.a[2] {
             continue;
         }
         let u = shape.untaper(&q);
         wall.push((u.y.atan2(u.x), [q.x, q.y]));
-        let d = placed.surface_distance(p);
         ss += d * d;
     }
     const MIN_SIDE: usize = 10;
@@ -268,7 +276,7 @@ pub fn flat_faces(placed: &PlacedSuperquadric, near_surface: &[Point3<f64>]) -> 
     }
     let sse = |lo: usize, hi: usize| {
         let c = (hi - lo) as f64;
-        let m: Vec<f64> = (0..5).map(|i| pre[hi][i] - pre[lo][i]).collect();
+        let m: [f64; 5] = std::array::from_fn(|i| pre[hi][i] - pre[lo][i]);
         let (mx, my) = (m[0] / c, m[1] / c);
         let sxx = m[2] - c * mx * mx;
         let sxy = m[3] - c * mx * my;
@@ -297,8 +305,13 @@ pub fn flat_faces(placed: &PlacedSuperquadric, near_surface: &[Point3<f64>]) -> 
 /// An open container on a support plane stands on its base or its rim, so the space above its
 /// top end, across its whole cross-section, is free as well: data there is the top of a taller
 /// object (a tea box, a canister) whose side the container's wall was fitted to. Those points
-/// count too.
-fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, tolerance: f64, open: bool) -> usize {
+/// count too: `up_sign` is the local sign of the up direction for such a container.
+fn beyond_the_ends(
+    space: &SearchSpace<'_>,
+    placed: &PlacedSuperquadric,
+    tolerance: f64,
+    up_sign: Option<f64>,
+) -> usize {
     let shape = &placed.shape;
     let (a1, a2, a3) = (shape.a[0], shape.a[1], shape.a[2]);
     let margin = (0.2 * a3).max(0.01);
@@ -307,14 +320,6 @@ fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, toleran
         return 0;
     }
     let centre = Point3::from(placed.pose.translation.vector);
-    // The local sign of the up direction, for a container standing on the plane.
-    let top = if open {
-        space
-            .plane
-            .map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
-    } else {
-        None
-    };
     let mut count = 0usize;
     space
         .grid
@@ -326,9 +331,8 @@ fn beyond_the_ends(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, toleran
             }
             // The end's cross-section, extended along the axis.
             let end = shape.untaper(&nalgebra::Vector3::new(q.x, q.y, a3.copysign(q.z)));
-            let e = 2.0 / shape.e2;
-            let rho = ((end.x.abs() / a1).powf(e) + (end.y.abs() / a2).powf(e)).powf(shape.e2 / 2.0);
-            let over_the_top = top.is_some_and(|s| q.z * s > 0.0) && rho < 1.0;
+            let rho = shape.section_radius(end.x, end.y);
+            let over_the_top = up_sign.is_some_and(|s| q.z * s > 0.0) && rho < 1.0;
             if over_the_top || ((rho - 1.0) * a1.min(a2)).abs() < tolerance {
                 count += 1;
             }
@@ -423,8 +427,7 @@ fn through_opening(shape: &crate::geometry::Superquadric, q: &Vector3<f64>, d: &
     let a3 = shape.a[2];
     let t = (a3 - q.z) / d.z;
     let top = shape.untaper(&Vector3::new(q.x + t * d.x, q.y + t * d.y, a3));
-    let e = 2.0 / shape.e2;
-    ((top.x.abs() / shape.a[0]).powf(e) + (top.y.abs() / shape.a[1]).powf(e)).powf(shape.e2 / 2.0) < 1.0
+    shape.section_radius(top.x, top.y) < 1.0
 }
 
 /// Ranks of values (1 = best), ties sharing the better rank.

@@ -156,6 +156,15 @@ impl Superquadric {
         Vector3::new(p.x * fx, p.y * fy, p.z)
     }
 
+    /// The superellipse radius of a cross-section point `(x, y)` (untapered, local): 1 on the
+    /// section's outline, below 1 inside it. Along the axis it is the radius of the side wall
+    /// extended past the ends, as `untaper` gives the point's section.
+    #[inline]
+    pub fn section_radius(&self, x: f64, y: f64) -> f64 {
+        let e = 2.0 / self.e2;
+        ((x.abs() / self.a[0]).powf(e) + (y.abs() / self.a[1]).powf(e)).powf(self.e2 / 2.0)
+    }
+
     /// Undo the taper of a local point.
     #[inline]
     pub fn untaper(&self, p: &Vector3<f64>) -> Vector3<f64> {
