@@ -1,8 +1,8 @@
-//! (One file over 600 lines: the scores of one hypothesis and the line-of-sight test share the
-//! surface samples and the coverage rules; split them with those together.)
-//!
 //! Pose verification (paper III-B-2) and, beyond the paper, the acceptance test that lets the
 //! detector say "not here".
+//!
+//! Over 600 lines on purpose: the scores of one hypothesis and the line-of-sight test share the
+//! surface samples and the coverage rules; split them only together.
 //!
 //! The paper's criteria: within `1.2 max(a)` of a hypothesis' centre, `I` counts the points with
 //! `F^e1 < 1 - gamma` (inside the object, where a single view can see nothing) and `S` those with
