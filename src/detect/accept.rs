@@ -12,6 +12,11 @@ use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use std::fmt;
 
+/// How far (m) the middle of a vessel's base must lie below its foot ring for a container
+/// standing on its rim to be told from a closed part of its shape. Ceramic mugs and bowls stand
+/// on a ring a few millimetres proud of the middle; lids and can tops are flat or domed.
+pub const MIN_BASE_RECESS: f64 = 0.0015;
+
 /// Turn part placements into a detection: the object pose, the acceptance test, the confidence.
 pub fn assess(
     model: &Model,
@@ -25,6 +30,7 @@ pub fn assess(
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
     let mut shell = 0usize;
     let mut faces = f64::INFINITY;
+    let mut base_recess: Option<f64> = None;
     for (p, r) in model.parts.iter().zip(&parts) {
         // Weight a part's coverage by its surface size.
         let w = p.shape.a[0] * p.shape.a[1] + p.shape.a[1] * p.shape.a[2] + p.shape.a[0] * p.shape.a[2];
@@ -35,6 +41,9 @@ pub fn assess(
             inside += r.scores.inside_points;
             shell += r.scores.shell_points;
             faces = faces.min(r.scores.faces);
+            if let Some(b) = r.scores.base_recess {
+                base_recess = Some(base_recess.map_or(b, |x: f64| x.min(b)));
+            }
             if r.scores.rms.is_finite() {
                 ss += r.scores.rms * r.scores.rms * r.scores.surface_points as f64;
             }
@@ -56,6 +65,11 @@ pub fn assess(
         // A round wall that two flat faces explain better is a box's edge.
         (faces - 1.0) / 0.3,
     ];
+    // A container on its rim shows only its outside and its base, and only a vessel's base (its
+    // middle raised inside a foot ring) tells it from a closed can or a lidded canister.
+    if let Some(b) = base_recess {
+        margins.push((b - MIN_BASE_RECESS) / MIN_BASE_RECESS);
+    }
     for (c, (a, d)) in model.connections.iter().zip(&connection_errors) {
         if a.is_finite() {
             margins.push((acc.max_angle_error - a) / acc.max_angle_error);
@@ -78,12 +92,12 @@ pub fn assess(
 }
 
 /// Each measure's margin to its threshold in units of its scale (negative: the test fails):
-/// `acceptance margins [coverage, interior, shell, rms, faces, connections..] [..]`.
+/// `acceptance margins [coverage, interior, shell, rms, faces, (base,) connections..] [..]`.
 struct Margins<'a>(&'a [f64]);
 
 impl fmt::Display for Margins<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, connections..] [")?;
+        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, (base,) connections..] [")?;
         for (k, m) in self.0.iter().enumerate() {
             if k > 0 {
                 f.write_str(", ")?;

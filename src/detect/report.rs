@@ -152,6 +152,7 @@ mod tests {
                         inside_points: 22,
                         shell_points: 40,
                         faces: 2.5,
+                        base_recess: None,
                     },
                 },
                 PartResult {

@@ -20,7 +20,7 @@
 
 use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
-use crate::geometry::PlacedSuperquadric;
+use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Point3, Vector3};
 use std::fmt;
 
@@ -53,6 +53,10 @@ pub struct Scores {
     /// surface (see [`flat_faces`]). Below 1 the wall is better explained by flat faces: a box
     /// edge, not a can. Infinite when there is nothing to compare.
     pub faces: f64,
+    /// For a container standing on its rim: how far (m) the middle of its top, which is its
+    /// base, lies below the ring round it (see `BaseCap`); minus infinity when too little of the
+    /// top was seen. `None` for anything else.
+    pub base_recess: Option<f64>,
 }
 
 impl Scores {
@@ -68,7 +72,7 @@ impl fmt::Display for Scores {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} faces {:.2}",
+            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} faces {:.2} base {}",
             self.m,
             self.s,
             self.i,
@@ -77,7 +81,11 @@ impl fmt::Display for Scores {
             self.surface_points,
             self.inside_points,
             self.shell_points,
-            self.faces
+            self.faces,
+            match self.base_recess {
+                Some(r) => format!("{:.1} mm", r * 1e3),
+                None => "-".to_string(),
+            }
         )
     }
 }
@@ -127,6 +135,8 @@ pub fn score(
         None
     };
     let opening_up = samples.open && up_sign.is_none_or(|s| s > 0.0);
+    let on_rim = samples.open && up_sign.is_some_and(|s| s < 0.0);
+    let mut base = BaseCap::new(shape, band);
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
     let mut inner_wall: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
@@ -146,6 +156,9 @@ pub fn score(
                 }
             }
             let d = placed.surface_distance(p);
+            if on_rim {
+                base.add(&placed.to_local(p), -1.0);
+            }
             if opening_up && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
@@ -219,7 +232,62 @@ pub fn score(
         inside_points,
         shell_points,
         faces,
+        base_recess: on_rim.then(|| base.recess()),
     }
+}
+
+/// The top of a container standing on its rim is its base. Vessels (mugs, bowls, pots) stand
+/// on a foot ring with the middle of the base raised inside it, so upside down the middle lies
+/// a few millimetres below the ring; a lid or the top of a closed can is flat or domed. Points
+/// near the top, within the inner 45 % of the cross-section (the middle) and between 55 % and
+/// 85 % (the ring, short of the rounded edge), are collected and their median heights compared.
+struct BaseCap {
+    a3: f64,
+    window: f64,
+    middle: Vec<f64>,
+    ring: Vec<f64>,
+    shape: Superquadric,
+}
+
+impl BaseCap {
+    fn new(shape: &Superquadric, band: f64) -> BaseCap {
+        BaseCap {
+            a3: shape.a[2],
+            window: (0.2 * shape.a[2]).max(3.0 * band),
+            middle: Vec::new(),
+            ring: Vec::new(),
+            shape: *shape,
+        }
+    }
+
+    /// `up` is the local sign of the plane's normal.
+    fn add(&mut self, q: &Vector3<f64>, up: f64) {
+        let h = up * q.z;
+        if (h - self.a3).abs() > self.window {
+            return;
+        }
+        let r = self.shape.section_radius(q.x, q.y);
+        if r < 0.4 {
+            self.middle.push(h);
+        } else if (0.65..0.88).contains(&r) {
+            self.ring.push(h);
+        }
+    }
+
+    /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in
+    /// either.
+    fn recess(&mut self) -> f64 {
+        const MIN: usize = 10;
+        if self.middle.len() < MIN || self.ring.len() < MIN {
+            return f64::NEG_INFINITY;
+        }
+        median(&mut self.ring) - median(&mut self.middle)
+    }
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    let k = v.len() / 2;
+    *v.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1
 }
 
 /// Whether the side wall is round or made of flat faces. A can fitted to the edge of a box (or
@@ -513,6 +581,27 @@ mod tests {
             (vec![0.0, 5.0, 1.0], true),
         ]);
         assert_eq!(sums, vec![1 + 3 + 1, 2 + 1 + 3, 3 + 2 + 2]);
+    }
+
+    /// The top of a mug-sized cylinder on its rim (local -z up): a flat lid gives no recess, a
+    /// base whose middle lies 3 mm below its ring gives 3 mm, and a top seen by a few points
+    /// gives no sign of a base at all.
+    #[test]
+    fn a_vessel_base_is_told_from_a_flat_lid() {
+        let shape = Superquadric::new([0.04, 0.04, 0.05], 0.1, 1.0, 0.0, 0.0).unwrap();
+        let cap = |depth: f64, n: usize| {
+            let mut b = BaseCap::new(&shape, 0.002);
+            for k in 0..n {
+                let r = 0.04 * (k % 20) as f64 / 20.0;
+                let t = k as f64 * 0.7;
+                let h = if r < 0.02 { 0.05 - depth } else { 0.05 };
+                b.add(&Vector3::new(r * t.cos(), r * t.sin(), -h), -1.0);
+            }
+            b.recess()
+        };
+        assert!(cap(0.0, 400).abs() < 1e-12);
+        assert!((cap(0.003, 400) - 0.003).abs() < 1e-12);
+        assert_eq!(cap(0.003, 15), f64::NEG_INFINITY);
     }
 }
 
