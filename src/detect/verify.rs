@@ -21,6 +21,7 @@
 use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::numeric::median;
 use nalgebra::{Point3, Vector3};
 use std::fmt;
 
@@ -156,8 +157,10 @@ pub fn score(
                 }
             }
             let d = placed.surface_distance(p);
+            // The raised middle of a vessel's base lies inside the model's end, which is flat.
+            let mut in_base = false;
             if on_rim {
-                base.add(&placed.to_local(p), -1.0);
+                in_base = base.add(&placed.to_local(p), -1.0);
             }
             if opening_up && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
@@ -170,7 +173,9 @@ pub fn score(
             } else if d < 0.0 {
                 // Inside an open container is its inner wall, seen through the opening.
                 if !opening_up {
-                    inside_points += 1;
+                    if !in_base {
+                        inside_points += 1;
+                    }
                 } else if d > -tolerance {
                     inner_wall.push(*p);
                 }
@@ -260,11 +265,12 @@ impl BaseCap {
         }
     }
 
-    /// `up` is the local sign of the plane's normal.
-    fn add(&mut self, q: &Vector3<f64>, up: f64) {
+    /// `up` is the local sign of the plane's normal. Whether the point lies in the base's
+    /// recess: near the top, within the ring's outer edge.
+    fn add(&mut self, q: &Vector3<f64>, up: f64) -> bool {
         let h = up * q.z;
         if (h - self.a3).abs() > self.window {
-            return;
+            return false;
         }
         let r = self.shape.section_radius(q.x, q.y);
         if r < 0.4 {
@@ -272,6 +278,7 @@ impl BaseCap {
         } else if (0.65..0.88).contains(&r) {
             self.ring.push(h);
         }
+        r < 0.88
     }
 
     /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in
@@ -281,13 +288,11 @@ impl BaseCap {
         if self.middle.len() < MIN || self.ring.len() < MIN {
             return f64::NEG_INFINITY;
         }
-        median(&mut self.ring) - median(&mut self.middle)
+        match (median(&mut self.ring), median(&mut self.middle)) {
+            (Some(r), Some(m)) => r - m,
+            _ => f64::NEG_INFINITY,
+        }
     }
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    let k = v.len() / 2;
-    *v.select_nth_unstable_by(k, |a, b| a.total_cmp(b)).1
 }
 
 /// Whether the side wall is round or made of flat faces. A can fitted to the edge of a box (or
