@@ -95,16 +95,107 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
 /// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
 pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
-    let all: Vec<usize> = (0..points.len()).collect();
-    let none = PlaneRemoval {
-        plane: None,
-        inliers: 0,
-        band: 0.0,
-        kept: all,
-    };
+    let all = || (0..points.len()).collect::<Vec<usize>>();
     if points.len() < SEEDS {
-        return none;
+        return PlaneRemoval {
+            plane: None,
+            inliers: 0,
+            band: 0.0,
+            kept: all(),
+        };
     }
+    // The plane and its band are found on an even subsample: a table holds far more points than
+    // a plane needs (a Kinect frame 300 000), and every step below passes over them several
+    // times. Only the final split into plane and objects runs on every point.
+    let stride = points.len().div_ceil(FIT_POINTS).max(1);
+    let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
+    let range_scale = RangeScale::new(&sample, viewpoint);
+    let Some((mut plane, band)) = find_plane(&sample, &range_scale) else {
+        return PlaneRemoval {
+            plane: None,
+            inliers: 0,
+            band: 0.0,
+            kept: all(),
+        };
+    };
+    let norm_dist = |plane: &Plane, p: &Point3<f64>| plane.signed_distance(p) / range_scale.at(p);
+    let inliers = points.iter().filter(|p| norm_dist(&plane, p).abs() < band).count();
+    // The paper removes the plane only when it holds more points than the rest. A cluttered
+    // table seen with the room behind it holds less than half (mOSD test64: 48 %), and leaving it
+    // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
+    // by far the largest structure in view.
+    if (inliers as f64) < MIN_PLANE_SHARE * points.len() as f64 {
+        return PlaneRemoval {
+            plane: None,
+            inliers,
+            band,
+            kept: all(),
+        };
+    }
+    // Orient the normal towards the objects: towards the sensor, which sees the plane's top
+    // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
+    // side with more off-plane points.
+    let flip = match viewpoint {
+        Some(v) => plane.signed_distance(&v) < 0.0,
+        None => {
+            let above = points.iter().filter(|p| norm_dist(&plane, p) >= band).count();
+            let below = points.iter().filter(|p| norm_dist(&plane, p) <= -band).count();
+            below > above
+        }
+    };
+    if flip {
+        plane = plane.flipped();
+    }
+    let kept = (0..points.len())
+        .filter(|&i| {
+            let d = norm_dist(&plane, &points[i]);
+            d >= band || (keep_below && d <= -band)
+        })
+        .collect();
+    PlaneRemoval {
+        plane: Some(plane),
+        inliers,
+        band,
+        kept,
+    }
+}
+
+/// Points each candidate plane is counted against.
+const CONSENSUS_POINTS: usize = 20_000;
+
+/// Points the plane is found on at most.
+const FIT_POINTS: usize = 40_000;
+
+/// Triangulating sensors (laser profilers, structured light) get noisier with the square of
+/// the range, so distances to the plane are measured in units of the noise at each point's
+/// range: `scale = (r / r_ref)^2`, `r_ref` the median range. Without a viewpoint every scale
+/// is 1.
+struct RangeScale {
+    viewpoint: Option<Point3<f64>>,
+    r_ref: f64,
+}
+
+impl RangeScale {
+    fn new(points: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> RangeScale {
+        let r_ref = viewpoint.map_or(1.0, |v| {
+            let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
+            median(&mut r).unwrap_or(0.0).max(1e-3)
+        });
+        RangeScale { viewpoint, r_ref }
+    }
+
+    #[inline]
+    fn at(&self, p: &Point3<f64>) -> f64 {
+        match self.viewpoint {
+            Some(v) => ((p - v).norm() / self.r_ref).powi(2).max(0.05),
+            None => 1.0,
+        }
+    }
+}
+
+/// The dominant plane of `points` and the half-width of its band at the reference range.
+fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane, f64)> {
+    let none = None;
     // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
     let Some((whole, _)) = fit_plane(points, 0..points.len()) else {
         return none;
@@ -159,7 +250,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let threshold = median(&mut all_d).unwrap_or(0.0);
     // The paper's vote over the seeds ranks the hypotheses; on a cluttered table most seeds lie
     // on objects and the vote alone can crown a box top, so the hypotheses are compared by how
-    // many of all the points (every 16th) lie within a centimetre of them.
+    // many of the points (an even share of them) lie within a centimetre of them.
     let mut voted: Vec<(usize, Plane, f64)> = hypotheses
         .iter()
         .map(|(s, h, rms)| {
@@ -176,7 +267,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         .map(|(_, h, rms)| {
             let consensus = points
                 .iter()
-                .step_by(16)
+                .step_by((points.len() / CONSENSUS_POINTS).max(1))
                 .filter(|p| h.signed_distance(p).abs() < 0.01)
                 .count();
             (consensus, *h, *rms)
@@ -187,22 +278,10 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     // The band never grows past a few patch noises: on a cluttered table the objects' bottoms
     // next to the plane would otherwise keep widening it and tilt the fit.
     let cap = (6.0 * patch_rms).clamp(0.006, 0.02);
-    // Refine on all points: least squares on the points near the plane, with a band from their
+    // Refine on the points near the plane: least squares, with a band from their
     // robust spread, until the band settles. A wide first band can hold a second, parallel
     // surface (the far end of a table a step lower); each round sheds part of it.
-    // Triangulating sensors (laser profilers, structured light) get noisier with the square of
-    // the range, so distances to the plane are measured in units of the noise at each point's
-    // range: `scale_i = (r_i / r_ref)^2`, `r_ref` the median range. Without a viewpoint every
-    // scale is 1.
-    let scale: Vec<f64> = match viewpoint {
-        Some(v) => {
-            let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
-            let r_ref = median(&mut r.clone()).unwrap_or(0.0).max(1e-3);
-            r.iter_mut().for_each(|x| *x = (*x / r_ref).powi(2).max(0.05));
-            r
-        }
-        None => vec![1.0; points.len()],
-    };
+    let scale: Vec<f64> = points.iter().map(|p| range_scale.at(p)).collect();
     let norm_dist = |plane: &Plane, i: usize| plane.signed_distance(&points[i]) / scale[i];
     let mut plane = best;
     // Start narrow: a least-squares fit over a wide band mixes in the bottoms of the objects
@@ -229,45 +308,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             break;
         }
     }
-    let inliers = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band).count();
-    // The paper removes the plane only when it holds more points than the rest. A cluttered
-    // table seen with the room behind it holds less than half (mOSD test64: 48 %), and leaving it
-    // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
-    // by far the largest structure in view.
-    if (inliers as f64) < MIN_PLANE_SHARE * points.len() as f64 {
-        return PlaneRemoval {
-            plane: None,
-            inliers,
-            band,
-            kept: (0..points.len()).collect(),
-        };
-    }
-    // Orient the normal towards the objects: towards the sensor, which sees the plane's top
-    // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
-    // side with more off-plane points.
-    let flip = match viewpoint {
-        Some(v) => plane.signed_distance(&v) < 0.0,
-        None => {
-            let above = (0..points.len()).filter(|&i| norm_dist(&plane, i) >= band).count();
-            let below = (0..points.len()).filter(|&i| norm_dist(&plane, i) <= -band).count();
-            below > above
-        }
-    };
-    if flip {
-        plane = plane.flipped();
-    }
-    let kept = (0..points.len())
-        .filter(|&i| {
-            let d = norm_dist(&plane, i);
-            d >= band || (keep_below && d <= -band)
-        })
-        .collect();
-    PlaneRemoval {
-        plane: Some(plane),
-        inliers,
-        band,
-        kept,
-    }
+    Some((plane, band))
 }
 
 /// Two unit vectors completing `n` to an orthonormal basis.
