@@ -75,7 +75,9 @@ impl Grid {
 
     #[inline]
     fn coords(&self, p: &Point3<f64>) -> [usize; 3] {
-        [0, 1, 2].map(|k| (((p[k] - self.origin[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1))
+        // A float-to-integer cast truncates towards zero and saturates (negative and NaN to 0),
+        // which is the floor clamped at the grid's low end, without a call to libm's floor.
+        [0, 1, 2].map(|k| (((p[k] - self.origin[k]) / self.cell) as usize).min(self.dims[k] - 1))
     }
 
     #[inline]

@@ -59,6 +59,9 @@ pub struct PlaneRemoval {
     pub band: f64,
     /// Indices of the points kept (off the plane, and above it when `keep_below` is false).
     pub kept: Vec<usize>,
+    /// The range (m) at which `band` holds: the median distance of the points from the
+    /// viewpoint; `None` without a viewpoint (the band is then the same everywhere).
+    pub reference_range: Option<f64>,
 }
 
 /// Plane through a point set: centroid and the smallest-eigenvalue eigenvector.
@@ -102,6 +105,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             inliers: 0,
             band: 0.0,
             kept: all(),
+            reference_range: None,
         };
     }
     // The plane and its band are found on an even subsample: a table holds far more points than
@@ -116,10 +120,13 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             inliers: 0,
             band: 0.0,
             kept: all(),
+            reference_range: None,
         };
     };
     let norm_dist = |plane: &Plane, p: &Point3<f64>| plane.signed_distance(p) / range_scale.at(p);
-    let inliers = points.iter().filter(|p| norm_dist(&plane, p).abs() < band).count();
+    // Each point's distance once: the split below and the count here both need it.
+    let dist: Vec<f64> = points.iter().map(|p| norm_dist(&plane, p)).collect();
+    let inliers = dist.iter().filter(|d| d.abs() < band).count();
     // The paper removes the plane only when it holds more points than the rest. A cluttered
     // table seen with the room behind it holds less than half (mOSD test64: 48 %), and leaving it
     // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
@@ -130,6 +137,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
             inliers,
             band,
             kept: all(),
+            reference_range: range_scale.reference(),
         };
     }
     // Orient the normal towards the objects: towards the sensor, which sees the plane's top
@@ -138,17 +146,20 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let flip = match viewpoint {
         Some(v) => plane.signed_distance(&v) < 0.0,
         None => {
-            let above = points.iter().filter(|p| norm_dist(&plane, p) >= band).count();
-            let below = points.iter().filter(|p| norm_dist(&plane, p) <= -band).count();
+            let above = dist.iter().filter(|&&d| d >= band).count();
+            let below = dist.iter().filter(|&&d| d <= -band).count();
             below > above
         }
     };
-    if flip {
+    let side = if flip {
         plane = plane.flipped();
-    }
+        -1.0
+    } else {
+        1.0
+    };
     let kept = (0..points.len())
         .filter(|&i| {
-            let d = norm_dist(&plane, &points[i]);
+            let d = side * dist[i];
             d >= band || (keep_below && d <= -band)
         })
         .collect();
@@ -157,11 +168,12 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         inliers,
         band,
         kept,
+        reference_range: range_scale.reference(),
     }
 }
 
 /// Points each candidate plane is counted against.
-const CONSENSUS_POINTS: usize = 20_000;
+const CONSENSUS_POINTS: usize = 5_000;
 
 /// Points the plane is found on at most.
 const FIT_POINTS: usize = 40_000;
@@ -182,6 +194,10 @@ impl RangeScale {
             median(&mut r).unwrap_or(0.0).max(1e-3)
         });
         RangeScale { viewpoint, r_ref }
+    }
+
+    fn reference(&self) -> Option<f64> {
+        self.viewpoint.map(|_| self.r_ref)
     }
 
     #[inline]

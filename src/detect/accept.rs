@@ -4,7 +4,7 @@
 //! the noise and, for a compound, its connection errors. The candidates that pass, and may be
 //! reported, are then checked against the free space the sensor saw through.
 
-use super::prepare::Prepared;
+use super::prepare::{Prepared, RangeNoise};
 use super::report::{Detection, PartResult};
 use super::verify;
 use super::{Acceptance, Params, box_volume};
@@ -22,10 +22,12 @@ pub fn assess(
     model: &Model,
     parts: Vec<PartResult>,
     connection_errors: Vec<(f64, f64)>,
-    noise: f64,
+    noise: &RangeNoise,
     acc: &Acceptance,
 ) -> Detection {
     let pose = object_pose(model, &parts);
+    // The fit is judged against the sensor's noise where the object is.
+    let noise = noise.at(&Point3::from(pose.translation.vector));
     // Pool the measures over the parts found (a hidden part lowers coverage by its share).
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
     let mut shell = 0usize;
@@ -127,7 +129,7 @@ pub fn free_space(prep: &Prepared, candidates: &mut [Detection], first_new: usiz
             let Some(placed) = part.placed else { continue };
             let vis = verify::visibility(
                 &prep.scene.points,
-                &prep.all_grid,
+                &prep.scene.all_grid,
                 &placed,
                 params.viewpoint,
                 prep.scene.plane.as_ref(),

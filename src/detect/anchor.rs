@@ -4,7 +4,7 @@
 //! (`compound`).
 
 use super::accept;
-use super::prepare::Prepared;
+use super::prepare::{Prepared, RangeNoise};
 use super::report::{Detection, PartResult, PoseText};
 use super::search::{Hypothesis, search_part};
 use super::verify::{Scores, paper_criteria, rank_sums, score};
@@ -131,7 +131,7 @@ impl Anchors {
 
     /// A single-part model's candidates: every hypothesis, best rank first, through the
     /// acceptance test.
-    pub fn single_part_candidates(&self, model: &Model, noise: f64, acceptance: &Acceptance) -> Vec<Detection> {
+    pub fn single_part_candidates(&self, model: &Model, noise: &RangeNoise, acceptance: &Acceptance) -> Vec<Detection> {
         self.order
             .iter()
             .map(|&k| accept::assess(model, vec![self.part_result(model, k)], Vec::new(), noise, acceptance))

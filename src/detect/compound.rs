@@ -132,7 +132,7 @@ pub fn combinations(
             // not on the parent part's own surface.
             let pc = Point3::from(parent_placed.pose.translation.vector);
             let reach = shape.bounding_radius();
-            let band = search::refine_band(&parent_placed.shape, space.noise);
+            let band = search::refine_band(&parent_placed.shape, space.noise.at(&pc));
             let mut seeds = Vec::new();
             space
                 .sub_grid
@@ -245,7 +245,7 @@ pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, para
                 model,
                 c.parts,
                 c.errors,
-                prep.noise(),
+                &prep.noise(),
                 &params.acceptance,
             ));
         }
@@ -257,8 +257,9 @@ pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, para
 /// again and judge the whole.
 fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) -> Detection {
     let space = prep.space();
-    let noise = prep.noise();
     let start = object_pose(model, &combo.parts);
+    let noise_model = prep.noise();
+    let noise = noise_model.at(&Point3::from(start.translation.vector));
     let smallest = model
         .parts
         .iter()
@@ -284,7 +285,7 @@ fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) 
             }
         })
         .collect();
-    let mut d = accept::assess(model, parts, Vec::new(), noise, &params.acceptance);
+    let mut d = accept::assess(model, parts, Vec::new(), &noise_model, &params.acceptance);
     // The rigid fit moves parts that were not searched (a part never found is placed by the
     // model): none may go through the support plane.
     let possible = d

@@ -106,7 +106,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
             candidates.extend(compound::candidates(&prep, model, combos, params));
             timing.verify_ms += ms(t);
         } else {
-            candidates.extend(anchors.single_part_candidates(model, prep.noise(), &params.acceptance));
+            candidates.extend(anchors.single_part_candidates(model, &prep.noise(), &params.acceptance));
         }
         if accept::free_space(&prep, &mut candidates, first_new, params) > 0 {
             break;

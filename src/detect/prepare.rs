@@ -21,13 +21,52 @@ pub struct Scene {
     /// Every finite point within range, the plane's included: the lines of sight of the
     /// free-space check end on them.
     pub points: Vec<Point3<f64>>,
+    /// Grid over `points` for the lines of sight.
+    pub all_grid: Grid,
     /// The points off the plane: where the objects are searched.
     pub objects: Vec<Point3<f64>>,
     /// The support plane, its normal towards the objects.
     pub plane: Option<Plane>,
-    /// Depth noise estimate (m, one sigma) from the plane's inlier band.
-    pub noise: f64,
+    /// Depth noise (one sigma) from the plane's inlier band.
+    pub noise: RangeNoise,
 }
+
+/// The depth noise (m, one sigma) of a triangulating sensor (a laser profiler, a structured-light
+/// camera), as the support plane showed it: it grows with the square of the range, so the noise
+/// at a point is the plane's at the median range scaled by `(range / median range)^2`. Without a
+/// viewpoint, or without a plane, it is one figure for the whole scene.
+#[derive(Debug, Clone, Copy)]
+pub struct RangeNoise {
+    at_reference: f64,
+    /// The viewpoint and the range at which `at_reference` holds.
+    reference: Option<(Point3<f64>, f64)>,
+}
+
+impl RangeNoise {
+    pub fn uniform(sigma: f64) -> RangeNoise {
+        RangeNoise {
+            at_reference: sigma,
+            reference: None,
+        }
+    }
+
+    /// The noise at `p`.
+    pub fn at(&self, p: &Point3<f64>) -> f64 {
+        match self.reference {
+            Some((v, r)) => (self.at_reference * ((p - v).norm() / r).powi(2)).max(MIN_NOISE),
+            None => self.at_reference,
+        }
+    }
+
+    /// The noise at the median range.
+    pub fn reference(&self) -> f64 {
+        self.at_reference
+    }
+}
+
+/// The least noise assumed (m): below it, the sensor's quantisation and the models'
+/// approximation dominate.
+const MIN_NOISE: f64 = 0.0005;
 
 /// What plane removal found, for the log.
 pub struct RemovalSummary {
@@ -54,11 +93,13 @@ impl fmt::Display for RemovalSummary {
 /// Filter the cloud (non-finite points are skipped) and remove the support plane.
 pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     let origin = params.viewpoint.unwrap_or(Point3::origin());
-    let points: Vec<Point3<f64>> = cloud
-        .iter()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-        .collect();
+    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
+    points.extend(
+        cloud
+            .iter()
+            .filter(|p| p.iter().all(|v| v.is_finite()))
+            .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)),
+    );
     let input_points = points.len();
     let points: Vec<Point3<f64>> = match params.max_range {
         Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
@@ -68,16 +109,25 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         return Scene {
             input_points,
             objects: points.clone(),
+            all_grid: sight_grid(&points),
             points,
             plane: None,
-            noise: DEFAULT_NOISE,
+            noise: RangeNoise::uniform(DEFAULT_NOISE),
         };
     }
-    let removal = remove_dominant_plane(&points, false, params.viewpoint);
+    // The grid of the lines of sight needs every point and nothing of the plane: it is built on
+    // the second core while the plane is found.
+    let (removal, all_grid) = rayon::join(
+        || remove_dominant_plane(&points, false, params.viewpoint),
+        || sight_grid(&points),
+    );
     let noise = if removal.plane.is_some() {
-        (removal.band / 3.0).max(0.0005)
+        RangeNoise {
+            at_reference: (removal.band / 3.0).max(MIN_NOISE),
+            reference: params.viewpoint.zip(removal.reference_range),
+        }
     } else {
-        DEFAULT_NOISE
+        RangeNoise::uniform(DEFAULT_NOISE)
     };
     let summary = RemovalSummary {
         plane: removal.plane,
@@ -90,9 +140,15 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         input_points,
         objects: removal.kept.iter().map(|&i| points[i]).collect(),
         points,
+        all_grid,
         plane: removal.plane,
         noise,
     }
+}
+
+/// The grid the free-space check looks along the lines of sight in.
+fn sight_grid(points: &[Point3<f64>]) -> Grid {
+    Grid::new(points, 0.01)
 }
 
 /// The scene indexed for the search and the checks of one model.
@@ -104,8 +160,6 @@ pub struct Prepared {
     pub grid: Grid,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
-    /// Grid over `scene.points` for the lines of sight.
-    pub all_grid: Grid,
     pub viewpoint: Option<Point3<f64>>,
     /// Each part's surface samples at the data's spacing.
     pub samples: Vec<SurfaceSamples>,
@@ -131,7 +185,7 @@ impl Prepared {
         }
     }
 
-    pub fn noise(&self) -> f64 {
+    pub fn noise(&self) -> RangeNoise {
         self.scene.noise
     }
 }
@@ -163,14 +217,12 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
     let checks = model
         .parts
         .iter()
-        .map(|p| PlaneCheck::new(&p.shape, scene.noise, p.open))
+        .map(|p| PlaneCheck::new(&p.shape, scene.noise.reference(), p.open))
         .collect();
-    let all_grid = Grid::new(&scene.points, 0.01);
     Prepared {
         sub,
         grid,
         sub_grid,
-        all_grid,
         viewpoint: params.viewpoint,
         samples,
         checks,
@@ -181,5 +233,24 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         },
         max_size,
         scene,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Twice the range, four times the noise; never under the floor; one figure without a
+    /// viewpoint.
+    #[test]
+    fn noise_grows_with_the_square_of_the_range() {
+        let n = RangeNoise {
+            at_reference: 0.002,
+            reference: Some((Point3::origin(), 0.8)),
+        };
+        assert!((n.at(&Point3::new(0.0, 0.0, 0.8)) - 0.002).abs() < 1e-12);
+        assert!((n.at(&Point3::new(0.0, 1.6, 0.0)) - 0.008).abs() < 1e-12);
+        assert_eq!(n.at(&Point3::new(0.0, 0.0, 0.01)), MIN_NOISE);
+        assert_eq!(RangeNoise::uniform(0.003).at(&Point3::new(5.0, 0.0, 0.0)), 0.003);
     }
 }

@@ -13,6 +13,8 @@
 //! possible against the support plane.
 
 use super::fit::{Fit, Freedom, fit_pose_tol, fit_pose_with, measure_of_fit};
+use super::prepare::RangeNoise;
+use super::verify;
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
@@ -51,8 +53,8 @@ pub struct SearchSpace<'a> {
     pub sub: &'a [Point3<f64>],
     pub sub_grid: &'a Grid,
     pub viewpoint: Option<Point3<f64>>,
-    /// Depth noise estimate (m, one sigma) near the scene: sets the inlier band.
-    pub noise: f64,
+    /// Depth noise (one sigma) at each place: sets the inlier bands.
+    pub noise: RangeNoise,
     /// The support plane (normal towards the objects), when one was found: nothing the sensor
     /// saw on it can reach through it.
     pub plane: Option<Plane>,
@@ -289,7 +291,7 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: 
         None => Freedom::Free,
     };
     let fit = &fit;
-    let final_band = refine_band(&shape, space.noise);
+    let final_band = refine_band(&shape, space.noise.at(&Point3::from(fit.placed.pose.translation.vector)));
     // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
     // size, so the first round gathers points in a wide band and each round halves it.
     let mut band = (0.3 * sample_radius(&shape)).max(final_band);
@@ -365,7 +367,8 @@ pub fn ransac(
         return None;
     }
     let radius = sample_radius(shape);
-    let band = refine_band(shape, space.noise);
+    // The region's seeds lie close together: the noise at the first holds for all.
+    let band = refine_band(shape, space.noise.at(&space.sub[seeds[0]]));
     let mut best: Option<(usize, Fit)> = None;
     let mut near = Vec::new();
     let mut sample = Vec::with_capacity(settings.sample_points);
@@ -465,21 +468,28 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let z = placed.pose.rotation * Vector3::z();
     let up = if z.dot(&plane.normal) >= 0.0 { 1.0 } else { -1.0 };
     let a3 = shape.a[2];
-    let band = (2.5 * space.noise).max(0.002);
-    let (mut cap, mut inside) = (0usize, 0usize);
     let centre = Point3::from(placed.pose.translation.vector);
+    let band = (2.5 * space.noise.at(&centre)).max(0.002);
+    // The cap is as deep as a vessel's base may be recessed inside its foot ring (see
+    // `verify::BaseCap`); the inside seen through an opening lies deeper.
+    let window = verify::base_window(&shape, band);
+    let (mut cap, mut inside) = (0usize, 0usize);
     space
         .grid
         .for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
             let q = placed.to_local(&space.points[k]);
             // Well inside the wall, across the axis.
-            if shape.section_radius(q.x, q.y) > 0.8 {
+            let r = shape.section_radius(q.x, q.y);
+            if r > 0.8 {
                 return;
             }
             let h = up * q.z;
-            if (h - a3).abs() < band {
-                cap += 1;
-            } else if h < a3 - band && h > -a3 {
+            if (h - a3).abs() < window {
+                // A base covers the middle; near an opening's edge is the inner wall.
+                if r < 0.6 {
+                    cap += 1;
+                }
+            } else if h < a3 - window && h > -a3 {
                 inside += 1;
             }
         });

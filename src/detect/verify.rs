@@ -102,7 +102,7 @@ pub fn score(
     let centre = Point3::from(placed.pose.translation.vector);
     let shape = &placed.shape;
     let radius = 1.2 * shape.max_size();
-    let band = (2.5 * space.noise).max(0.002);
+    let band = (2.5 * space.noise.at(&centre)).max(0.002);
     let (mut s, mut i) = (0usize, 0usize);
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
     // Their surface distances, for the faces test.
@@ -246,6 +246,12 @@ pub fn score(
 /// a few millimetres below the ring; a lid or the top of a closed can is flat or domed. Points
 /// near the top, within the inner 45 % of the cross-section (the middle) and between 55 % and
 /// 85 % (the ring, short of the rounded edge), are collected and their median heights compared.
+/// How far (m) from the end of a part its base's points may lie: a fifth of its half-height, or
+/// three noise bands where the noise is larger.
+pub fn base_window(shape: &Superquadric, band: f64) -> f64 {
+    (0.2 * shape.a[2]).max(3.0 * band)
+}
+
 struct BaseCap {
     a3: f64,
     window: f64,
@@ -258,7 +264,7 @@ impl BaseCap {
     fn new(shape: &Superquadric, band: f64) -> BaseCap {
         BaseCap {
             a3: shape.a[2],
-            window: (0.2 * shape.a[2]).max(3.0 * band),
+            window: base_window(shape, band),
             middle: Vec::new(),
             ring: Vec::new(),
             shape: *shape,
