@@ -148,7 +148,11 @@ pub fn score(
         |k| {
             let p = &space.points[k];
             let within_paper_radius = (p - centre).norm() <= radius;
-            let g = placed.f_pow_e1(p);
+            // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order
+            // surface distance and the normal (the lid test).
+            let q = placed.to_local(p);
+            let rg = shape.residual_grad(&q);
+            let g = rg.residual + 1.0;
             if within_paper_radius {
                 if g < 1.0 - gamma {
                     i += 1;
@@ -156,13 +160,13 @@ pub fn score(
                     s += 1;
                 }
             }
-            let d = placed.surface_distance(p);
+            let d = PlacedSuperquadric::distance_from(&rg);
             // The raised middle of a vessel's base lies inside the model's end, which is flat.
             let mut in_base = false;
             if on_rim {
-                in_base = base.add(&placed.to_local(p), -1.0);
+                in_base = base.add(&q, -1.0);
             }
-            if opening_up && d.abs() < band && crate::model::is_lid(&shape.residual_grad(&placed.to_local(p)).grad) {
+            if opening_up && d.abs() < band && crate::model::is_lid(&rg.grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
                 lid += 1;

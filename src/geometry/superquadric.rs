@@ -499,7 +499,12 @@ impl PlacedSuperquadric {
     /// of the surface and, unlike the radial distance, also for flat shapes seen at their rims;
     /// `-inf` at the centre.
     pub fn surface_distance(&self, p: &Point3<f64>) -> f64 {
-        let rg = self.shape.residual_grad(&self.to_local(p));
+        Self::distance_from(&self.shape.residual_grad(&self.to_local(p)))
+    }
+
+    /// [`Self::surface_distance`] from the residual and gradient already evaluated at the point.
+    #[inline]
+    pub fn distance_from(rg: &ResidualGrad) -> f64 {
         let g = rg.grad.norm();
         if g > 0.0 {
             rg.residual / g
