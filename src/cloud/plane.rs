@@ -98,15 +98,16 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
 /// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
 pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
-    let all = || (0..points.len()).collect::<Vec<usize>>();
+    // Nothing removed: every point kept.
+    let no_plane = |inliers: usize, band: f64, reference_range: Option<f64>| PlaneRemoval {
+        plane: None,
+        inliers,
+        band,
+        kept: (0..points.len()).collect(),
+        reference_range,
+    };
     if points.len() < SEEDS {
-        return PlaneRemoval {
-            plane: None,
-            inliers: 0,
-            band: 0.0,
-            kept: all(),
-            reference_range: None,
-        };
+        return no_plane(0, 0.0, None);
     }
     // The plane and its band are found on an even subsample: a table holds far more points than
     // a plane needs (a Kinect frame 300 000), and every step below passes over them several
@@ -115,13 +116,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
     let range_scale = RangeScale::new(&sample, viewpoint);
     let Some((mut plane, band)) = find_plane(&sample, &range_scale) else {
-        return PlaneRemoval {
-            plane: None,
-            inliers: 0,
-            band: 0.0,
-            kept: all(),
-            reference_range: None,
-        };
+        return no_plane(0, 0.0, None);
     };
     let norm_dist = |plane: &Plane, p: &Point3<f64>| plane.signed_distance(p) / range_scale.at(p);
     // Each point's distance once: the split below and the count here both need it.
@@ -132,13 +127,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
     // by far the largest structure in view.
     if (inliers as f64) < MIN_PLANE_SHARE * points.len() as f64 {
-        return PlaneRemoval {
-            plane: None,
-            inliers,
-            band,
-            kept: all(),
-            reference_range: range_scale.reference(),
-        };
+        return no_plane(inliers, band, range_scale.reference());
     }
     // Orient the normal towards the objects: towards the sensor, which sees the plane's top
     // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
@@ -173,7 +162,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
 }
 
 /// Points each candidate plane is counted against.
-const CONSENSUS_POINTS: usize = 5_000;
+const CONSENSUS_POINTS: usize = 20_000;
 
 /// Points the plane is found on at most.
 const FIT_POINTS: usize = 40_000;
@@ -211,10 +200,9 @@ impl RangeScale {
 
 /// The dominant plane of `points` and the half-width of its band at the reference range.
 fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane, f64)> {
-    let none = None;
     // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
     let Some((whole, _)) = fit_plane(points, 0..points.len()) else {
-        return none;
+        return None;
     };
     let (u, v) = orthonormal_basis(&whole.normal);
     let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
@@ -257,7 +245,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
         })
         .collect();
     if hypotheses.is_empty() {
-        return none;
+        return None;
     }
     let mut all_d: Vec<f64> = Vec::with_capacity(hypotheses.len() * seeds.len());
     for (_, h, _) in &hypotheses {
@@ -307,7 +295,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
         let previous = band;
         let near = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band);
         let Some((p, _)) = fit_plane(points, near) else {
-            return none;
+            return None;
         };
         plane = if p.normal.dot(&plane.normal) < 0.0 {
             p.flipped()
