@@ -245,17 +245,18 @@ pub fn score(
     }
 }
 
-/// The top of a container standing on its rim is its base. Vessels (mugs, bowls, pots) stand
-/// on a foot ring with the middle of the base raised inside it, so upside down the middle lies
-/// a few millimetres below the ring; a lid or the top of a closed can is flat or domed. Points
-/// near the top, within the inner 45 % of the cross-section (the middle) and between 55 % and
-/// 85 % (the ring, short of the rounded edge), are collected and their median heights compared.
 /// How far (m) from the end of a part its base's points may lie: a fifth of its half-height, or
 /// three noise bands where the noise is larger.
 pub fn base_window(shape: &Superquadric, band: f64) -> f64 {
     (0.2 * shape.a[2]).max(3.0 * band)
 }
 
+/// The top of a container standing on its rim is its base. Vessels (mugs, bowls, pots) stand
+/// on a foot ring with the middle of the base raised inside it, so upside down the middle lies
+/// a few millimetres below the ring; a lid or the top of a closed can is flat or domed. Points
+/// within the base window of the top, within the inner 40 % of the cross-section (the middle)
+/// and between 65 % and 88 % (the ring, short of the rounded edge), are collected and their
+/// median heights compared.
 struct BaseCap {
     a3: f64,
     window: f64,
