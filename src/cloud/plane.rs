@@ -201,9 +201,7 @@ impl RangeScale {
 /// The dominant plane of `points` and the half-width of its band at the reference range.
 fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane, f64)> {
     // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
-    let Some((whole, _)) = fit_plane(points, 0..points.len()) else {
-        return None;
-    };
+    let (whole, _) = fit_plane(points, 0..points.len())?;
     let (u, v) = orthonormal_basis(&whole.normal);
     let (mut umin, mut umax, mut vmin, mut vmax) = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
     for p in points {
@@ -294,9 +292,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     for _ in 0..12 {
         let previous = band;
         let near = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band);
-        let Some((p, _)) = fit_plane(points, near) else {
-            return None;
-        };
+        let (p, _) = fit_plane(points, near)?;
         plane = if p.normal.dot(&plane.normal) < 0.0 {
             p.flipped()
         } else {
