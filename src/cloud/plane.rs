@@ -59,9 +59,8 @@ pub struct PlaneRemoval {
     pub band: f64,
     /// Indices of the points kept (off the plane, and above it when `keep_below` is false).
     pub kept: Vec<usize>,
-    /// The range (m) at which `band` holds: the median distance of the points from the
-    /// viewpoint; `None` without a viewpoint (the band is then the same everywhere).
-    pub reference_range: Option<f64>,
+    /// How the noise, and so `band`, scales with the range: `band` holds at its reference range.
+    pub range_scale: RangeScale,
 }
 
 /// Plane through a point set: centroid and the smallest-eigenvalue eigenvector.
@@ -99,15 +98,15 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
 pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
     // Nothing removed: every point kept.
-    let no_plane = |inliers: usize, band: f64, reference_range: Option<f64>| PlaneRemoval {
+    let no_plane = |inliers: usize, band: f64, range_scale: RangeScale| PlaneRemoval {
         plane: None,
         inliers,
         band,
         kept: (0..points.len()).collect(),
-        reference_range,
+        range_scale,
     };
     if points.len() < SEEDS {
-        return no_plane(0, 0.0, None);
+        return no_plane(0, 0.0, RangeScale::uniform());
     }
     // The plane and its band are found on an even subsample: a table holds far more points than
     // a plane needs (a Kinect frame 300 000), and every step below passes over them several
@@ -116,7 +115,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
     let range_scale = RangeScale::new(&sample, viewpoint);
     let Some((mut plane, band)) = find_plane(&sample, &range_scale) else {
-        return no_plane(0, 0.0, None);
+        return no_plane(0, 0.0, RangeScale::uniform());
     };
     let norm_dist = |plane: &Plane, p: &Point3<f64>| plane.signed_distance(p) / range_scale.at(p);
     // Each point's distance once: the split below and the count here both need it.
@@ -127,7 +126,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     // in makes every cylinder hypothesis lie in it; a plane with a third of the points is still
     // by far the largest structure in view.
     if (inliers as f64) < MIN_PLANE_SHARE * points.len() as f64 {
-        return no_plane(inliers, band, range_scale.reference());
+        return no_plane(inliers, band, range_scale);
     }
     // Orient the normal towards the objects: towards the sensor, which sees the plane's top
     // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
@@ -157,7 +156,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         inliers,
         band,
         kept,
-        reference_range: range_scale.reference(),
+        range_scale,
     }
 }
 
@@ -169,15 +168,17 @@ const FIT_POINTS: usize = 40_000;
 
 /// Triangulating sensors (laser profilers, structured light) get noisier with the square of
 /// the range, so distances to the plane are measured in units of the noise at each point's
-/// range: `scale = (r / r_ref)^2`, `r_ref` the median range. Without a viewpoint every scale
-/// is 1.
-struct RangeScale {
+/// range: `scale = (r / r_ref)^2` (at least 0.05), `r_ref` the median range. Without a viewpoint
+/// every scale is 1.
+#[derive(Debug, Clone, Copy)]
+pub struct RangeScale {
     viewpoint: Option<Point3<f64>>,
     r_ref: f64,
 }
 
 impl RangeScale {
-    fn new(points: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> RangeScale {
+    /// The median range of `points` from `viewpoint` as the reference.
+    pub fn new(points: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> RangeScale {
         let r_ref = viewpoint.map_or(1.0, |v| {
             let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
             median(&mut r).unwrap_or(0.0).max(1e-3)
@@ -185,12 +186,24 @@ impl RangeScale {
         RangeScale { viewpoint, r_ref }
     }
 
-    fn reference(&self) -> Option<f64> {
-        self.viewpoint.map(|_| self.r_ref)
+    /// Scale 1 at every range relative to `viewpoint` of `r_ref` (m).
+    pub fn at_range(viewpoint: Point3<f64>, r_ref: f64) -> RangeScale {
+        RangeScale {
+            viewpoint: Some(viewpoint),
+            r_ref: r_ref.max(1e-3),
+        }
+    }
+
+    /// One scale everywhere.
+    pub fn uniform() -> RangeScale {
+        RangeScale {
+            viewpoint: None,
+            r_ref: 1.0,
+        }
     }
 
     #[inline]
-    fn at(&self, p: &Point3<f64>) -> f64 {
+    pub fn at(&self, p: &Point3<f64>) -> f64 {
         match self.viewpoint {
             Some(v) => ((p - v).norm() / self.r_ref).powi(2).max(0.05),
             None => 1.0,

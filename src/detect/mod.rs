@@ -25,6 +25,7 @@
 
 mod accept;
 mod anchor;
+mod base;
 mod compound;
 mod fit;
 pub mod output;

@@ -6,7 +6,7 @@ use super::Params;
 use super::search::{PlaneCheck, SearchSettings, SearchSpace};
 use super::verify::{SurfaceSamples, median_spacing};
 use crate::cloud::grid::{Grid, voxel_subsample};
-use crate::cloud::plane::{Plane, remove_dominant_plane};
+use crate::cloud::plane::{Plane, RangeScale, remove_dominant_plane};
 use crate::model::Model;
 use nalgebra::Point3;
 use std::fmt;
@@ -33,29 +33,26 @@ pub struct Scene {
 
 /// The depth noise (m, one sigma) of a triangulating sensor (a laser profiler, a structured-light
 /// camera), as the support plane showed it: it grows with the square of the range, so the noise
-/// at a point is the plane's at the median range scaled by `(range / median range)^2`. Without a
-/// viewpoint, or without a plane, it is one figure for the whole scene.
+/// at a point is the plane's at the median range scaled as the plane's distances were
+/// ([`RangeScale`]). Without a viewpoint, or without a plane, it is one figure for the whole
+/// scene.
 #[derive(Debug, Clone, Copy)]
 pub struct RangeNoise {
     at_reference: f64,
-    /// The viewpoint and the range at which `at_reference` holds.
-    reference: Option<(Point3<f64>, f64)>,
+    scale: RangeScale,
 }
 
 impl RangeNoise {
     pub fn uniform(sigma: f64) -> RangeNoise {
         RangeNoise {
             at_reference: sigma,
-            reference: None,
+            scale: RangeScale::uniform(),
         }
     }
 
     /// The noise at `p`.
     pub fn at(&self, p: &Point3<f64>) -> f64 {
-        match self.reference {
-            Some((v, r)) => (self.at_reference * ((p - v).norm() / r).powi(2)).max(MIN_NOISE),
-            None => self.at_reference,
-        }
+        (self.at_reference * self.scale.at(p)).max(MIN_NOISE)
     }
 
     /// The noise at the median range.
@@ -124,7 +121,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     let noise = if removal.plane.is_some() {
         RangeNoise {
             at_reference: (removal.band / 3.0).max(MIN_NOISE),
-            reference: params.viewpoint.zip(removal.reference_range),
+            scale: removal.range_scale,
         }
     } else {
         RangeNoise::uniform(DEFAULT_NOISE)
@@ -246,7 +243,7 @@ mod tests {
     fn noise_grows_with_the_square_of_the_range() {
         let n = RangeNoise {
             at_reference: 0.002,
-            reference: Some((Point3::origin(), 0.8)),
+            scale: RangeScale::at_range(Point3::origin(), 0.8),
         };
         assert!((n.at(&Point3::new(0.0, 0.0, 0.8)) - 0.002).abs() < 1e-12);
         assert!((n.at(&Point3::new(0.0, 1.6, 0.0)) - 0.008).abs() < 1e-12);

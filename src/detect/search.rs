@@ -12,9 +12,9 @@
 //! of the scene and from its own random stream, and keeps the distinct refined ones that are
 //! possible against the support plane.
 
+use super::base;
 use super::fit::{Fit, Freedom, fit_pose_tol, fit_pose_with, measure_of_fit};
 use super::prepare::RangeNoise;
-use super::verify;
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
@@ -291,7 +291,10 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: 
         None => Freedom::Free,
     };
     let fit = &fit;
-    let final_band = refine_band(&shape, space.noise.at(&Point3::from(fit.placed.pose.translation.vector)));
+    let final_band = refine_band(
+        &shape,
+        space.noise.at(&Point3::from(fit.placed.pose.translation.vector)),
+    );
     // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
     // size, so the first round gathers points in a wide band and each round halves it.
     let mut band = (0.3 * sample_radius(&shape)).max(final_band);
@@ -471,8 +474,8 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let centre = Point3::from(placed.pose.translation.vector);
     let band = (2.5 * space.noise.at(&centre)).max(0.002);
     // The cap is as deep as a vessel's base may be recessed inside its foot ring (see
-    // `verify::BaseCap`); the inside seen through an opening lies deeper.
-    let window = verify::base_window(&shape, band);
+    // `base::BaseCap`); the inside seen through an opening lies deeper.
+    let window = base::window(&shape, band);
     let (mut cap, mut inside) = (0usize, 0usize);
     space
         .grid

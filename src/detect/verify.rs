@@ -18,10 +18,10 @@
 //! - the interior ratio `I / S`: a wrong shape or size swallows points of the real surface;
 //! - the RMS Euclidean (radial) distance of the surface points, against the sensor noise.
 
+use super::base::BaseCap;
 use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
-use crate::geometry::{PlacedSuperquadric, Superquadric};
-use crate::numeric::median;
+use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 use std::fmt;
 
@@ -55,7 +55,7 @@ pub struct Scores {
     /// edge, not a can. Infinite when there is nothing to compare.
     pub faces: f64,
     /// For a container standing on its rim: how far (m) the middle of its top, which is its
-    /// base, lies below the ring round it (see `BaseCap`); minus infinity when too little of the
+    /// base, lies below the ring round it (see [`BaseCap`]); minus infinity when too little of the
     /// top was seen. `None` for anything else.
     pub base_recess: Option<f64>,
 }
@@ -162,10 +162,7 @@ pub fn score(
             }
             let d = PlacedSuperquadric::distance_from(&rg);
             // The raised middle of a vessel's base lies inside the model's end, which is flat.
-            let mut in_base = false;
-            if on_rim {
-                in_base = base.add(&q, -1.0);
-            }
+            let in_base = on_rim && base.add(&q);
             if opening_up && d.abs() < band && crate::model::is_lid(&rg.grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
@@ -242,67 +239,6 @@ pub fn score(
         shell_points,
         faces,
         base_recess: on_rim.then(|| base.recess()),
-    }
-}
-
-/// How far (m) from the end of a part its base's points may lie: a fifth of its half-height, or
-/// three noise bands where the noise is larger.
-pub fn base_window(shape: &Superquadric, band: f64) -> f64 {
-    (0.2 * shape.a[2]).max(3.0 * band)
-}
-
-/// The top of a container standing on its rim is its base. Vessels (mugs, bowls, pots) stand
-/// on a foot ring with the middle of the base raised inside it, so upside down the middle lies
-/// a few millimetres below the ring; a lid or the top of a closed can is flat or domed. Points
-/// within the base window of the top, within the inner 40 % of the cross-section (the middle)
-/// and between 65 % and 88 % (the ring, short of the rounded edge), are collected and their
-/// median heights compared.
-struct BaseCap {
-    a3: f64,
-    window: f64,
-    middle: Vec<f64>,
-    ring: Vec<f64>,
-    shape: Superquadric,
-}
-
-impl BaseCap {
-    fn new(shape: &Superquadric, band: f64) -> BaseCap {
-        BaseCap {
-            a3: shape.a[2],
-            window: base_window(shape, band),
-            middle: Vec::new(),
-            ring: Vec::new(),
-            shape: *shape,
-        }
-    }
-
-    /// `up` is the local sign of the plane's normal. Whether the point lies in the base's
-    /// recess: near the top, within the ring's outer edge.
-    fn add(&mut self, q: &Vector3<f64>, up: f64) -> bool {
-        let h = up * q.z;
-        if (h - self.a3).abs() > self.window {
-            return false;
-        }
-        let r = self.shape.section_radius(q.x, q.y);
-        if r < 0.4 {
-            self.middle.push(h);
-        } else if (0.65..0.88).contains(&r) {
-            self.ring.push(h);
-        }
-        r < 0.88
-    }
-
-    /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in
-    /// either.
-    fn recess(&mut self) -> f64 {
-        const MIN: usize = 10;
-        if self.middle.len() < MIN || self.ring.len() < MIN {
-            return f64::NEG_INFINITY;
-        }
-        match (median(&mut self.ring), median(&mut self.middle)) {
-            (Some(r), Some(m)) => r - m,
-            _ => f64::NEG_INFINITY,
-        }
     }
 }
 
@@ -597,27 +533,6 @@ mod tests {
             (vec![0.0, 5.0, 1.0], true),
         ]);
         assert_eq!(sums, vec![1 + 3 + 1, 2 + 1 + 3, 3 + 2 + 2]);
-    }
-
-    /// The top of a mug-sized cylinder on its rim (local -z up): a flat lid gives no recess, a
-    /// base whose middle lies 3 mm below its ring gives 3 mm, and a top seen by a few points
-    /// gives no sign of a base at all.
-    #[test]
-    fn a_vessel_base_is_told_from_a_flat_lid() {
-        let shape = Superquadric::new([0.04, 0.04, 0.05], 0.1, 1.0, 0.0, 0.0).unwrap();
-        let cap = |depth: f64, n: usize| {
-            let mut b = BaseCap::new(&shape, 0.002);
-            for k in 0..n {
-                let r = 0.04 * (k % 20) as f64 / 20.0;
-                let t = k as f64 * 0.7;
-                let h = if r < 0.02 { 0.05 - depth } else { 0.05 };
-                b.add(&Vector3::new(r * t.cos(), r * t.sin(), -h), -1.0);
-            }
-            b.recess()
-        };
-        assert!(cap(0.0, 400).abs() < 1e-12);
-        assert!((cap(0.003, 400) - 0.003).abs() < 1e-12);
-        assert_eq!(cap(0.003, 15), f64::NEG_INFINITY);
     }
 }
 

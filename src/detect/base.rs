@@ -1,0 +1,91 @@
+//! The base of a container standing on its rim. Upside down, a container's top is its base, and
+//! only the base tells a vessel on its rim from a closed part of its shape (a lidded canister
+//! for a mug): vessels (mugs, bowls, pots) stand on a foot ring with the middle of the base
+//! raised inside it, so upside down the middle lies a few millimetres below the ring, where a
+//! lid or the top of a closed can is flat or domed.
+
+use crate::geometry::Superquadric;
+use crate::numeric::median;
+use nalgebra::Vector3;
+
+/// How far (m) from the end of a part its base's points may lie: a fifth of its half-height, or
+/// three noise bands where the noise is larger.
+pub fn window(shape: &Superquadric, band: f64) -> f64 {
+    (0.2 * shape.a[2]).max(3.0 * band)
+}
+
+/// The top of a part standing on its rim (its local -z up): points within the base [`window`]
+/// of the top, within the inner 40 % of the cross-section (the middle) and between 65 % and 88 %
+/// (the ring, short of the rounded edge), are collected and their median heights compared.
+pub struct BaseCap {
+    window: f64,
+    middle: Vec<f64>,
+    ring: Vec<f64>,
+    shape: Superquadric,
+}
+
+impl BaseCap {
+    pub fn new(shape: &Superquadric, band: f64) -> BaseCap {
+        BaseCap {
+            window: window(shape, band),
+            middle: Vec::new(),
+            ring: Vec::new(),
+            shape: *shape,
+        }
+    }
+
+    /// Take a local point; whether it lies in the base's recess: near the top, within the
+    /// ring's outer edge.
+    pub fn add(&mut self, q: &Vector3<f64>) -> bool {
+        let h = -q.z;
+        if (h - self.shape.a[2]).abs() > self.window {
+            return false;
+        }
+        let r = self.shape.section_radius(q.x, q.y);
+        if r < 0.4 {
+            self.middle.push(h);
+        } else if (0.65..0.88).contains(&r) {
+            self.ring.push(h);
+        }
+        r < 0.88
+    }
+
+    /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in
+    /// either.
+    pub fn recess(&mut self) -> f64 {
+        const MIN: usize = 10;
+        if self.middle.len() < MIN || self.ring.len() < MIN {
+            return f64::NEG_INFINITY;
+        }
+        match (median(&mut self.ring), median(&mut self.middle)) {
+            (Some(r), Some(m)) => r - m,
+            _ => f64::NEG_INFINITY,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The top of a mug-sized cylinder on its rim (local -z up): a flat lid gives no recess, a
+    /// base whose middle lies 3 mm below its ring gives 3 mm, and a top seen by a few points
+    /// gives no sign of a base at all.
+    #[test]
+    fn a_vessel_base_is_told_from_a_flat_lid() {
+        let shape = Superquadric::new([0.04, 0.04, 0.05], 0.1, 1.0, 0.0, 0.0).unwrap();
+        let cap = |depth: f64, n: usize| {
+            let mut b = BaseCap::new(&shape, 0.002);
+            for k in 0..n {
+                let r = 0.04 * (k % 20) as f64 / 20.0;
+                let t = k as f64 * 0.7;
+                let h = if r < 0.02 { 0.05 - depth } else { 0.05 };
+                b.add(&Vector3::new(r * t.cos(), r * t.sin(), -h));
+            }
+            b.recess()
+        };
+        assert!(cap(0.0, 400).abs() < 1e-12);
+        assert!((cap(0.003, 400) - 0.003).abs() < 1e-12);
+        assert_eq!(cap(0.003, 15), f64::NEG_INFINITY);
+    }
+}
