@@ -179,11 +179,14 @@ pub fn initial_poses(
     };
     let normal = e[0];
     let outward: Vec<Vector3<f64>> = match viewpoint {
-        Some(v) => {
+        // An open container is seen from inside as much as from outside: a patch of its inner
+        // wall or bottom faces the sensor with the model's inward side, and its centre lies on
+        // the sensor's side of the patch.
+        Some(v) if rest_axis.is_none() => {
             let to_view = v.coords - c;
             vec![if normal.dot(&to_view) >= 0.0 { normal } else { -normal }]
         }
-        None => vec![normal, -normal],
+        _ => vec![normal, -normal],
     };
     let mut out = Vec::with_capacity(24);
     for (z, x0) in axes {
