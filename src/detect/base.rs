@@ -14,9 +14,13 @@ pub fn window(shape: &Superquadric, band: f64) -> f64 {
     (0.2 * shape.a[2]).max(3.0 * band)
 }
 
+/// How far from its end plane, as a share of the half-height, the model's surface may lie and
+/// still be the foot it stands on.
+const FOOT_DEPTH: f64 = 0.05;
+
 /// The top of a part standing on its rim (its local -z up): points within the base [`window`]
-/// of the top, within the inner 40 % of the cross-section (the middle) and between 65 % and 88 %
-/// (the ring, short of the rounded edge), are collected and their median heights compared.
+/// of the top, within the inner 40 % of the foot (the middle) and between 65 % and 88 % (the
+/// ring, short of its edge), are collected and their median heights compared.
 pub struct BaseCap {
     window: f64,
     middle: Vec<f64>,
@@ -41,13 +45,26 @@ impl BaseCap {
         if (h - self.shape.a[2]).abs() > self.window {
             return false;
         }
-        let r = self.shape.section_radius(q.x, q.y);
+        let r = self.foot_radius(q);
         if r < 0.4 {
             self.middle.push(h);
         } else if (0.65..0.88).contains(&r) {
             self.ring.push(h);
         }
         r < 0.88
+    }
+
+    /// The radius of a local point across the model's foot, 1 on its edge: the outline of the
+    /// end where the model's surface lies within [`FOOT_DEPTH`] of its half-height from the end
+    /// plane. A rounded end (a bowl's, e1 well above 0.1) stands on less than its full
+    /// cross-section, and a tapered part's end is narrower or wider than its middle.
+    fn foot_radius(&self, q: &Vector3<f64>) -> f64 {
+        let s = &self.shape;
+        let t = 1.0 - FOOT_DEPTH;
+        let at_foot = s.untaper(&Vector3::new(q.x, q.y, -t * s.a[2]));
+        // The superellipse's section at height t, as a share of its middle section.
+        let scale = (1.0 - t.powf(2.0 / s.e1)).powf(s.e1 / 2.0);
+        s.section_radius(at_foot.x, at_foot.y) / scale.max(1e-6)
     }
 
     /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in
