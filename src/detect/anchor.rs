@@ -36,6 +36,7 @@ impl AnchorPart {
             .or(model.parts[part].hypotheses.map(|m| m as usize))
             .unwrap_or_else(|| auto_hypotheses(&model.parts[part].shape, objects))
             .max(1);
+        tracing::debug!("anchor part {part}: {hypotheses} hypotheses");
         AnchorPart { part, hypotheses }
     }
 }
