@@ -9,7 +9,7 @@ use super::report::{Detection, PartResult, PoseText};
 use super::search::{Hypothesis, search_part};
 use super::verify::{Scores, paper_criteria, rank_sums, score};
 use super::{Acceptance, Params, box_volume};
-use crate::geometry::Superquadric;
+use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;
 use crate::numeric::stream_seed;
 use nalgebra::Point3;
@@ -61,8 +61,16 @@ fn auto_hypotheses(shape: &Superquadric, points: &[Point3<f64>]) -> usize {
     ((ext[0] * ext[1]) / (cell * cell)).ceil().clamp(10.0, 100.0) as usize
 }
 
-/// The anchor part's hypotheses of one search round, from the round's own random stream.
-pub fn search(prep: &Prepared, model: &Model, anchor: &AnchorPart, params: &Params, round: u64) -> Vec<Hypothesis> {
+/// The anchor part's hypotheses of one search round, from the round's own random stream, leaving
+/// out the places of the `known` hypotheses of earlier rounds.
+pub fn search(
+    prep: &Prepared,
+    model: &Model,
+    anchor: &AnchorPart,
+    params: &Params,
+    round: u64,
+    known: &[PlacedSuperquadric],
+) -> Vec<Hypothesis> {
     let all_seeds: Vec<usize> = (0..prep.sub.len()).collect();
     search_part(
         &prep.space(),
@@ -73,6 +81,7 @@ pub fn search(prep: &Prepared, model: &Model, anchor: &AnchorPart, params: &Para
         model.parts[anchor.part].open,
         &prep.checks[anchor.part],
         stream_seed(params.seed, anchor.part as u64 + 1000 * round),
+        known,
     )
 }
 

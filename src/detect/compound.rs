@@ -153,6 +153,7 @@ pub fn combinations(
                 model.parts[part].open,
                 &prep.checks[part],
                 stream,
+                &[],
             );
             if hyps.is_empty() {
                 next.push((*origin, combo.clone()));

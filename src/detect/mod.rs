@@ -47,8 +47,9 @@ use anchor::AnchorPart;
 use std::time::Instant;
 
 /// Rounds of search at most. A second round with fresh seeds runs when the first finds nothing
-/// acceptable: "not here" costs twice the time, but a found object costs no more, and a search
-/// that missed the object in one round rarely misses it in two.
+/// acceptable, and refines and scores only the places the first did not reach: "not here" costs
+/// a second round of trials, a found object costs no more, and a search that missed the object
+/// in one round rarely misses it in two.
 const SEARCH_ROUNDS: u64 = 2;
 
 /// Fewer points than this off the plane hold nothing to fit.
@@ -90,9 +91,11 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     let anchor = AnchorPart::choose(model, params, &prep.scene.objects);
     timing.search_ms += ms(t);
     let mut candidates: Vec<Detection> = Vec::new();
+    let mut searched: Vec<crate::geometry::PlacedSuperquadric> = Vec::new();
     for round in 0..SEARCH_ROUNDS {
         let t = Instant::now();
-        let hypotheses = anchor::search(&prep, model, &anchor, params, round);
+        let hypotheses = anchor::search(&prep, model, &anchor, params, round, &searched);
+        searched.extend(hypotheses.iter().map(|h| h.placed));
         timing.search_ms += ms(t);
         let t = Instant::now();
         let anchors = anchor::rank(&prep, &anchor, hypotheses, params.gamma);

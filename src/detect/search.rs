@@ -427,6 +427,8 @@ fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) ->
 }
 
 /// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.
+/// Trials that land where a `known` hypothesis (of an earlier round) already is are not refined
+/// again: a further round pays only for the places the earlier ones did not reach.
 #[allow(clippy::too_many_arguments)]
 pub fn search_part(
     space: &SearchSpace<'_>,
@@ -437,6 +439,7 @@ pub fn search_part(
     open: bool,
     check: &PlaneCheck,
     seed: u64,
+    known: &[PlacedSuperquadric],
 ) -> Vec<Hypothesis> {
     let regions = spatial_regions(space.sub, seeds, m);
     let fits: Vec<(usize, Fit)> = (0..m)
@@ -446,7 +449,7 @@ pub fn search_part(
             ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
         })
         .collect();
-    distinct(fits)
+    distinct(fits, known)
         .par_iter()
         .filter_map(|f| {
             let mut h = refine(space, f, settings.fit_iterations, check.rest_axis(space));
@@ -543,27 +546,29 @@ fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec
         .collect()
 }
 
-/// Drop fits that repeat a better one (the same place within half the sample radius and the
-/// same axis within 30 degrees): many hypotheses land on the same object, refinement brings
-/// such near copies to the same pose, and refining and verifying each copy costs time and
-/// changes nothing.
-pub fn distinct(mut fits: Vec<(usize, Fit)>) -> Vec<Fit> {
+/// Drop fits that repeat a better one or a `known` pose (the same place within half the sample
+/// radius and the same axis within 30 degrees): many hypotheses land on the same object,
+/// refinement brings such near copies to the same pose, and refining and verifying each copy
+/// costs time and changes nothing.
+pub fn distinct(mut fits: Vec<(usize, Fit)>, known: &[PlacedSuperquadric]) -> Vec<Fit> {
     // Best consensus first, then smallest M.
     fits.sort_by(|a, b| b.0.cmp(&a.0).then(a.1.m.total_cmp(&b.1.m)));
-    let mut kept: Vec<Fit> = Vec::with_capacity(fits.len());
+    let mut kept: Vec<PlacedSuperquadric> = known.to_vec();
+    let mut out: Vec<Fit> = Vec::with_capacity(fits.len());
     for (_, f) in fits {
         let shape = &f.placed.shape;
         let z = f.placed.pose.rotation * Vector3::z();
         let repeat = kept.iter().any(|k| {
-            let dz = axis_angle_deg(&z, &(k.placed.pose.rotation * Vector3::z()), shape.is_tapered());
-            (k.placed.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
+            let dz = axis_angle_deg(&z, &(k.pose.rotation * Vector3::z()), shape.is_tapered());
+            (k.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
                 && dz < 30.0
         });
         if !repeat {
-            kept.push(f);
+            kept.push(f.placed);
+            out.push(f);
         }
     }
-    kept
+    out
 }
 
 fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
