@@ -7,7 +7,7 @@
 //!    ([`grid`]) -> `Prepared`;
 //! 2. `anchor`: the largest part searched over the whole scene by the hierarchical search
 //!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), the best of
-//!    each hypothesis refined on full resolution), its hypotheses scored and ranked by the
+//!    each hypothesis refined on a denser subsample), its hypotheses scored and ranked by the
 //!    paper's voting over M, S and I ([`verify`]) -> `Anchors`;
 //! 3. `compound`: every other part searched only where its connection to an already-found part
 //!    puts it, the combinations ranked by the connection errors A and D together with the parts'

@@ -157,6 +157,11 @@ pub struct Prepared {
     pub grid: Grid,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
+    /// The objects' points subsampled to a twelfth of the smallest size, where the refinement
+    /// gathers its inliers.
+    pub mid: Vec<Point3<f64>>,
+    /// Grid over `mid`, cells the size of the model's largest part.
+    pub mid_grid: Grid,
     pub viewpoint: Option<Point3<f64>>,
     /// Each part's surface samples at the data's spacing.
     pub samples: Vec<SurfaceSamples>,
@@ -176,6 +181,8 @@ impl Prepared {
             grid: &self.grid,
             sub: &self.sub,
             sub_grid: &self.sub_grid,
+            mid: &self.mid,
+            mid_grid: &self.mid_grid,
             viewpoint: self.viewpoint,
             noise: self.scene.noise,
             plane: self.scene.plane,
@@ -203,6 +210,14 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         .into_iter()
         .map(|i| objects[i])
         .collect();
+    // The refinement fits at most a few hundred points of a part: a twelfth of the smallest
+    // size still leaves a part's visible side well over that, at a fraction of the points to
+    // test against its surface.
+    let mid: Vec<Point3<f64>> = voxel_subsample(objects, min_size / 12.0)
+        .into_iter()
+        .map(|i| objects[i])
+        .collect();
+    let mid_grid = Grid::new(&mid, 1.2 * max_size);
     let grid = Grid::new(objects, 1.2 * max_size);
     let sub_grid = Grid::new(&sub, min_size);
     let spacing = median_spacing(objects, &Grid::new(objects, 0.02));
@@ -220,6 +235,8 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         sub,
         grid,
         sub_grid,
+        mid,
+        mid_grid,
         viewpoint: params.viewpoint,
         samples,
         checks,

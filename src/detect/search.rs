@@ -1,7 +1,8 @@
 //! Hypothesis generation (paper III-B-1): RANSAC trials on subsampled data, each a
 //! Levenberg-Marquardt pose fit to about 30 points around a random seed point, started with the
 //! part's z axis along each of the sample's three central-moment directions; the best trial of
-//! every hypothesis is refined on the full-resolution points near it until M stops improving.
+//! every hypothesis is refined on the points near it (subsampled to a twelfth of the smallest
+//! size) until M stops improving.
 //!
 //! Beyond the paper, every start is placed where the superquadric would touch the sampled patch
 //! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
@@ -30,7 +31,7 @@ const SCREEN_ITERATIONS: usize = 4;
 const MIN_SAMPLE: usize = 8;
 /// LM iterations of a refinement round at the final band: the pose is close by then.
 const FINE_ITERATIONS: usize = 10;
-/// Refinement rounds on the full-resolution points at most.
+/// Refinement rounds at most.
 const REFINE_ROUNDS: usize = 6;
 /// Refinement fits use at most this many of the points near the surface, evenly spread: six
 /// pose parameters are as well determined by 600 points as by 6000, at a tenth of the time.
@@ -46,12 +47,15 @@ fn thin(points: Vec<Point3<f64>>, n: usize) -> Vec<Point3<f64>> {
     points.into_iter().step_by(step).collect()
 }
 
-/// Where the detector searches: the full-resolution points and a subsampled copy, with grids.
+/// Where the detector searches: the full-resolution points and two subsampled copies, with grids.
 pub struct SearchSpace<'a> {
     pub points: &'a [Point3<f64>],
     pub grid: &'a Grid,
     pub sub: &'a [Point3<f64>],
     pub sub_grid: &'a Grid,
+    /// A denser subsample, where the refinement's final rounds gather their points.
+    pub mid: &'a [Point3<f64>],
+    pub mid_grid: &'a Grid,
     pub viewpoint: Option<Point3<f64>>,
     /// Depth noise (one sigma) at each place: sets the inlier bands.
     pub noise: RangeNoise,
@@ -275,7 +279,7 @@ pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
         .max(0.002)
 }
 
-/// Refine a pose on the full-resolution points near it until M stops improving. With a
+/// Refine a pose on the points near it (`mid`) until M stops improving. With a
 /// `rest_axis` (an open container on the support plane) the part's axis is turned onto it first
 /// and keeps that direction: only the position and the spin are fitted.
 pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: Option<Vector3<f64>>) -> Hypothesis {
@@ -313,7 +317,7 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: 
         let inliers = if coarse {
             inliers_in(space.sub, space.sub_grid, &placed, band)
         } else {
-            local_inliers(space, &placed, band)
+            inliers_in(space.mid, space.mid_grid, &placed, band)
         };
         if inliers.len() < MIN_SAMPLE {
             break;
@@ -484,9 +488,9 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     let window = base::window(&shape, band);
     let (mut cap, mut inside) = (0usize, 0usize);
     space
-        .grid
-        .for_each_within(space.points, &centre, shape.bounding_radius(), |k| {
-            let q = placed.to_local(&space.points[k]);
+        .mid_grid
+        .for_each_within(space.mid, &centre, shape.bounding_radius(), |k| {
+            let q = placed.to_local(&space.mid[k]);
             // Well inside the wall, across the axis.
             let r = shape.section_radius(q.x, q.y);
             if r > 0.8 {
