@@ -197,27 +197,55 @@ fn mug_is_not_the_lidded_canister() {
     no_mug_in("learn40.pcd");
 }
 
+/// With every instance asked for, at each of `seeds`, `model_name` is found within 5 cm of each
+/// labelled object of `file`, standing the given way up.
+fn found_standing(file: &str, model_name: &str, objects: &[u32], upright: bool, seeds: std::ops::Range<u64>) {
+    let cloud = read_cloud(&data(file)).unwrap();
+    let targets = centroids(&cloud, objects);
+    let m = model(model_name);
+    for seed in seeds {
+        let params = Params {
+            seed,
+            all: true,
+            viewpoint: Some(Point3::origin()),
+            ..Params::default()
+        };
+        let report = detect(&cloud.points, &m, &params);
+        for (o, t) in &targets {
+            let hit = report
+                .detections
+                .iter()
+                .filter(|d| d.found)
+                .find(|d| (t - Point3::from(d.pose.translation.vector)).norm() < 0.05)
+                .unwrap_or_else(|| panic!("{file}, seed {seed}: the {model_name} {o} is not found"));
+            assert_eq!(
+                hit.upright,
+                Some(upright),
+                "{file}, seed {seed}: {model_name} {o} stands the wrong way up"
+            );
+        }
+    }
+}
+
 /// mOSD learn38: two white mugs stand upside down, on their rims, their handles hidden. Both are
 /// found, by their bases, and both are flagged as standing on their rims.
 #[test]
 fn upside_down_mugs_are_found_and_flagged() {
-    let path = data("learn38.pcd");
-    let cloud = read_cloud(&path).unwrap();
-    let targets = centroids(&cloud, &[2, 3]);
-    let params = Params {
-        seed: 5,
-        all: true,
-        viewpoint: Some(Point3::origin()),
-        ..Params::default()
-    };
-    let report = detect(&cloud.points, &model("mug"), &params);
-    for (o, t) in &targets {
-        let hit = report
-            .detections
-            .iter()
-            .filter(|d| d.found)
-            .find(|d| (t - Point3::from(d.pose.translation.vector)).norm() < 0.05)
-            .unwrap_or_else(|| panic!("the upside-down mug {o} of learn38 is not found"));
-        assert_eq!(hit.upright, Some(false), "mug {o} is flagged upright");
-    }
+    found_standing("learn38.pcd", "mug", &[2, 3], false, 5..6);
+}
+
+/// mOSD learn34: the white bowl stands close to the sensor, which sees mostly its inside. Trials
+/// started the shape behind every patch, as for a convex surface; a patch of the inner wall or
+/// bottom has the bowl's centre in front of it, and the bowl was missed at 2 of the 10 seeds.
+#[test]
+fn white_bowl_seen_from_inside_is_found() {
+    found_standing("learn34.pcd", "white_bowl", &[4], true, 0..10);
+}
+
+/// mOSD learn37: the white bowl stands upside down. Its base was looked for over the model's
+/// middle section, which for a rounded, tapered end reaches past the foot down the sloping wall
+/// and read as a dome (-8 mm); measured across the foot, the base is recessed as a vessel's is.
+#[test]
+fn upside_down_white_bowl_is_found_by_its_foot() {
+    found_standing("learn37.pcd", "white_bowl", &[3], false, 0..3);
 }
