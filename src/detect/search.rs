@@ -158,8 +158,10 @@ pub fn initial_poses(
     let (c, e) = crate::geometry::principal_axes(sample);
     let axes: Vec<(Vector3<f64>, Vector3<f64>)> = match rest_axis {
         // x along the patch's longest direction across the axis (any will do for a round part).
-        Some(n) => [n, -n]
-            .into_iter()
+        // An untapered shape is the same turned over (F depends on |z|): one direction does.
+        Some(n) => [n, -n][..if shape.is_tapered() { 2 } else { 1 }]
+            .iter()
+            .copied()
             .map(|z| {
                 let x0 = if (e[2] - z * z.dot(&e[2])).norm() > 0.3 {
                     e[2]
