@@ -2,7 +2,7 @@
 //! give its 6-DoF pose, as Biegelbauer & Vincze (ICRA 2007) do, then further. [`detect`] runs
 //! these stages in order, each in its own module, each handing a struct to the next:
 //!
-//! 1. `prepare`: drop non-finite and out-of-range points, remove the dominant plane
+//! 1. `prepare`: drop non-finite, out-of-range and wild points, remove the dominant plane
 //!    ([`plane`]), which also gives the noise estimate, and subsample and grid the rest
 //!    ([`grid`]) -> `Prepared`;
 //! 2. `anchor`: the largest part searched over the whole scene by the hierarchical search

@@ -102,6 +102,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
         None => points,
     };
+    let points = without_wild_points(points);
     if !params.remove_plane {
         return Scene {
             input_points,
@@ -141,6 +142,34 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         plane: removal.plane,
         noise,
     }
+}
+
+/// How far beyond the box of the middle 98 % of the points (per axis), in multiples of that
+/// box's size, a point is taken for a wild return and dropped.
+const WILD_REACH: f64 = 2.0;
+
+/// The points without wild returns (a reflection, a window, a corrupt value 30 m or 3e38 m
+/// away): a few such points are nothing a detector can use, and stretch every grid and bounding
+/// box over empty space. The box is the 1st to 99th percentile of each coordinate, widened by
+/// twice its size (at least 1 cm) on each side; the room behind a table stays.
+fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
+    if points.len() < 100 {
+        return points;
+    }
+    let stride = points.len().div_ceil(20_000).max(1);
+    let bounds: [(f64, f64); 3] = std::array::from_fn(|k| {
+        let mut v: Vec<f64> = points.iter().step_by(stride).map(|p| p[k]).collect();
+        let n = v.len();
+        let lo = *v.select_nth_unstable_by(n / 100, f64::total_cmp).1;
+        let hi = *v.select_nth_unstable_by(n - 1 - n / 100, f64::total_cmp).1;
+        let reach = WILD_REACH * (hi - lo).max(0.01);
+        (lo - reach, hi + reach)
+    });
+    let inside = |p: &Point3<f64>| (0..3).all(|k| p[k] >= bounds[k].0 && p[k] <= bounds[k].1);
+    if points.iter().all(inside) {
+        return points;
+    }
+    points.into_iter().filter(|p| inside(p)).collect()
 }
 
 /// The grid the free-space check looks along the lines of sight in.

@@ -536,7 +536,12 @@ fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec
         x
     };
     let key = |p: &Point3<f64>| {
-        let c = [0, 1, 2].map(|k| ((p[k] / voxel).floor() as i64 + (1 << 20)).clamp(0, (1 << 21) - 1) as u64);
+        // The float-to-integer cast saturates; the add must too (a wild point 3e38 m away).
+        let c = [0, 1, 2].map(|k| {
+            ((p[k] / voxel).floor() as i64)
+                .saturating_add(1 << 20)
+                .clamp(0, (1 << 21) - 1) as u64
+        });
         spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
     };
     let mut order: Vec<(u64, usize)> = seeds.iter().map(|&i| (key(&points[i]), i)).collect();
