@@ -112,7 +112,10 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         } else {
             candidates.extend(anchors.single_part_candidates(model, &prep.noise(), &params.acceptance));
         }
-        if accept::free_space(&prep, &mut candidates, first_new, params) > 0 {
+        let t = Instant::now();
+        let accepted = accept::free_space(&prep, &mut candidates, first_new, params);
+        timing.verify_ms += ms(t);
+        if accepted > 0 {
             break;
         }
     }

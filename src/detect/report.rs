@@ -36,9 +36,13 @@ pub struct Detection {
 /// Milliseconds spent in each stage.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Timing {
+    /// Filtering the input and removing the plane.
     pub plane_ms: f64,
+    /// Subsampling and indexing, the hypotheses and the compound parts' search.
     pub search_ms: f64,
+    /// Scoring, the acceptance test and the free-space check along the lines of sight.
     pub verify_ms: f64,
+    /// All of it, from the cloud to the answer.
     pub total_ms: f64,
 }
 
