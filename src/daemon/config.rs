@@ -250,18 +250,54 @@ pub fn default_scenes_dir() -> PathBuf {
     PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
 }
 
-fn positive(path: &Path, field: &str, v: Option<f64>) -> Result<Option<f64>, SpecError> {
+/// The documented ranges of the numbers in the file: past them a setting is a mistake (a
+/// unit slip, a typo of exponent), and some would kill a task at start (a sweep that never ends,
+/// a duration no clock holds, a pool of 2^62 threads).
+pub mod limits {
+    /// Clients at once (each holds a file descriptor).
+    pub const MAX_CLIENTS: (usize, usize) = (1, 65_536);
+    /// Messages queued for one client.
+    pub const CLIENT_QUEUE: (usize, usize) = (4, 65_536);
+    /// Detections run at once.
+    pub const WORKERS: (usize, usize) = (1, 256);
+    /// Profiles a sweep needs at least.
+    pub const MIN_PROFILES: (usize, usize) = (2, 100_000);
+    /// Recordings kept (0: all).
+    pub const RECORD_KEEP: (usize, usize) = (0, 1_000_000);
+    /// Pan and tilt angles (rad): one turn either way.
+    pub const ANGLE_RAD: (f64, f64) = (-std::f64::consts::TAU, std::f64::consts::TAU);
+    /// Sweep speed (rad/s).
+    pub const SPEED_RAD_S: (f64, f64) = (1e-3, 10.0);
+    /// Pause between sweeps (s).
+    pub const PAUSE_S: (f64, f64) = (0.0, 3600.0);
+    /// Slack beyond a move's nominal duration, and the longest silence of the sensor (s).
+    pub const TIMEOUT_S: (f64, f64) = (0.01, 3600.0);
+    /// The longest a sweep's tilt range may take at its speed (s).
+    pub const SWEEP_S: f64 = 3600.0;
+    /// Range cut of the detector (m).
+    pub const MAX_RANGE_M: (f64, f64) = (0.01, 1000.0);
+}
+
+/// A number within `range`, or an error naming the field and the range.
+fn within(path: &Path, field: &str, v: Option<f64>, range: (f64, f64), unit: &str) -> Result<Option<f64>, SpecError> {
     match v {
-        Some(x) if !(x.is_finite() && x > 0.0) => {
-            Err(SpecError::invalid(path, field, format!("{x}: give a value > 0")))
-        }
+        Some(x) if !(x.is_finite() && x >= range.0 && x <= range.1) => Err(SpecError::invalid(
+            path,
+            field,
+            format!("{x}: give a value from {} to {} {unit}", range.0, range.1),
+        )),
         _ => Ok(v),
     }
 }
 
-fn finite(path: &Path, field: &str, v: Option<f64>) -> Result<Option<f64>, SpecError> {
+/// A count within `range`, or an error naming the field and the range.
+fn count_within(path: &Path, field: &str, v: Option<usize>, range: (usize, usize)) -> Result<Option<usize>, SpecError> {
     match v {
-        Some(x) if !x.is_finite() => Err(SpecError::invalid(path, field, "not a finite number")),
+        Some(n) if !(range.0..=range.1).contains(&n) => Err(SpecError::invalid(
+            path,
+            field,
+            format!("{n}: give a count from {} to {}", range.0, range.1),
+        )),
         _ => Ok(v),
     }
 }
@@ -346,16 +382,10 @@ impl Config {
         if let Some(d) = &s.models_dir {
             c.models_dir = rel(d);
         }
-        if let Some(n) = s.max_clients {
-            if n == 0 {
-                return Err(SpecError::invalid(path, "server.max_clients", "give at least 1"));
-            }
+        if let Some(n) = count_within(path, "server.max_clients", s.max_clients, limits::MAX_CLIENTS)? {
             c.max_clients = n;
         }
-        if let Some(n) = s.client_queue {
-            if n < 4 {
-                return Err(SpecError::invalid(path, "server.client_queue", "give at least 4"));
-            }
+        if let Some(n) = count_within(path, "server.client_queue", s.client_queue, limits::CLIENT_QUEUE)? {
             c.client_queue = n;
         }
 
@@ -443,10 +473,10 @@ impl Config {
         };
 
         let w = &raw.sweep;
-        c.sweep.pan_rad = finite(path, "sweep.pan_rad", w.pan_rad)?;
-        c.sweep.tilt_from_rad = finite(path, "sweep.tilt_from_rad", w.tilt_from_rad)?;
-        c.sweep.tilt_to_rad = finite(path, "sweep.tilt_to_rad", w.tilt_to_rad)?;
-        c.sweep.speed_rad_s = positive(path, "sweep.speed_rad_s", w.speed_rad_s)?;
+        c.sweep.pan_rad = within(path, "sweep.pan_rad", w.pan_rad, limits::ANGLE_RAD, "rad")?;
+        c.sweep.tilt_from_rad = within(path, "sweep.tilt_from_rad", w.tilt_from_rad, limits::ANGLE_RAD, "rad")?;
+        c.sweep.tilt_to_rad = within(path, "sweep.tilt_to_rad", w.tilt_to_rad, limits::ANGLE_RAD, "rad")?;
+        c.sweep.speed_rad_s = within(path, "sweep.speed_rad_s", w.speed_rad_s, limits::SPEED_RAD_S, "rad/s")?;
         if let (Some(a), Some(b)) = (c.sweep.tilt_from_rad, c.sweep.tilt_to_rad)
             && a == b
         {
@@ -468,33 +498,47 @@ impl Config {
         if let Some(b) = w.back_and_forth {
             c.sweep.back_and_forth = b;
         }
-        if let Some(n) = w.min_profiles {
-            c.sweep.min_profiles = n.max(2);
+        if let Some(n) = count_within(path, "sweep.min_profiles", w.min_profiles, limits::MIN_PROFILES)? {
+            c.sweep.min_profiles = n;
         }
-        if let Some(p) = finite(path, "sweep.pause_s", w.pause_s)? {
-            if p < 0.0 {
-                return Err(SpecError::invalid(path, "sweep.pause_s", "give a pause >= 0"));
-            }
+        if let Some(p) = within(path, "sweep.pause_s", w.pause_s, limits::PAUSE_S, "s")? {
             c.sweep.pause = Duration::from_secs_f64(p);
         }
-        if let Some(t) = positive(path, "sweep.timeout_s", w.timeout_s)? {
+        if let Some(t) = within(path, "sweep.timeout_s", w.timeout_s, limits::TIMEOUT_S, "s")? {
             c.sweep.timeout = Duration::from_secs_f64(t);
+        }
+        // A sweep slower than this is a unit slip, and would hold every answer for hours.
+        if let (Some(a), Some(b), Some(v)) = (c.sweep.tilt_from_rad, c.sweep.tilt_to_rad, c.sweep.speed_rad_s) {
+            let takes = (b - a).abs() / v;
+            if takes > limits::SWEEP_S {
+                return Err(SpecError::invalid(
+                    path,
+                    "sweep.speed_rad_s",
+                    format!(
+                        "a sweep from {a} to {b} rad at {v} rad/s takes {takes:.0} s; give a speed that sweeps in at most {} s",
+                        limits::SWEEP_S
+                    ),
+                ));
+            }
         }
 
         if let Some(s) = raw.detect.seed {
             c.detect_seed = s;
         }
-        if let Some(n) = raw.detect.workers {
-            if n == 0 {
-                return Err(SpecError::invalid(path, "detect.workers", "give at least 1"));
-            }
+        if let Some(n) = count_within(path, "detect.workers", raw.detect.workers, limits::WORKERS)? {
             c.detect_workers = n;
         }
-        c.max_range_m = positive(path, "detect.max_range_m", raw.detect.max_range_m)?;
+        c.max_range_m = within(
+            path,
+            "detect.max_range_m",
+            raw.detect.max_range_m,
+            limits::MAX_RANGE_M,
+            "m",
+        )?;
 
         if let Some(r) = &raw.record {
             c.record_dir = Some(rel(&r.dir));
-            c.record_keep = r.keep.unwrap_or(20);
+            c.record_keep = count_within(path, "record.keep", r.keep, limits::RECORD_KEEP)?.unwrap_or(20);
         }
         c.watch = raw.watch.objects.clone();
         Ok(c)
@@ -576,6 +620,39 @@ mod tests {
         // Unknown keys are caught by the parser with their line.
         let e = parse("[server]\nsokcet = \"x\"").unwrap_err().to_string();
         assert!(e.contains("sokcet"), "{e}");
+    }
+
+    /// Issue 18: each of these passed, and some made `--check` itself panic
+    /// (`Duration::from_secs_f64(1e20)`), killed a task at start (a pool of 2^62 threads, a
+    /// sweep at 1e-300 rad/s) or left the daemon sweeping forever with nothing logged.
+    #[test]
+    fn absurd_numbers_are_refused_naming_the_field() {
+        for (text, field) in [
+            ("[sweep]\npause_s = 1e20", "sweep.pause_s"),
+            ("[sweep]\npause_s = -1.0", "sweep.pause_s"),
+            ("[sweep]\ntimeout_s = 1e20", "sweep.timeout_s"),
+            ("[sweep]\nspeed_rad_s = 1e-300", "sweep.speed_rad_s"),
+            ("[sweep]\ntilt_from_rad = -1e9", "sweep.tilt_from_rad"),
+            ("[sweep]\ntilt_to_rad = 1e9", "sweep.tilt_to_rad"),
+            ("[sweep]\npan_rad = nan", "sweep.pan_rad"),
+            ("[sweep]\nmin_profiles = 1", "sweep.min_profiles"),
+            ("[detect]\nworkers = 4611686018427387904", "detect.workers"),
+            ("[detect]\nmax_range_m = 1e300", "detect.max_range_m"),
+            ("[server]\nmax_clients = 4611686018427387904", "server.max_clients"),
+            ("[server]\nmax_clients = 0", "server.max_clients"),
+            ("[server]\nclient_queue = 4611686018427387904", "server.client_queue"),
+            ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
+            (
+                "[sweep]\ntilt_from_rad = -3.0\ntilt_to_rad = 3.0\nspeed_rad_s = 0.001",
+                "sweep.speed_rad_s",
+            ),
+        ] {
+            let e = parse(text).unwrap_err().to_string();
+            assert!(e.contains(field), "{text:?}: {e}");
+        }
+        // The ends of the ranges are accepted.
+        parse("[sweep]\npause_s = 3600.0\ntimeout_s = 3600.0\n[detect]\nworkers = 256\n[server]\nmax_clients = 65536")
+            .unwrap();
     }
 
     #[test]
