@@ -49,6 +49,8 @@ struct ServerFile {
     socket_mode: Option<u32>,
     /// `"127.0.0.1:2948"`: also listen on TCP. Off unless given.
     tcp: Option<String>,
+    /// Let `tcp` be an address other machines reach (anyone who reaches it drives the sweeps).
+    allow_remote: Option<bool>,
     models_dir: Option<PathBuf>,
     max_clients: Option<usize>,
     /// Messages queued for one client before its watch updates are skipped.
@@ -371,13 +373,24 @@ impl Config {
             c.socket_mode = m;
         }
         if let Some(t) = &s.tcp {
-            c.tcp = Some(t.parse().map_err(|e| {
+            let addr: SocketAddr = t.parse().map_err(|e| {
                 SpecError::invalid(
                     path,
                     "server.tcp",
                     format!("{t:?}: {e}; give an address like \"127.0.0.1:2948\""),
                 )
-            })?);
+            })?;
+            if !addr.ip().is_loopback() && s.allow_remote != Some(true) {
+                return Err(SpecError::invalid(
+                    path,
+                    "server.tcp",
+                    format!(
+                        "{t:?} is reachable from other machines, and anyone who reaches it drives the sweeps; \
+                         give a loopback address, or set server.allow_remote = true"
+                    ),
+                ));
+            }
+            c.tcp = Some(addr);
         }
         if let Some(d) = &s.models_dir {
             c.models_dir = rel(d);
@@ -641,6 +654,8 @@ mod tests {
             ("[server]\nmax_clients = 4611686018427387904", "server.max_clients"),
             ("[server]\nmax_clients = 0", "server.max_clients"),
             ("[server]\nclient_queue = 4611686018427387904", "server.client_queue"),
+            ("[server]\ntcp = \"0.0.0.0:29481\"", "server.tcp"),
+            ("[server]\ntcp = \"[::]:29481\"\nallow_remote = false", "server.tcp"),
             ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
             (
                 "[sweep]\ntilt_from_rad = -3.0\ntilt_to_rad = 3.0\nspeed_rad_s = 0.001",
@@ -650,6 +665,9 @@ mod tests {
             let e = parse(text).unwrap_err().to_string();
             assert!(e.contains(field), "{text:?}: {e}");
         }
+        // A remote address when asked for.
+        let c = parse("[server]\ntcp = \"0.0.0.0:29481\"\nallow_remote = true").unwrap();
+        assert_eq!(c.tcp, Some("0.0.0.0:29481".parse().unwrap()));
         // The ends of the ranges are accepted.
         parse("[sweep]\npause_s = 3600.0\ntimeout_s = 3600.0\n[detect]\nworkers = 256\n[server]\nmax_clients = 65536")
             .unwrap();
