@@ -41,19 +41,89 @@ impl SpecError {
     }
 }
 
-/// Read and parse a TOML file into its serde form.
-pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SpecError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
+/// The largest model, scene, configuration or labels file read (bytes): the largest shipped is
+/// a few kilobytes, and a path to a device or a huge file must not be read until memory ends.
+pub const MAX_SPEC_BYTES: u64 = 1 << 20;
+
+/// The text of a specification file: a regular file of at most [`MAX_SPEC_BYTES`], UTF-8.
+pub fn read_text(path: &Path) -> Result<String, SpecError> {
+    use std::io::Read;
+    let io = |source: std::io::Error| SpecError::Io {
         path: path.to_owned(),
         source,
-    })?;
-    parse_toml(&text, path)
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if !meta.is_file() {
+        return Err(SpecError::Syntax {
+            path: path.to_owned(),
+            message: "not a regular file".into(),
+        });
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_SPEC_BYTES + 1).read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() as u64 > MAX_SPEC_BYTES {
+        return Err(SpecError::Syntax {
+            path: path.to_owned(),
+            message: format!("over {MAX_SPEC_BYTES} bytes: not a model, scene, configuration or labels file"),
+        });
+    }
+    String::from_utf8(bytes).map_err(|e| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
+        ))
+    })
 }
 
-/// Parse TOML text that came from `path` (used for messages only).
+/// Read and parse a TOML file into its serde form.
+pub fn read_toml<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T, SpecError> {
+    parse_toml(&read_text(path)?, path)
+}
+
+/// Parse TOML text that came from `path` (used for messages only). The message gives the line
+/// and column and what was wrong, never the line itself (a path given by mistake may name a
+/// file that is nobody's business), with control characters escaped.
 pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, SpecError> {
-    toml::from_str(text).map_err(|e| SpecError::Syntax {
-        path: path.to_owned(),
-        message: e.to_string().trim_end().replace('\n', " | "),
+    toml::from_str(text).map_err(|e| {
+        let place = e.span().map(|s| {
+            let before = &text[..s.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let start = before.rsplit('\n').next().unwrap_or("");
+            let column = start.chars().count() + 1;
+            // The key the value belongs to, when the line is a plain `key = value`: a name
+            // of this format's, not the file's content.
+            let key = start
+                .split_once('=')
+                .map(|(k, _)| k.trim())
+                .filter(|k| {
+                    !k.is_empty() && k.len() <= 40 && k.chars().all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
+                })
+                .map(|k| format!(" ({k})"))
+                .unwrap_or_default();
+            format!("line {line}, column {column}{key}: ")
+        });
+        SpecError::Syntax {
+            path: path.to_owned(),
+            message: format!(
+                "{}{}",
+                place.unwrap_or_default(),
+                escape_controls(e.message().trim_end())
+            ),
+        }
     })
+}
+
+/// `text` with its control characters (a terminal's escape sequences among them) escaped.
+pub fn escape_controls(text: &str) -> String {
+    text.chars()
+        .flat_map(|c| {
+            let escaped: Vec<char> = if c.is_control() {
+                c.escape_default().collect()
+            } else {
+                vec![c]
+            };
+            escaped
+        })
+        .collect()
 }

@@ -58,3 +58,71 @@ fn two_points_thirty_metres_away_do_not_hide_the_cup() {
 fn two_points_at_the_end_of_f32_do_not_hide_the_cup() {
     cup_found_with(&[[3e38, 0.0, 0.7], [0.0, -3e38, 3e38]]);
 }
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sqscan-hostile-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `--model /dev/zero` read until memory ran out.
+#[test]
+fn a_model_path_to_dev_zero_is_refused() {
+    let t = std::time::Instant::now();
+    let e = Model::from_file(std::path::Path::new("/dev/zero"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
+    assert!(t.elapsed().as_secs() < 10);
+}
+
+/// A model file over a megabyte is no model file: refused before it is parsed.
+#[test]
+fn a_model_file_over_a_megabyte_is_refused() {
+    let d = scratch("big");
+    let path = d.join("big.toml");
+    let mut text = String::from("name = \"big\"\n");
+    while text.len() <= sqscan::spec::MAX_SPEC_BYTES as usize {
+        text.push_str("# padding padding padding padding padding padding padding padding\n");
+    }
+    std::fs::write(&path, text).unwrap();
+    let e = Model::from_file(&path).unwrap_err().to_string();
+    assert!(e.contains("big.toml") && e.contains("bytes"), "{e}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `model = "../../../../etc/passwd"` in a scene printed the file's first line in the error.
+/// A file that is not a model is named, its content is not shown.
+#[test]
+fn a_scene_naming_a_private_file_as_its_model_does_not_print_it() {
+    let d = scratch("passwd");
+    let secret = d.join("secret");
+    std::fs::write(&secret, "root:x:0:0:the-secret-line:/root:/bin/bash\n").unwrap();
+    let scene = d.join("scene.toml");
+    let text = std::fs::read_to_string(root().join("scenes/fig3_table.toml"))
+        .unwrap()
+        .replacen(
+            "model = \"bowl\"",
+            &format!("model = {:?}", secret.to_str().unwrap()),
+            1,
+        );
+    std::fs::write(&scene, text).unwrap();
+    let e = Scene::from_file(&scene, &root().join("models"))
+        .unwrap_err()
+        .with_causes();
+    assert!(e.contains("secret"), "the file is named: {e}");
+    assert!(!e.contains("the-secret-line"), "its content is printed: {e}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// Control characters from a file (a terminal's escape sequences) were echoed raw.
+#[test]
+fn control_characters_from_a_file_are_escaped_in_errors() {
+    let d = scratch("ctrl");
+    let path = d.join("m.toml");
+    std::fs::write(&path, "name = \"m\"\n\"\u{1b}[2J\u{1b}[31mred\" = 1\n").unwrap();
+    let e = Model::from_file(&path).unwrap_err().with_causes();
+    assert!(!e.chars().any(|c| c.is_control()), "{e:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}

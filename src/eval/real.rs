@@ -51,10 +51,7 @@ impl LabelledObject {
 /// Reads a labels file, refusing one whose centroids are not finite (naming the scene and the
 /// object).
 pub fn read_labels(path: &Path) -> Result<Vec<SceneLabels>, SpecError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SpecError::Io {
-        path: path.to_owned(),
-        source,
-    })?;
+    let text = crate::spec::read_text(path)?;
     let scenes: Vec<SceneLabels> = serde_json::from_str(&text).map_err(|e| SpecError::Syntax {
         path: path.to_owned(),
         message: e.to_string(),
