@@ -226,6 +226,8 @@ fn finish_header(raw: RawHeader, data: PcdData, data_start: usize, data_line: us
 
     // Old (v.5) headers may lack SIZE, TYPE or COUNT: PCL then assumes 4-byte floats, one each.
     let mut out = Vec::with_capacity(n);
+    // Names seen so far, for a linear-time duplicate check.
+    let mut seen: std::collections::HashSet<String> = std::collections::HashSet::with_capacity(n);
     for (i, name) in names.into_iter().enumerate() {
         let size = sizes.as_ref().and_then(|(_, v)| v.get(i)).copied().unwrap_or(4);
         let ty = types.as_ref().and_then(|(_, v)| v.get(i)).copied().unwrap_or('F');
@@ -239,7 +241,7 @@ fn finish_header(raw: RawHeader, data: PcdData, data_start: usize, data_line: us
                 format!("field `{name}`: TYPE {ty} with SIZE {size} is not supported"),
             ));
         };
-        if name != "_" && out.iter().any(|f: &PcdField| f.name == name) {
+        if name != "_" && !seen.insert(name.clone()) {
             return Err(CloudError::header(fields_line, format!("field `{name}` appears twice")));
         }
         out.push(PcdField { name, kind, count });

@@ -33,6 +33,8 @@ struct Element {
     name: String,
     count: usize,
     props: Vec<Prop>,
+    /// The properties' names, for a linear-time duplicate check.
+    prop_names: std::collections::HashSet<String>,
 }
 
 impl Element {
@@ -133,6 +135,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                     name: name.to_string(),
                     count,
                     props: Vec::new(),
+                    prop_names: std::collections::HashSet::new(),
                 });
             }
             ["property", rest @ ..] => {
@@ -151,7 +154,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                     [ty, name] => (PropType::Scalar(kind(ty)?), name),
                     _ => return Err(err("property needs a type and a name".into())),
                 };
-                if element.props.iter().any(|p| p.name == *name) {
+                if !element.prop_names.insert(name.to_string()) {
                     return Err(err(format!("property `{name}` appears twice")));
                 }
                 element.props.push(Prop {

@@ -43,8 +43,9 @@ fn parse_spec(line: usize, rest: &str) -> Result<Vec<Spec>, CloudError> {
         })
         .collect::<Result<Vec<Spec>, CloudError>>()
         .and_then(|specs| {
-            for (i, s) in specs.iter().enumerate() {
-                if matches!(s.name.as_str(), "x" | "y" | "z") || specs[..i].iter().any(|t| t.name == s.name) {
+            let mut seen = std::collections::HashSet::with_capacity(specs.len());
+            for s in &specs {
+                if matches!(s.name.as_str(), "x" | "y" | "z") || !seen.insert(s.name.as_str()) {
                     let msg = format!("{COLUMNS_TAG} column `{}` appears twice", s.name);
                     return Err(CloudError::header(line, msg));
                 }
