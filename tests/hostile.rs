@@ -174,3 +174,36 @@ fn a_header_of_a_hundred_thousand_fields_is_checked_in_linear_time() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// A binary PLY whose vertices carry a list reserved room for as many vertices as the data had
+/// bytes, in every column: 10 MB of data and 100 double columns asked for 8 GB. The reservation
+/// is now bounded by the vertices the data can hold, and the short file is refused.
+#[test]
+fn a_ply_with_a_list_does_not_reserve_from_its_header_count() {
+    let d = scratch("plylist");
+    let path = d.join("list.ply");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
+property float x\nproperty float y\nproperty float z\n"
+        .to_vec();
+    for i in 0..100 {
+        bytes.extend(format!("property double d{i}\n").as_bytes());
+    }
+    bytes.extend(b"property list uchar float l\nend_header\n");
+    bytes.resize(bytes.len() + 10_000_000, 0);
+    std::fs::write(&path, bytes).unwrap();
+    // Reserved memory is not touched memory: under overcommit the 8 GB reservation passes
+    // unnoticed, so the reader runs under a 4 GB address-space limit, where it aborts.
+    let t = std::time::Instant::now();
+    let out = std::process::Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -v 4000000 && exec \"$0\" info \"$1\"")
+        .arg(env!("CARGO_BIN_EXE_sqscan"))
+        .arg(&path)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("end of file"), "{stderr}");
+    assert!(t.elapsed().as_secs() < 10, "{:?}", t.elapsed());
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -45,6 +45,17 @@ impl Element {
             PropType::List { .. } => None,
         })
     }
+
+    /// The fewest bytes a binary instance takes: its scalars, and each list's length word (an
+    /// empty list).
+    fn min_binary_size(&self) -> usize {
+        self.props
+            .iter()
+            .map(|p| match p.ty {
+                PropType::Scalar(k) | PropType::List { len: k, .. } => k.size(),
+            })
+            .sum()
+    }
 }
 
 #[derive(Debug)]
@@ -265,8 +276,9 @@ fn read_binary(h: &Header, body: &[u8], big_endian: bool) -> Result<(Vec<Column>
                 }
             }
         } else {
-            // Lists in the vertex element: walk vertex by vertex.
-            cols = vertex_columns(el, el.count.min(data.len()));
+            // Lists in the vertex element: walk vertex by vertex. Reserve for the vertices the
+            // data can hold, not for the header's count.
+            cols = vertex_columns(el, el.count.min(data.len() / el.min_binary_size().max(1)));
             let mut at = 0usize;
             for i in 0..el.count {
                 for (p, col) in el.props.iter().zip(cols.iter_mut()) {
