@@ -59,11 +59,25 @@ fn two_points_at_the_end_of_f32_do_not_hide_the_cup() {
     cup_found_with(&[[3e38, 0.0, 0.7], [0.0, -3e38, 3e38]]);
 }
 
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sqscan-hostile-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+/// A fresh directory for one test's files, removed when the test ends, however it ends.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(name: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("sqscan-hostile-{name}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        Scratch(d)
+    }
+
+    fn join(&self, name: &str) -> PathBuf {
+        self.0.join(name)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
 }
 
 /// `--model /dev/zero` read until memory ran out.
@@ -80,7 +94,7 @@ fn a_model_path_to_dev_zero_is_refused() {
 /// A model file over a megabyte is no model file: refused before it is parsed.
 #[test]
 fn a_model_file_over_a_megabyte_is_refused() {
-    let d = scratch("big");
+    let d = Scratch::new("big");
     let path = d.join("big.toml");
     let mut text = String::from("name = \"big\"\n");
     while text.len() <= sqscan::spec::MAX_SPEC_BYTES as usize {
@@ -89,14 +103,13 @@ fn a_model_file_over_a_megabyte_is_refused() {
     std::fs::write(&path, text).unwrap();
     let e = Model::from_file(&path).unwrap_err().to_string();
     assert!(e.contains("big.toml") && e.contains("bytes"), "{e}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// `model = "../../../../etc/passwd"` in a scene printed the file's first line in the error.
 /// A file that is not a model is named, its content is not shown.
 #[test]
 fn a_scene_naming_a_private_file_as_its_model_does_not_print_it() {
-    let d = scratch("passwd");
+    let d = Scratch::new("passwd");
     let secret = d.join("secret");
     std::fs::write(&secret, "root:x:0:0:the-secret-line:/root:/bin/bash\n").unwrap();
     let scene = d.join("scene.toml");
@@ -113,18 +126,16 @@ fn a_scene_naming_a_private_file_as_its_model_does_not_print_it() {
         .with_causes();
     assert!(e.contains("secret"), "the file is named: {e}");
     assert!(!e.contains("the-secret-line"), "its content is printed: {e}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// Control characters from a file (a terminal's escape sequences) were echoed raw.
 #[test]
 fn control_characters_from_a_file_are_escaped_in_errors() {
-    let d = scratch("ctrl");
+    let d = Scratch::new("ctrl");
     let path = d.join("m.toml");
     std::fs::write(&path, "name = \"m\"\n\"\u{1b}[2J\u{1b}[31mred\" = 1\n").unwrap();
     let e = Model::from_file(&path).unwrap_err().with_causes();
     assert!(!e.chars().any(|c| c.is_control()), "{e:?}");
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// A header of `n` distinct column names with one point, in each format that names its fields.
@@ -163,16 +174,15 @@ fn wide_headers(n: usize) -> Vec<(&'static str, Vec<u8>)> {
 /// refused) well within seconds now.
 #[test]
 fn a_header_of_a_hundred_thousand_fields_is_checked_in_linear_time() {
-    let d = scratch("wide");
+    let d = Scratch::new("wide");
     for (ext, bytes) in wide_headers(100_000) {
-        let path = d.join(format!("wide.{ext}"));
+        let path = d.join(&format!("wide.{ext}"));
         std::fs::write(&path, bytes).unwrap();
         let t = std::time::Instant::now();
         let cloud = sqscan::cloud::read_cloud(&path).unwrap_or_else(|e| panic!("{ext}: {e}"));
         assert!(t.elapsed().as_secs() < 10, "{ext}: {:?}", t.elapsed());
         assert_eq!(cloud.fields.len(), 100_000, "{ext}");
     }
-    let _ = std::fs::remove_dir_all(&d);
 }
 
 /// A binary PLY whose vertices carry a list reserved room for as many vertices as the data had
@@ -180,7 +190,7 @@ fn a_header_of_a_hundred_thousand_fields_is_checked_in_linear_time() {
 /// is now bounded by the vertices the data can hold, and the short file is refused.
 #[test]
 fn a_ply_with_a_list_does_not_reserve_from_its_header_count() {
-    let d = scratch("plylist");
+    let d = Scratch::new("plylist");
     let path = d.join("list.ply");
     let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
 property float x\nproperty float y\nproperty float z\n"
@@ -205,5 +215,4 @@ property float x\nproperty float y\nproperty float z\n"
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("end of file"), "{stderr}");
     assert!(t.elapsed().as_secs() < 10, "{:?}", t.elapsed());
-    let _ = std::fs::remove_dir_all(&d);
 }

@@ -148,19 +148,23 @@ fn the_pcl_mug_scene_gives_the_tutorial_table_and_an_upright_mug_on_its_axis() {
     );
 }
 
+/// Every instance asked for, at `seed`, from the camera-frame sensor at the origin.
+fn every_instance(seed: u64) -> Params {
+    Params {
+        seed,
+        all: true,
+        viewpoint: Some(Point3::origin()),
+        ..Params::default()
+    }
+}
+
 /// With every instance asked for, over search seeds 0-3, the mug is found nowhere in `file`: a
 /// scene with no mug in it.
 fn no_mug_in(file: &str) {
     let cloud = read_cloud(&data(file)).unwrap();
     let mug = model("mug");
     for seed in 0..4u64 {
-        let params = Params {
-            seed,
-            all: true,
-            viewpoint: Some(Point3::origin()),
-            ..Params::default()
-        };
-        let report = detect(&cloud.points, &mug, &params);
+        let report = detect(&cloud.points, &mug, &every_instance(seed));
         let found: Vec<_> = report
             .detections
             .iter()
@@ -204,13 +208,7 @@ fn found_standing(file: &str, model_name: &str, objects: &[u32], upright: bool, 
     let targets = centroids(&cloud, objects);
     let m = model(model_name);
     for seed in seeds {
-        let params = Params {
-            seed,
-            all: true,
-            viewpoint: Some(Point3::origin()),
-            ..Params::default()
-        };
-        let report = detect(&cloud.points, &m, &params);
+        let report = detect(&cloud.points, &m, &every_instance(seed));
         for (o, t) in &targets {
             let hit = report
                 .detections

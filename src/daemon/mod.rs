@@ -26,6 +26,7 @@ mod protocol;
 mod record;
 mod server;
 mod simulator;
+mod socket;
 mod state;
 
 use std::collections::BTreeMap;

@@ -26,6 +26,8 @@ pub struct BaseCap {
     middle: Vec<f64>,
     ring: Vec<f64>,
     shape: Superquadric,
+    /// The superellipse's section at the foot's height, as a share of its middle section.
+    foot_scale: f64,
 }
 
 impl BaseCap {
@@ -35,6 +37,9 @@ impl BaseCap {
             middle: Vec::new(),
             ring: Vec::new(),
             shape: *shape,
+            foot_scale: (1.0 - (1.0 - FOOT_DEPTH).powf(2.0 / shape.e1))
+                .powf(shape.e1 / 2.0)
+                .max(1e-6),
         }
     }
 
@@ -60,11 +65,8 @@ impl BaseCap {
     /// cross-section, and a tapered part's end is narrower or wider than its middle.
     fn foot_radius(&self, q: &Vector3<f64>) -> f64 {
         let s = &self.shape;
-        let t = 1.0 - FOOT_DEPTH;
-        let at_foot = s.untaper(&Vector3::new(q.x, q.y, -t * s.a[2]));
-        // The superellipse's section at height t, as a share of its middle section.
-        let scale = (1.0 - t.powf(2.0 / s.e1)).powf(s.e1 / 2.0);
-        s.section_radius(at_foot.x, at_foot.y) / scale.max(1e-6)
+        let at_foot = s.untaper(&Vector3::new(q.x, q.y, -(1.0 - FOOT_DEPTH) * s.a[2]));
+        s.section_radius(at_foot.x, at_foot.y) / self.foot_scale
     }
 
     /// Ring minus middle (m); minus infinity (no sign of a base) with fewer than 10 points in

@@ -1,0 +1,131 @@
+//! The configuration file's parsing and the errors that name its fields.
+
+use super::*;
+
+fn parse(text: &str) -> Result<Config, SpecError> {
+    Config::from_toml_str(text, Path::new("/etc/sqscan/sqscand.toml"))
+}
+
+#[test]
+fn empty_file_is_the_simulator() {
+    let c = parse("").unwrap();
+    assert!(matches!(c.backend, BackendConfig::Sim { .. }));
+    assert!(c.continuous);
+    assert_eq!(c.socket_mode, 0o660);
+}
+
+#[test]
+fn hardware_paths_are_relative_to_the_file() {
+    let c = parse(
+        r#"
+        [server]
+        socket = "/run/sqscan/sqscand.sock"
+        tcp = "127.0.0.1:2948"
+        [hardware]
+        calibration = "rig.toml"
+        ptu = { path = "/dev/ttyS0", protocol = "flir" }
+        sensor = { tcp = "10.0.0.2:5000" }
+        [sweep]
+        tilt_from_rad = 0.5
+        tilt_to_rad = 0.8
+        speed_rad_s = 0.1
+        [watch]
+        objects = ["cup"]
+        "#,
+    )
+    .unwrap();
+    let BackendConfig::Hardware(h) = &c.backend else {
+        panic!("{:?}", c.backend)
+    };
+    assert_eq!(h.calibration, Path::new("/etc/sqscan/rig.toml"));
+    assert_eq!(h.ptu_kind, PtuKind::Flir);
+    assert_eq!(h.ptu_baud, 9600);
+    assert_eq!(h.sensor, SensorEndpoint::Tcp("10.0.0.2:5000".into()));
+    assert_eq!(c.tcp, Some("127.0.0.1:2948".parse().unwrap()));
+    assert_eq!(c.watch, vec!["cup".to_string()]);
+}
+
+#[test]
+fn errors_name_the_field() {
+    for (text, field) in [
+        ("[acquisition]\nmode = \"sometimes\"", "acquisition.mode"),
+        ("[server]\ntcp = \"localhost\"", "server.tcp"),
+        ("[server]\nsocket_mode = 0o1777", "server.socket_mode"),
+        ("[sweep]\nspeed_rad_s = -1.0", "sweep.speed_rad_s"),
+        ("[acquisition]\nbackend = \"hardware\"", "hardware"),
+        (
+            "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"visca\" }\nsensor = { path = \"s\" }",
+            "hardware.ptu.protocol",
+        ),
+        (
+            "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
+            "sweep",
+        ),
+        (
+            "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"powercube\", tilt_module = 0 }\nsensor = { path = \"s\" }",
+            "hardware.ptu.tilt_module",
+        ),
+    ] {
+        let e = parse(text).unwrap_err().to_string();
+        assert!(e.contains(field), "{text:?}: {e}");
+        assert!(e.contains("sqscand.toml"), "{e}");
+    }
+    // Unknown keys are caught by the parser with their line.
+    let e = parse("[server]\nsokcet = \"x\"").unwrap_err().to_string();
+    assert!(e.contains("sokcet"), "{e}");
+}
+
+/// Issue 18: each of these passed, and some made `--check` itself panic
+/// (`Duration::from_secs_f64(1e20)`), killed a task at start (a pool of 2^62 threads, a
+/// sweep at 1e-300 rad/s) or left the daemon sweeping forever with nothing logged.
+#[test]
+fn absurd_numbers_are_refused_naming_the_field() {
+    for (text, field) in [
+        ("[sweep]\npause_s = 1e20", "sweep.pause_s"),
+        ("[sweep]\npause_s = -1.0", "sweep.pause_s"),
+        ("[sweep]\ntimeout_s = 1e20", "sweep.timeout_s"),
+        ("[sweep]\nspeed_rad_s = 1e-300", "sweep.speed_rad_s"),
+        ("[sweep]\ntilt_from_rad = -1e9", "sweep.tilt_from_rad"),
+        ("[sweep]\ntilt_to_rad = 1e9", "sweep.tilt_to_rad"),
+        ("[sweep]\npan_rad = nan", "sweep.pan_rad"),
+        ("[sweep]\nmin_profiles = 1", "sweep.min_profiles"),
+        ("[detect]\nworkers = 4611686018427387904", "detect.workers"),
+        ("[detect]\nmax_range_m = 1e300", "detect.max_range_m"),
+        ("[server]\nmax_clients = 4611686018427387904", "server.max_clients"),
+        ("[server]\nmax_clients = 0", "server.max_clients"),
+        ("[server]\nclient_queue = 4611686018427387904", "server.client_queue"),
+        ("[server]\ntcp = \"0.0.0.0:29481\"", "server.tcp"),
+        ("[server]\ntcp = \"[::]:29481\"\nallow_remote = false", "server.tcp"),
+        ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
+        (
+            "[sweep]\ntilt_from_rad = -3.0\ntilt_to_rad = 3.0\nspeed_rad_s = 0.001",
+            "sweep.speed_rad_s",
+        ),
+    ] {
+        let e = parse(text).unwrap_err().to_string();
+        assert!(e.contains(field), "{text:?}: {e}");
+    }
+    // A remote address when asked for.
+    let c = parse("[server]\ntcp = \"0.0.0.0:29481\"\nallow_remote = true").unwrap();
+    assert_eq!(c.tcp, Some("0.0.0.0:29481".parse().unwrap()));
+    // The ends of the ranges are accepted.
+    parse("[sweep]\npause_s = 3600.0\ntimeout_s = 3600.0\n[detect]\nworkers = 256\n[server]\nmax_clients = 65536")
+        .unwrap();
+}
+
+#[test]
+fn the_shipped_example_parses() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("systemd/sqscand.toml");
+    let c = Config::from_file(&path).unwrap();
+    assert!(matches!(c.backend, BackendConfig::Hardware(_)));
+    assert_eq!(c.socket, Path::new("/run/sqscan/sqscand.sock"));
+    assert_eq!(
+        c.watch,
+        ["bowl".to_string(), "cup".to_string()]
+            .iter()
+            .rev()
+            .cloned()
+            .collect::<Vec<_>>()
+    );
+    assert_eq!(c.record_keep, 20);
+}
