@@ -462,7 +462,20 @@ pub fn search_part(
             if open {
                 orient_opening(space, &mut h.placed);
             }
-            check.allows(space, &h.placed).then_some(h)
+            let allowed = check.allows(space, &h.placed);
+            if !allowed && tracing::enabled!(tracing::Level::TRACE) {
+                let t = h.placed.pose.translation.vector;
+                let through = space.plane.map_or(f64::NAN, |p| check.penetration(&h.placed, &p));
+                tracing::trace!(
+                    "refined hypothesis at ({:.3} {:.3} {:.3}) not possible on the plane: {:.1} mm through it, {:.1} mm allowed",
+                    t.x,
+                    t.y,
+                    t.z,
+                    through * 1e3,
+                    check.tolerance * 1e3
+                );
+            }
+            allowed.then_some(h)
         })
         .collect()
 }

@@ -9,7 +9,8 @@
 //!    rays), the free space and the surface that must have been seen (`seen.rs`), the support
 //!    plane, and the visible points' twins turned 180 degrees about the vertical axis (a symmetry
 //!    of any superquadric that rests on a table with one of its axes vertical). `family.rs`
-//!    chooses between a general shape and a body of revolution.
+//!    chooses between a general shape and a body of revolution. An open container standing
+//!    upright is learned instead from its outer wall's profile (`profile.rs`).
 //! 3. [`learn_parts`] (`compound.rs`): two or three parts, each fitted to what the others leave.
 //! 4. [`model_toml`] (`model_file.rs`): the result as a model file that `sqscan detect` takes as
 //!    it is.
@@ -17,6 +18,7 @@
 mod compound;
 mod family;
 mod model_file;
+mod profile;
 mod residual;
 mod robust;
 mod seen;

@@ -56,14 +56,20 @@ pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
     Segmentation { plane, object }
 }
 
-/// Clusters this close to the object's, seen from above, are the object's too.
+/// Clusters this close to the object's, seen from above, are the object's too; for a large
+/// object, clusters within [`MERGE_SHARE`] of its radius.
 pub(super) const MERGE_GAP: f64 = 0.03;
+/// The share of the object's radius seen from above within which a cluster is part of it: the
+/// part of an open container's inside hidden behind its near wall grows with the container
+/// (the mOSD white bowl's near wall is 31 mm from the inside the sensor saw, seen from above).
+pub(super) const MERGE_SHARE: f64 = 0.5;
 
 /// The cluster `best` with every other cluster of at least 10 points that comes within `gap` of
-/// it seen along the plane normal (in 3-D without a plane). The inside of an open container
-/// seen through its opening is bounded by grazing views at both sides, where no points are
-/// returned, so it is a cluster of its own, centimetres from the outer wall in 3-D but on the
-/// same outline seen from above (mOSD labels the two apart as well: a mug's body and its inside).
+/// it seen along the plane normal (in 3-D without a plane), or within [`MERGE_SHARE`] of its
+/// radius seen that way when that is more. The inside of an open container seen through its
+/// opening is bounded by grazing views at both sides, where no points are returned, so it is a
+/// cluster of its own, centimetres from the outer wall in 3-D but on the same outline seen from
+/// above (mOSD labels the two apart as well: a mug's body and its inside).
 pub(super) fn with_nearby_clusters(
     points: &[Point3<f64>],
     clusters: &[Vec<usize>],
@@ -76,6 +82,7 @@ pub(super) fn with_nearby_clusters(
         None => *p,
     };
     let main: Vec<Point3<f64>> = clusters[best].iter().map(|&i| flat(&points[i])).collect();
+    let gap = gap.max(MERGE_SHARE * flat_radius(&main));
     let grid = crate::cloud::grid::Grid::new(&main, gap);
     let mut object = clusters[best].clone();
     for (k, c) in clusters.iter().enumerate() {
@@ -92,6 +99,16 @@ pub(super) fn with_nearby_clusters(
         }
     }
     object
+}
+
+/// The 98th percentile of the points' distances from their centroid (m).
+fn flat_radius(points: &[Point3<f64>]) -> f64 {
+    if points.is_empty() {
+        return 0.0;
+    }
+    let c = points.iter().fold(Vector3::zeros(), |s, p| s + p.coords) / points.len() as f64;
+    let mut d: Vec<f64> = points.iter().map(|p| (p.coords - c).norm()).collect();
+    crate::numeric::quantile(&mut d, 0.98).unwrap_or(0.0)
 }
 
 /// Connected clusters of the points `idx` (26-neighbourhood of voxels of side `voxel`), largest

@@ -6,6 +6,7 @@ use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
 use super::seen::{Seen, drop_rays_through_top, free_space_samples, silhouette_samples, unseen_top};
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
+use super::profile;
 use super::state::{SIZE_MAX, State};
 use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use crate::cloud::plane::Plane;
@@ -81,6 +82,9 @@ pub(super) fn start_state(
     }
 }
 
+/// The inlier threshold of the statistics of a shape from the outer wall's profile (m).
+const PROFILE_DELTA: f64 = 0.003;
+
 /// The Huber threshold never falls below this (m): the noise floor of the sensors learned from.
 const MIN_DELTA: f64 = 0.001;
 
@@ -124,23 +128,43 @@ pub fn fit_superquadric(
         .collect();
     // (From the general starts: a body of revolution about a wrong axis fitted to the visible
     // points alone can be a disc as wide as the view, which would take the free space with it.)
-    let best_visible = results
-        .iter()
-        .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
-        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
-        .map(|r| r.1)
-        .expect("at least one start");
+    let family = |r: &&(String, State)| !r.1.rev || params.shape == ShapeFamily::Revolution;
+    let by_score = |a: &&(String, State), b: &&(String, State)| {
+        score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1))
+    };
     // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
-    // through its opening are not free space.
-    let open_top = match (params.viewpoint, up) {
-        (Some(v), Some(u)) => unseen_top(&best_visible.placed(), &points, &v, &u),
+    // through its opening are not free space. Its top is judged on the best fit standing upright:
+    // the visible points alone (a bowl's inner and outer wall) may be fitted better by a shape
+    // lying on its side, whose top says nothing of the object's.
+    let upright = results
+        .iter()
+        .filter(family)
+        .filter(|r| up.is_some_and(|u| (r.1.rot * Vector3::z()).dot(&u).abs() > 0.9))
+        .min_by(by_score)
+        .map(|r| r.1);
+    let open_top = match (params.viewpoint, up, upright) {
+        (Some(v), Some(u), Some(s)) => unseen_top(&s.placed(), &points, &v, &u),
         _ => false,
     };
-    let free: Vec<Point3<f64>> = if open_top {
-        drop_rays_through_top(&free, &best_visible.placed())
-    } else {
-        free
+    let free: Vec<Point3<f64>> = match (open_top, upright) {
+        (true, Some(s)) => drop_rays_through_top(&free, &s.placed()),
+        _ => free,
     };
+    tracing::debug!("open top: {open_top}");
+    // An open container standing upright is a vessel, a body of revolution: its outer wall's
+    // profile gives its shape directly, where the closed shape fitted to both of its walls
+    // comes out too small (see `profile.rs`).
+    let round_allowed = params.shape != ShapeFamily::General;
+    if let (true, true, Some(pl), Some(v)) = (open_top, round_allowed, plane, params.viewpoint) {
+        if let Some(measured) = profile::measure(&points, pl, &v) {
+            if let Some((shape, rms)) = profile::fit(&measured) {
+                tracing::debug!("outer wall profile fit: rms {:.2} mm, {shape}", rms * 1e3);
+                let s = profile::state(&measured, &shape, pl);
+                let name = "outer wall profile".to_string();
+                return Ok(recovered(&points, s, PROFILE_DELTA, name, true, up.as_ref(), params));
+            }
+        }
+    }
     // What faced the sensor must have been seen (from stage A2 on: the starts are rough); an
     // open top is not surface.
     let seen = params.viewpoint.map(|v| Seen::new(v, &points, plane, open_top));
@@ -229,6 +253,7 @@ fn object_points(
             .map(|i| kept[i])
             .collect()
     };
+    tracing::debug!("object points: {} given, {} after strays, {} in the cluster", all_points.len(), idx.len(), kept.len());
     if kept.len() < MIN_POINTS {
         return Err(LearnError::TooFewPoints(kept.len()));
     }
