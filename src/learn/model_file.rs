@@ -155,13 +155,25 @@ pub(super) fn object_frame(learned: &Learned, written: &[Superquadric]) -> Isome
     base
 }
 
+/// An exponent for the file: to 3 decimals, but one whose `2/e` is whole (1/3, 2/11) to 12,
+/// so that it stays whole when read back: the detector evaluates such shapes without
+/// logarithms.
+fn exponent(e: f64) -> f64 {
+    let n = (2.0 / e).round();
+    if n >= 1.0 && (2.0 / e - n).abs() < 1e-9 {
+        round(2.0 / n, 12)
+    } else {
+        round(e, 3)
+    }
+}
+
 /// One `[[part]]` table.
 pub(super) fn part_file(name: &str, sq: &Superquadric, open: bool, pose: Option<&Isometry3<f64>>) -> PartFile {
     PartFile {
         name: name.into(),
         a: sq.a.map(|v| round(v, 4)),
-        e1: round(sq.e1, 3),
-        e2: round(sq.e2, 3),
+        e1: exponent(sq.e1),
+        e2: exponent(sq.e2),
         kx: round(sq.kx, 3),
         ky: round(sq.ky, 3),
         m: None,

@@ -262,15 +262,17 @@ fn wall_top(sq: &Superquadric) -> f64 {
 /// The tapered superquadric of revolution standing on the plane whose section radius best
 /// matches the profile (least squares over the slices, each weighted by the square root of its
 /// points) and whose wall, as the detector reads an open part, ends at the rim: the half-height
-/// and `e1` by search, `a` and `a k` by linear least squares. A rounded top (a bowl's) closes
+/// and `e1` (of the form `2/n`) by search, `a` and `a k` by linear least squares. A rounded top (a bowl's) closes
 /// above its rim, so the half-height runs from half the rim's height to 5 % more.
 pub(super) fn fit(profile: &Profile) -> Option<(Superquadric, f64)> {
     let mut best: Option<(Superquadric, f64)> = None;
     let heaviest = profile.slices.iter().map(|s| s.2.sqrt()).fold(0.0, f64::max);
     for j in 0..=5 {
         let a3 = 0.5 * profile.top * (1.0 + 0.01 * j as f64);
-        for i in 0..=180 {
-            let e1 = EPSILON_MIN + 0.005 * i as f64;
+        // e1 = 2/n: the shapes the detector evaluates without logarithms (about twice as
+        // fast). Between neighbours the profile's RMS changes by a fraction of a millimetre.
+        for n in 2..=(2.0 / EPSILON_MIN).round() as i32 {
+            let e1 = 2.0 / n as f64;
             let (mut m, mut b, mut wsum) = (Matrix2::zeros(), Vector2::zeros(), 0.0);
             for &(h, r, n) in &profile.slices {
                 let wt = n.sqrt();
