@@ -266,6 +266,79 @@ fn two_hundred_clients_at_once_each_get_their_answer() {
     assert!(s["clients"]["total"].as_u64().unwrap() >= 201, "{s}");
 }
 
+/// An idle client, and one that sends a byte a second without ever finishing a line (a
+/// slowloris), are closed after the idle timeout, with a line that says why; a client with a
+/// watch is not idle.
+#[test]
+fn idle_and_slowloris_clients_are_closed_after_the_idle_timeout() {
+    let dir = tmpdir("idle");
+    let config = format!("{}\n[server]\nidle_timeout_s = 1.0\n", sim_config());
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    let mut idle = Client::connect(&socket);
+    let mut slow = Client::connect(&socket);
+    let mut watcher = Client::connect(&socket);
+    assert_eq!(watcher.ask(json!({"cmd":"watch","objects":["cup"]}))["class"], "watch");
+    let t0 = Instant::now();
+    let sender = std::thread::spawn(move || {
+        for b in br#"{"cmd":"status""# {
+            if slow.w.write_all(&[*b]).is_err() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(300));
+        }
+        slow
+    });
+    let bye = idle.read();
+    assert_eq!(bye["class"], "error", "{bye}");
+    assert!(bye["message"].as_str().unwrap().contains("idle"), "{bye}");
+    let waited = t0.elapsed();
+    assert!(
+        waited >= Duration::from_millis(900) && waited < Duration::from_secs(20),
+        "{waited:?}"
+    );
+    let mut slow = sender.join().unwrap();
+    let bye = slow.read();
+    assert!(bye["message"].as_str().unwrap().contains("idle"), "{bye}");
+    // The watcher still gets its updates.
+    for _ in 0..3 {
+        let u = watcher.read();
+        assert_eq!(u["class"], "detection", "{u}");
+    }
+}
+
+/// With every slot taken by idle clients, a new client is answered: the longest-idle one is
+/// closed to make room. With every slot taken by busy clients (watching), it is told so.
+#[test]
+fn idle_clients_cannot_lock_out_a_new_one() {
+    let dir = tmpdir("full");
+    let config = format!("{}\n[server]\nmax_clients = 8\n", sim_config());
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    let mut first = Client::connect(&socket);
+    let rest: Vec<Client> = (0..7).map(|_| Client::connect(&socket)).collect();
+    let mut new = Client::connect(&socket);
+    assert_eq!(new.ask(json!({"cmd":"status"}))["class"], "status");
+    // The first to go idle made room.
+    let bye = first.read();
+    assert!(bye["message"].as_str().unwrap().contains("needs the slot"), "{bye}");
+    drop(rest);
+    // Eight watchers are not idle: a ninth client is refused with a reason.
+    let watchers: Vec<Client> = (0..8)
+        .map(|_| {
+            let mut c = Client::connect(&socket);
+            assert_eq!(c.ask(json!({"cmd":"watch","objects":["cup"]}))["class"], "watch");
+            c
+        })
+        .collect();
+    drop(new);
+    std::thread::sleep(Duration::from_millis(200));
+    let s = UnixStream::connect(&socket).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut line = String::new();
+    BufReader::new(s).read_line(&mut line).unwrap();
+    assert!(line.contains("too many clients"), "{line}");
+    drop(watchers);
+}
+
 #[test]
 fn systemd_hears_ready_watchdog_and_a_clean_stop() {
     let dir = tmpdir("notify");

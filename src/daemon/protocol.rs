@@ -99,6 +99,9 @@ fn check_keys(obj: &Map<String, Value>, allowed: &[&str], cmd: &str, id: &Option
     Ok(())
 }
 
+/// The longest `id` (as JSON) a request may carry: it is echoed in every reply and update.
+pub const MAX_ID_BYTES: usize = 256;
+
 /// Parses one request line (without its newline).
 pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
     let v: Value = serde_json::from_slice(line)
@@ -110,6 +113,15 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
         ));
     };
     let id = obj.get("id").cloned();
+    if let Some(v) = &id {
+        let n = v.to_string().len();
+        if n > MAX_ID_BYTES {
+            return Err(err(
+                &None,
+                format!("\"id\" of {n} bytes is over the limit of {MAX_ID_BYTES} bytes"),
+            ));
+        }
+    }
     let cmd = match obj.get("cmd") {
         Some(Value::String(s)) => s.as_str(),
         Some(other) => return Err(err(&id, format!("\"cmd\": expected a string, got {other}"))),
@@ -269,6 +281,11 @@ mod tests {
         assert!(bad(r#"{"cmd":"find","object":"cup","timeout_s":"soon"}"#).contains("timeout_s"));
         assert!(bad(r#"{"cmd":"status","verbose":true}"#).contains("unknown field \"verbose\""));
         assert!(bad(r#"{"cmd":"watch"}"#).contains("objects"));
+        // An id is echoed in every reply and update: a long one is refused, not copied.
+        let long = format!(r#"{{"cmd":"status","id":"{}"}}"#, "x".repeat(300));
+        assert!(bad(&long).contains("over the limit of 256 bytes"));
+        let at_limit = format!(r#"{{"cmd":"status","id":"{}"}}"#, "x".repeat(254));
+        assert!(parse_request(at_limit.as_bytes()).is_ok());
         // The id survives an error once the JSON is readable.
         let e = parse_request(br#"{"cmd":"nope","id":"a"}"#).unwrap_err();
         assert_eq!(e.id, Some(json!("a")));

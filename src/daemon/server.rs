@@ -4,8 +4,11 @@
 //! half) and a bounded queue between them. Every request runs in its own task so a `find`
 //! waiting on the next sweep does not hold up a `status` on the same connection. Replies to
 //! requests wait for room in the queue (a client that does not read only stalls itself);
-//! `watch` updates never wait: when the queue is full they are skipped and counted. A writer
-//! that cannot write for [`WRITE_TIMEOUT`] drops the client. Nothing here can block
+//! `watch` updates never wait: when the queue is full, or holds [`MAX_QUEUED_BYTES`], they are
+//! skipped and counted. A writer that cannot write for [`WRITE_TIMEOUT`] drops the client. A
+//! client with nothing in flight and no watch is idle: it is closed after the configured idle
+//! timeout (a line sent only in part does not count as activity), and when every slot is taken
+//! the longest-idle client is closed to make room for a new one. Nothing here can block
 //! acquisition, which only publishes into a `watch` channel.
 
 use std::path::{Path, PathBuf};
@@ -17,7 +20,7 @@ use anyhow::{Context, Result};
 use serde_json::{Value, json};
 use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 use tokio::net::{TcpListener, UnixListener};
-use tokio::sync::{Semaphore, mpsc};
+use tokio::sync::{Notify, Semaphore, mpsc};
 use tokio::task::JoinSet;
 
 use crate::detect::output::report_json;
@@ -32,6 +35,36 @@ pub const MAX_IN_FLIGHT: usize = 64;
 
 /// A client that cannot take a line for this long is dropped.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// Bytes queued for one client at most before its `watch` updates are skipped: a slow reader
+/// costs the daemon this much, whatever its ids and however many objects it watches.
+pub const MAX_QUEUED_BYTES: usize = 256 * 1024;
+
+/// How long a new client waits for the slot of an idle client closed to make room for it.
+const EVICT_WAIT: Duration = Duration::from_secs(2);
+
+/// The idle clients, by when they became idle: the oldest is closed when a new client finds
+/// every slot taken.
+#[derive(Default)]
+struct IdleClients {
+    next_id: u64,
+    idle: std::collections::BTreeMap<u64, (Instant, Arc<Notify>)>,
+}
+
+type Idle = Arc<std::sync::Mutex<IdleClients>>;
+
+impl IdleClients {
+    /// Closes the client idle the longest; false when none is idle.
+    fn evict_oldest(&mut self) -> bool {
+        let Some((&id, _)) = self.idle.iter().min_by_key(|(_, (since, _))| *since) else {
+            return false;
+        };
+        if let Some((_, n)) = self.idle.remove(&id) {
+            n.notify_one();
+        }
+        true
+    }
+}
 
 /// What the daemon listens on. The caller binds them (tests bind `127.0.0.1:0` or a socket in
 /// a temporary directory); [`Listeners::bind`] binds the configured ones.
@@ -72,6 +105,7 @@ impl Listeners {
 /// Accepts clients until shutdown.
 pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     let slots = Arc::new(Semaphore::new(shared.config.max_clients));
+    let idle: Idle = Arc::default();
     let mut shutdown = shared.shutdown.subscribe();
     let (unix, socket_path) = match listeners.unix {
         Some((l, p)) => (Some(l), p),
@@ -83,7 +117,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
             r = accept_unix(unix.as_ref()) => match r {
                 Ok(stream) => {
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&shared, &slots, rd, wr);
+                    spawn_client(&shared, &slots, &idle, rd, wr);
                 }
                 Err(e) => {
                     tracing::warn!("accept on {}: {e}", socket_path.display());
@@ -94,7 +128,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                 Ok(stream) => {
                     let _ = stream.set_nodelay(true);
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&shared, &slots, rd, wr);
+                    spawn_client(&shared, &slots, &idle, rd, wr);
                 }
                 Err(e) => {
                     tracing::warn!("accept on tcp: {e}");
@@ -122,24 +156,52 @@ async fn accept_tcp(l: Option<&TcpListener>) -> std::io::Result<tokio::net::TcpS
     }
 }
 
-fn spawn_client<R, W>(shared: &Arc<Shared>, slots: &Arc<Semaphore>, rd: R, mut wr: W)
+fn spawn_client<R, W>(shared: &Arc<Shared>, slots: &Arc<Semaphore>, idle: &Idle, rd: R, mut wr: W)
 where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
     let shared = shared.clone();
-    let permit = slots.clone().try_acquire_owned();
+    let (slots, idle) = (slots.clone(), idle.clone());
     tokio::spawn(async move {
+        let permit = match slots.clone().try_acquire_owned() {
+            Ok(p) => Ok(p),
+            // Every slot taken: close the longest-idle client and take its slot.
+            Err(_) if lock(&idle).evict_oldest() => tokio::time::timeout(EVICT_WAIT, slots.acquire_owned())
+                .await
+                .map_err(|_| ())
+                .and_then(|r| r.map_err(|_| ())),
+            Err(_) => Err(()),
+        };
         let Ok(_permit) = permit else {
-            let msg = error_reply(None, &format!("too many clients (max {})", shared.config.max_clients));
+            let msg = error_reply(
+                None,
+                &format!(
+                    "too many clients (max {}), none of them idle",
+                    shared.config.max_clients
+                ),
+            );
             let _ = tokio::time::timeout(Duration::from_secs(1), wr.write_all(line(&msg).as_bytes())).await;
             return;
         };
         shared.stats.clients.fetch_add(1, Ordering::Relaxed);
         shared.stats.clients_total.fetch_add(1, Ordering::Relaxed);
-        client(shared.clone(), BufReader::new(rd), wr).await;
-        shared.stats.clients.fetch_sub(1, Ordering::Relaxed);
+        client(shared.clone(), idle, BufReader::new(rd), wr).await;
+        if shared.stats.clients.fetch_sub(1, Ordering::Relaxed) == 1 {
+            give_back_memory();
+        }
     });
+}
+
+/// Returns the heap's free pages to the system once the last client has left. glibc keeps what
+/// the clients' tasks and queues freed in its per-thread arenas, so without this the daemon
+/// stays at the size its busiest moment took.
+fn give_back_memory() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only releases free memory of the allocator's own arenas.
+    unsafe {
+        libc::malloc_trim(0);
+    }
 }
 
 fn line(v: &Value) -> String {
@@ -148,115 +210,184 @@ fn line(v: &Value) -> String {
     s
 }
 
-/// One line of at most [`MAX_REQUEST_BYTES`]: `Ok(Some(line))`, `Ok(None)` at end of input, or
-/// `Err(len)` for an over-long line, whose rest has been skipped up to its newline.
-async fn read_request<R: AsyncBufRead + Unpin>(
-    r: &mut R,
-    buf: &mut Vec<u8>,
-) -> std::io::Result<Option<Result<(), usize>>> {
-    buf.clear();
-    let mut too_long = 0usize;
-    loop {
-        let chunk = r.fill_buf().await?;
-        if chunk.is_empty() {
-            // End of input; a last line without its newline still counts.
-            return Ok(if buf.is_empty() && too_long == 0 {
-                None
-            } else if too_long > 0 {
-                Some(Err(too_long))
+/// Request lines of at most [`MAX_REQUEST_BYTES`], read so that a read cancelled at its await
+/// (the client loop also waits on its timers and tasks) loses nothing: what was taken from the
+/// reader is kept here until its line is complete.
+#[derive(Default)]
+struct LineReader {
+    buf: Vec<u8>,
+    /// Bytes of an over-long line skipped so far.
+    too_long: usize,
+}
+
+impl LineReader {
+    /// The next line: `Ok(Some(Ok(())))` with the line in `self.buf` (without its newline),
+    /// `Ok(None)` at end of input, or `Ok(Some(Err(len)))` for an over-long line, whose rest has
+    /// been skipped up to its newline.
+    async fn next<R: AsyncBufRead + Unpin>(&mut self, r: &mut R) -> std::io::Result<Option<Result<(), usize>>> {
+        loop {
+            let chunk = r.fill_buf().await?;
+            if chunk.is_empty() {
+                // End of input; a last line without its newline still counts.
+                let too_long = std::mem::take(&mut self.too_long);
+                return Ok(if self.buf.is_empty() && too_long == 0 {
+                    None
+                } else if too_long > 0 {
+                    Some(Err(too_long))
+                } else {
+                    Some(Ok(()))
+                });
+            }
+            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
+                Some(i) => (i + 1, true),
+                None => (chunk.len(), false),
+            };
+            if self.too_long == 0 && self.buf.len() + take <= MAX_REQUEST_BYTES + 1 {
+                self.buf.extend_from_slice(&chunk[..take]);
             } else {
-                Some(Ok(()))
-            });
-        }
-        let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
-            Some(i) => (i + 1, true),
-            None => (chunk.len(), false),
-        };
-        if too_long == 0 && buf.len() + take <= MAX_REQUEST_BYTES + 1 {
-            buf.extend_from_slice(&chunk[..take]);
-        } else {
-            too_long += buf.len() + take;
-            buf.clear();
-        }
-        r.consume(take);
-        if done {
-            if too_long > 0 {
-                return Ok(Some(Err(too_long)));
+                self.too_long += self.buf.len() + take;
+                self.buf.clear();
             }
-            while buf.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
-                buf.pop();
+            r.consume(take);
+            if done {
+                let too_long = std::mem::take(&mut self.too_long);
+                if too_long > 0 {
+                    return Ok(Some(Err(too_long)));
+                }
+                while self.buf.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
+                    self.buf.pop();
+                }
+                return Ok(Some(Ok(())));
             }
-            return Ok(Some(Ok(())));
         }
     }
 }
 
-/// A client's outbound queue.
+/// A client's outbound queue: lines, and the bytes they hold.
 #[derive(Clone)]
 struct Outbox {
-    tx: mpsc::Sender<Value>,
+    tx: mpsc::Sender<String>,
+    queued: Arc<std::sync::atomic::AtomicUsize>,
     shared: Arc<Shared>,
 }
 
 impl Outbox {
+    fn new(tx: mpsc::Sender<String>, shared: Arc<Shared>) -> Outbox {
+        Outbox {
+            tx,
+            queued: Arc::default(),
+            shared,
+        }
+    }
+
     /// A reply: waits for room (only this client is held up by its own slowness).
     async fn reply(&self, v: Value) {
         if v["class"] == "error" {
             self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
         }
-        let _ = self.tx.send(v).await;
+        let l = line(&v);
+        self.queued.fetch_add(l.len(), Ordering::Relaxed);
+        if self.tx.send(l).await.is_err() {
+            self.queued.store(0, Ordering::Relaxed);
+        }
     }
 
-    /// An unsolicited update: skipped when the client is behind.
+    /// An unsolicited update: skipped when the client is behind (its queue full, or holding
+    /// [`MAX_QUEUED_BYTES`]).
     fn update(&self, v: Value) {
-        if self.tx.try_send(v).is_err() {
+        let l = line(&v);
+        let n = l.len();
+        if self.queued.load(Ordering::Relaxed) + n > MAX_QUEUED_BYTES {
+            self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        self.queued.fetch_add(n, Ordering::Relaxed);
+        if self.tx.try_send(l).is_err() {
+            self.queued.fetch_sub(n, Ordering::Relaxed);
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
         }
     }
 }
 
-async fn client<R, W>(shared: Arc<Shared>, mut rd: BufReader<R>, mut wr: W)
+async fn client<R, W>(shared: Arc<Shared>, idle: Idle, mut rd: BufReader<R>, mut wr: W)
 where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
-    let (tx, mut rx) = mpsc::channel::<Value>(shared.config.client_queue);
+    let (tx, mut rx) = mpsc::channel::<String>(shared.config.client_queue);
+    let out = Outbox::new(tx, shared.clone());
+    // The writer holds only the byte count, not a sender: the queue closes when the last
+    // sender (the connection's and its tasks') is gone, and the writer ends with it.
+    let queued = out.queued.clone();
     let writer = tokio::spawn(async move {
-        while let Some(v) = rx.recv().await {
-            match tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(line(&v).as_bytes())).await {
-                Ok(Ok(())) => {}
+        while let Some(l) = rx.recv().await {
+            let n = l.len();
+            let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(l.as_bytes())).await;
+            drop(l);
+            queued.fetch_sub(n, Ordering::Relaxed);
+            if !matches!(r, Ok(Ok(()))) {
                 // Gone, or not reading: either way this client is done.
-                _ => break,
+                break;
             }
         }
     });
-    let out = Outbox {
-        tx,
-        shared: shared.clone(),
-    };
     out.reply(protocol::version_reply()).await;
+    let evict = Arc::new(Notify::new());
+    let me = {
+        let mut i = lock(&idle);
+        i.next_id += 1;
+        i.next_id
+    };
+    let idle_timeout = shared.config.idle_timeout;
+    let mut active = Instant::now();
     let mut tasks: JoinSet<()> = JoinSet::new();
     let mut watch_task: Option<tokio::task::AbortHandle> = None;
     let mut watching: Vec<String> = Vec::new();
     let mut shutdown = shared.shutdown.subscribe();
-    let mut buf = Vec::new();
+    let mut lines = LineReader::default();
     loop {
+        // Idle: nothing in flight and no watch. Registered as such, so a new client that finds
+        // every slot taken may close it; and closed after the idle timeout.
+        let is_idle = tasks.is_empty() && watch_task.is_none();
+        {
+            let mut i = lock(&idle);
+            if is_idle {
+                i.idle.entry(me).or_insert_with(|| (active, evict.clone()));
+            } else {
+                i.idle.remove(&me);
+            }
+        }
         let got = tokio::select! {
-            r = read_request(&mut rd, &mut buf) => r,
+            r = lines.next(&mut rd) => r,
             () = stopped(&mut shutdown) => break,
             // A dead writer means the client is gone.
             () = out.tx.closed() => break,
+            // A finished request may leave the client idle.
+            Some(_) = tasks.join_next(), if !tasks.is_empty() => {
+                active = Instant::now();
+                continue;
+            }
+            () = tokio::time::sleep_until((active + idle_timeout).into()), if is_idle => {
+                let msg = format!("closing: idle for {} s", idle_timeout.as_secs_f64());
+                out.reply(error_reply(None, &msg)).await;
+                break;
+            }
+            () = evict.notified(), if is_idle => {
+                out.reply(error_reply(None, "closing: idle, and a new client needs the slot")).await;
+                break;
+            }
         };
-        // Reap finished request tasks so a long-lived client does not accumulate them, and stop
-        // reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading its
-        // replies): backpressure on that client alone. Its writer's timeout ends it if it never
-        // reads again.
-        while tasks.try_join_next().is_some() {}
+        active = Instant::now();
+        lock(&idle).idle.remove(&me);
+        // Stop reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading
+        // its replies): backpressure on that client alone. Its writer's timeout ends it if it
+        // never reads again.
         while tasks.len() > MAX_IN_FLIGHT {
             if tasks.join_next().await.is_none() {
                 break;
             }
         }
+        let buf = std::mem::take(&mut lines.buf);
         let req = match got {
             Ok(None) | Err(_) => break,
             Ok(Some(Err(len))) => {
@@ -320,6 +451,7 @@ where
             }
         }
     }
+    lock(&idle).idle.remove(&me);
     set_watched(&shared, &watching, &[]);
     tasks.abort_all();
     drop(out);
@@ -489,10 +621,10 @@ mod tests {
 
     async fn lines(input: &[u8]) -> Vec<Result<String, usize>> {
         let mut r = BufReader::with_capacity(7, input);
-        let mut buf = Vec::new();
+        let mut reader = LineReader::default();
         let mut out = Vec::new();
-        while let Some(x) = read_request(&mut r, &mut buf).await.unwrap() {
-            out.push(x.map(|()| String::from_utf8(buf.clone()).unwrap()));
+        while let Some(x) = reader.next(&mut r).await.unwrap() {
+            out.push(x.map(|()| String::from_utf8(std::mem::take(&mut reader.buf)).unwrap()));
         }
         out
     }
@@ -518,16 +650,47 @@ mod tests {
         let config = crate::daemon::config::Config::embedded_default();
         let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
         let (tx, mut rx) = mpsc::channel(2);
-        let out = Outbox {
-            tx,
-            shared: shared.clone(),
-        };
+        let out = Outbox::new(tx, shared.clone());
         for k in 0..5 {
             // Returns at once even though nobody reads.
             out.update(json!({"class": "detection", "k": k}));
         }
         assert_eq!(shared.stats.watch_skipped.load(Ordering::Relaxed), 3);
-        assert_eq!(rx.recv().await.unwrap()["k"], 0);
-        assert_eq!(rx.recv().await.unwrap()["k"], 1);
+        assert!(rx.recv().await.unwrap().contains("\"k\":0"));
+        assert!(rx.recv().await.unwrap().contains("\"k\":1"));
+    }
+
+    /// A slow watch reader costs the daemon at most MAX_QUEUED_BYTES, however large its updates:
+    /// with room for 10,000 lines, updates of 10 kB stop at the byte bound.
+    #[tokio::test]
+    async fn a_slow_watch_readers_queue_is_bounded_in_bytes() {
+        let config = crate::daemon::config::Config::embedded_default();
+        let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
+        let (tx, _rx) = mpsc::channel(10_000);
+        let out = Outbox::new(tx, shared.clone());
+        let update = json!({"class": "detection", "pad": "x".repeat(10_000)});
+        let n = line(&update).len();
+        for _ in 0..1000 {
+            out.update(update.clone());
+        }
+        let queued = out.queued.load(Ordering::Relaxed);
+        assert_eq!(queued, MAX_QUEUED_BYTES / n * n);
+        let skipped = shared.stats.watch_skipped.load(Ordering::Relaxed) as usize;
+        assert_eq!(skipped, 1000 - MAX_QUEUED_BYTES / n);
+    }
+
+    /// A read cancelled in the middle of a line (the client loop also waits on timers and
+    /// tasks) loses none of it.
+    #[tokio::test]
+    async fn a_line_read_in_parts_survives_cancelled_reads() {
+        let (mut w, r) = tokio::io::duplex(64);
+        let mut r = BufReader::new(r);
+        let mut reader = LineReader::default();
+        w.write_all(b"{\"cmd\":").await.unwrap();
+        let cut = tokio::time::timeout(Duration::from_millis(50), reader.next(&mut r)).await;
+        assert!(cut.is_err(), "no line yet");
+        w.write_all(b"\"status\"}\n").await.unwrap();
+        assert!(matches!(reader.next(&mut r).await.unwrap(), Some(Ok(()))));
+        assert_eq!(reader.buf, b"{\"cmd\":\"status\"}");
     }
 }

@@ -281,7 +281,9 @@ pub(super) fn fit(profile: &Profile) -> Option<(Superquadric, f64)> {
                 b += wt * x * r;
                 wsum += wt;
             }
-            let Some(sol) = m.try_inverse().map(|inv| inv * b) else { continue };
+            let Some(sol) = m.try_inverse().map(|inv| inv * b) else {
+                continue;
+            };
             let a = sol.x;
             if !(a > 0.0) {
                 continue;

@@ -2,11 +2,11 @@
 //! mirrored twins, along the rays), D (the smallest equally good shape), E (along the rays again).
 
 use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
+use super::profile;
 use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
 use super::seen::{Seen, drop_rays_through_top, free_space_samples, silhouette_samples, unseen_top};
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
-use super::profile;
 use super::state::{SIZE_MAX, State};
 use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use crate::cloud::plane::Plane;
@@ -253,7 +253,12 @@ fn object_points(
             .map(|i| kept[i])
             .collect()
     };
-    tracing::debug!("object points: {} given, {} after strays, {} in the cluster", all_points.len(), idx.len(), kept.len());
+    tracing::debug!(
+        "object points: {} given, {} after strays, {} in the cluster",
+        all_points.len(),
+        idx.len(),
+        kept.len()
+    );
     if kept.len() < MIN_POINTS {
         return Err(LearnError::TooFewPoints(kept.len()));
     }

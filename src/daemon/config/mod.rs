@@ -55,6 +55,8 @@ struct ServerFile {
     max_clients: Option<usize>,
     /// Messages queued for one client before its watch updates are skipped.
     client_queue: Option<usize>,
+    /// A client with nothing in flight and no watch is closed after this long (s).
+    idle_timeout_s: Option<f64>,
 }
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -208,6 +210,8 @@ pub struct Config {
     pub models_dir: PathBuf,
     pub max_clients: usize,
     pub client_queue: usize,
+    /// A client with nothing in flight and no watch is closed after this long.
+    pub idle_timeout: Duration,
     pub backend: BackendConfig,
     /// Sweep continuously (true) or only when a client needs one.
     pub continuous: bool,
@@ -260,6 +264,8 @@ pub mod limits {
     pub const MAX_CLIENTS: (usize, usize) = (1, 65_536);
     /// Messages queued for one client.
     pub const CLIENT_QUEUE: (usize, usize) = (4, 65_536);
+    /// How long a client may sit idle (s): a day at most.
+    pub const IDLE_TIMEOUT_S: (f64, f64) = (0.1, 86_400.0);
     /// Detections run at once.
     pub const WORKERS: (usize, usize) = (1, 256);
     /// Profiles a sweep needs at least.
@@ -315,6 +321,7 @@ impl Config {
             models_dir: crate::model::default_models_dir(),
             max_clients: 1024,
             client_queue: 64,
+            idle_timeout: Duration::from_secs(300),
             backend: BackendConfig::Sim {
                 scene: default_scenes_dir().join("fig3_table.toml"),
                 seed: 1,
@@ -400,6 +407,15 @@ impl Config {
         }
         if let Some(n) = count_within(path, "server.client_queue", s.client_queue, limits::CLIENT_QUEUE)? {
             c.client_queue = n;
+        }
+        if let Some(t) = within(
+            path,
+            "server.idle_timeout_s",
+            s.idle_timeout_s,
+            limits::IDLE_TIMEOUT_S,
+            "s",
+        )? {
+            c.idle_timeout = Duration::from_secs_f64(t);
         }
 
         let backend = match raw.acquisition.backend.as_deref() {

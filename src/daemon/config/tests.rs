@@ -94,6 +94,8 @@ fn absurd_numbers_are_refused_naming_the_field() {
         ("[server]\nmax_clients = 4611686018427387904", "server.max_clients"),
         ("[server]\nmax_clients = 0", "server.max_clients"),
         ("[server]\nclient_queue = 4611686018427387904", "server.client_queue"),
+        ("[server]\nidle_timeout_s = 1e20", "server.idle_timeout_s"),
+        ("[server]\nidle_timeout_s = 0.0", "server.idle_timeout_s"),
         ("[server]\ntcp = \"0.0.0.0:29481\"", "server.tcp"),
         ("[server]\ntcp = \"[::]:29481\"\nallow_remote = false", "server.tcp"),
         ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
