@@ -633,6 +633,8 @@ fn stalled_clients_do_not_hold_up_acquisition_or_others() {
 /// A backend of the test's own: a 2 x 3 sweep of a flat patch every 20 ms.
 struct FlatPatch {
     sweeps: u64,
+    /// Panic in this sweep (a backend's bug).
+    panic_at: Option<u64>,
 }
 
 impl sqscan::daemon::Backend for FlatPatch {
@@ -653,6 +655,7 @@ impl sqscan::daemon::Backend for FlatPatch {
     ) -> Result<sqscan::daemon::Swept, sqscan::daemon::SweepFailure> {
         tokio::time::sleep(Duration::from_millis(20)).await;
         self.sweeps += 1;
+        assert!(Some(self.sweeps) != self.panic_at, "the test backend's bug");
         let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
         points[4] = [f32::NAN; 3];
         let range_m = points
@@ -708,7 +711,17 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
             unix: None,
             tcp: Some(tcp),
         };
-        let daemon = sqscan::daemon::Daemon::serve(config, models, FlatPatch { sweeps: 0 }, listeners, None).unwrap();
+        let daemon = sqscan::daemon::Daemon::serve(
+            config,
+            models,
+            FlatPatch {
+                sweeps: 0,
+                panic_at: None,
+            },
+            listeners,
+            None,
+        )
+        .unwrap();
         (daemon, addr)
     });
     assert!(daemon.socket().is_none());
@@ -741,4 +754,54 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
     assert!(!dir.join("not-bound.sock").exists());
     rt.block_on(daemon.stop());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A panic in the acquisition task is not a silent death: `status` reports it (never "ok"),
+/// and the daemon's failure resolves, on which `sqscand` stops and exits with an error (and the
+/// systemd watchdog stops).
+#[test]
+fn a_panicking_acquisition_task_is_reported_not_hidden() {
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .unwrap();
+    let mut config = sqscan::daemon::config::Config::embedded_default();
+    config.models_dir = root().join("models");
+    let models = sqscan::daemon::load_models(&config.models_dir).unwrap();
+    let backend = FlatPatch {
+        sweeps: 0,
+        panic_at: Some(3),
+    };
+    let (daemon, addr) = rt.block_on(async {
+        let tcp = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = tcp.local_addr().unwrap();
+        let listeners = sqscan::daemon::Listeners {
+            unix: None,
+            tcp: Some(tcp),
+        };
+        (
+            sqscan::daemon::Daemon::serve(config, models, backend, listeners, None).unwrap(),
+            addr,
+        )
+    });
+    let why = rt
+        .block_on(async { tokio::time::timeout(Duration::from_secs(30), daemon.failed()).await })
+        .expect("the failure is noticed");
+    assert!(
+        why.contains("acquisition task panicked: the test backend's bug"),
+        "{why}"
+    );
+    let s = std::net::TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap();
+    w.write_all(b"{\"cmd\":\"status\"}\n").unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    let status: Value = serde_json::from_str(&line).unwrap();
+    assert_eq!(status["failure"], why.as_str(), "{status}");
+    rt.block_on(daemon.stop());
 }

@@ -76,13 +76,21 @@ async fn run(config: Config) -> Result<()> {
     );
     let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
         .context("cannot install the SIGTERM handler")?;
-    tokio::select! {
-        r = tokio::signal::ctrl_c() => r.context("waiting for SIGINT")?,
-        _ = term.recv() => {}
-    }
+    let failure = tokio::select! {
+        r = tokio::signal::ctrl_c() => {
+            r.context("waiting for SIGINT")?;
+            None
+        }
+        _ = term.recv() => None,
+        // A dead acquisition or server task: exit with an error, which systemd restarts.
+        f = daemon.failed() => Some(f),
+    };
     tracing::info!("stopping");
     daemon.stop().await;
-    Ok(())
+    match failure {
+        Some(f) => anyhow::bail!("{f}"),
+        None => Ok(()),
+    }
 }
 
 fn main() -> ExitCode {

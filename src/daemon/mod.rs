@@ -138,10 +138,11 @@ impl Daemon {
         check_watch(&config, &models)?;
         let socket = listeners.socket_path().map(Path::to_owned);
         let shared = Arc::new(Shared::new(config, models, backend.name()));
-        let mut tasks = vec![
-            tokio::spawn(acquire::run(shared.clone(), backend)),
-            tokio::spawn(server::serve(shared.clone(), listeners)),
+        let essential = [
+            ("acquisition", tokio::spawn(acquire::run(shared.clone(), backend))),
+            ("server", tokio::spawn(server::serve(shared.clone(), listeners))),
         ];
+        let mut tasks = vec![tokio::spawn(supervise(shared.clone(), essential))];
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {
                 tracing::warn!("sd_notify READY to {}: {e}", n.socket_name());
@@ -154,6 +155,16 @@ impl Daemon {
             socket,
             notifier,
         })
+    }
+
+    /// Why the daemon cannot go on, once a task it cannot run without has ended before
+    /// [`stop`](Self::stop) (a panic or a fatal error); pending until then.
+    pub async fn failed(&self) -> String {
+        let mut rx = self.shared.failure.subscribe();
+        match rx.wait_for(Option::is_some).await {
+            Ok(f) => f.clone().unwrap_or_default(),
+            Err(_) => std::future::pending().await,
+        }
     }
 
     /// The Unix socket's path, if the daemon listens on one.
@@ -184,7 +195,37 @@ async fn futures_join(tasks: Vec<tokio::task::JoinHandle<()>>) {
     }
 }
 
-/// STATUS after each sweep and WATCHDOG pings while the acquisition loop and the runtime live.
+/// Waits on the tasks the daemon cannot run without. The first to end before shutdown is the
+/// daemon's failure: recorded in `shared.failure` (for `status`, the watchdog and
+/// [`Daemon::failed`]) and logged. Ends when every task has ended.
+async fn supervise(shared: Arc<Shared>, tasks: [(&'static str, tokio::task::JoinHandle<()>); 2]) {
+    let [(name_a, mut a), (name_b, mut b)] = tasks;
+    let (name, result, rest) = tokio::select! {
+        r = &mut a => (name_a, r, b),
+        r = &mut b => (name_b, r, a),
+    };
+    if !*shared.shutdown.borrow() {
+        let why = match result {
+            Ok(()) => format!("the {name} task ended"),
+            Err(e) if e.is_panic() => {
+                let p = e.into_panic();
+                let msg = p
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| p.downcast_ref::<String>().cloned())
+                    .unwrap_or_else(|| "no message".into());
+                format!("the {name} task panicked: {msg}")
+            }
+            Err(_) => format!("the {name} task was cancelled"),
+        };
+        tracing::error!("{why}; the daemon cannot go on");
+        shared.failure.send_replace(Some(why));
+    }
+    let _ = rest.await;
+}
+
+/// STATUS after each sweep and WATCHDOG pings while the acquisition loop and the runtime live,
+/// and no essential task has failed.
 async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
     let period = notify::watchdog_interval().map(|w| w / 2);
     let mut sweeps = shared.latest.subscribe();
@@ -193,6 +234,11 @@ async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
     loop {
         tokio::select! {
             _ = tick.tick() => {
+                if let Some(f) = shared.failure.borrow().as_ref() {
+                    // No more pings: systemd's watchdog restarts the service.
+                    let _ = n.status(&format!("failed: {f}"));
+                    return;
+                }
                 if period.is_some() {
                     let _ = n.watchdog();
                 }

@@ -232,6 +232,9 @@ pub struct Shared {
     pub started: Instant,
     /// Turns true when the daemon is stopping.
     pub shutdown: watch::Sender<bool>,
+    /// Why a task the daemon cannot run without ended (a panic, or a return before shutdown):
+    /// `status` reports it, the systemd watchdog stops, and `sqscand` exits with an error.
+    pub failure: watch::Sender<Option<String>>,
 }
 
 impl Shared {
@@ -241,6 +244,7 @@ impl Shared {
             config,
             models,
             latest: watch::channel(None).0,
+            failure: watch::channel(None).0,
             sweep_wanted: Notify::new(),
             backend,
             devices: Devices::default(),
@@ -281,6 +285,7 @@ impl Shared {
         json!({
             "class": "status",
             "release": env!("CARGO_PKG_VERSION"),
+            "failure": *self.failure.borrow(),
             "uptime_s": round3(self.started.elapsed().as_secs_f64()),
             "backend": self.backend,
             "mode": if self.config.continuous { "continuous" } else { "on_demand" },
