@@ -29,7 +29,7 @@ struct Cli {
     /// Unix socket to listen on (overrides the file's server.socket)
     #[arg(long, value_name = "PATH")]
     socket: Option<PathBuf>,
-    /// Check the configuration (and models, scene or calibration) and exit
+    /// Run every start-up check (configuration, models, scene or calibration, serial devices) and exit
     #[arg(long)]
     check: bool,
 }

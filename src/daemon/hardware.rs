@@ -61,6 +61,24 @@ pub struct HardwareBackend {
 }
 
 impl HardwareBackend {
+    /// The configured serial devices as start-up finds them: an error for a path that exists
+    /// and is not a terminal device (a regular file, a directory, `/dev/null`), and a warning for
+    /// one that does not exist yet (a USB adapter plugged in later) or cannot be opened by this
+    /// user; the warnings are returned.
+    pub fn check_devices(cfg: &HardwareConfig) -> Result<Vec<String>> {
+        let mut warnings = Vec::new();
+        let mut devices = vec![("hardware.ptu.path", cfg.ptu_path.as_path())];
+        if let SensorEndpoint::Serial(p) = &cfg.sensor {
+            devices.push(("hardware.sensor.path", p.as_path()));
+        }
+        for (field, path) in devices {
+            if let Some(w) = check_device(field, path)? {
+                warnings.push(w);
+            }
+        }
+        Ok(warnings)
+    }
+
     pub fn new(cfg: &HardwareConfig, sweep_cfg: &SweepConfig) -> Result<HardwareBackend> {
         let calib = Calibration::from_file(&cfg.calibration)
             .map_err(|e| anyhow::anyhow!(e.with_causes()))
@@ -245,5 +263,101 @@ impl Backend for HardwareBackend {
         if let Some(s) = self.sensor.device.as_mut() {
             let _ = tokio::time::timeout(Duration::from_millis(200), s.stop()).await;
         }
+    }
+}
+
+/// One device path of [`HardwareBackend::check_devices`].
+fn check_device(field: &str, path: &std::path::Path) -> Result<Option<String>> {
+    use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
+    use std::os::unix::io::AsRawFd;
+    let shown = crate::spec::escape_controls(&path.display().to_string());
+    let meta = match std::fs::metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(Some(format!(
+                "{field}: {shown} does not exist (yet); it is opened when it appears"
+            )));
+        }
+        Err(e) => anyhow::bail!("{field}: {shown}: {e}"),
+    };
+    if !meta.file_type().is_char_device() {
+        let what = if meta.is_dir() {
+            "a directory"
+        } else if meta.is_file() {
+            "a regular file"
+        } else {
+            "not a device"
+        };
+        anyhow::bail!("{field}: {shown} is {what}, not a serial device");
+    }
+    // Opened without becoming the controlling terminal and without waiting for carrier; only
+    // asked whether it is a terminal (a serial port is; /dev/null, /dev/zero are not).
+    let file = match std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .custom_flags(libc::O_NOCTTY | libc::O_NONBLOCK)
+        .open(path)
+    {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::PermissionDenied => {
+            return Ok(Some(format!("{field}: {shown}: cannot open it as this user ({e})")));
+        }
+        Err(e) => {
+            return Ok(Some(format!(
+                "{field}: {shown}: cannot open it now ({e}); it is retried"
+            )));
+        }
+    };
+    // SAFETY: isatty only reads the state of a descriptor this function owns.
+    if unsafe { libc::isatty(file.as_raw_fd()) } != 1 {
+        anyhow::bail!("{field}: {shown} is a character device but not a terminal: not a serial port");
+    }
+    Ok(None)
+}
+
+#[cfg(test)]
+mod device_tests {
+    use super::check_device;
+
+    #[test]
+    fn a_ptu_path_must_be_a_serial_device() {
+        let dir = std::env::temp_dir().join(format!("sqscan-devcheck-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("ttyUSB0");
+        std::fs::write(&file, b"").unwrap();
+        for (path, says) in [
+            (std::path::Path::new("/dev/null"), "not a terminal"),
+            (file.as_path(), "a regular file"),
+            (dir.as_path(), "a directory"),
+        ] {
+            let e = check_device("hardware.ptu.path", path).unwrap_err().to_string();
+            assert!(e.contains("hardware.ptu.path") && e.contains(says), "{e}");
+        }
+        // Not there yet: a warning, since it may be plugged in later.
+        let w = check_device("hardware.ptu.path", &dir.join("missing"))
+            .unwrap()
+            .unwrap();
+        assert!(w.contains("does not exist"), "{w}");
+        // A pseudo-terminal, as the mock devices use, is a terminal.
+        // SAFETY: a pty pair from the C library; the master stays open while it is checked.
+        let slave = unsafe {
+            let master = libc::posix_openpt(libc::O_RDWR | libc::O_NOCTTY);
+            assert!(master >= 0);
+            assert_eq!(libc::grantpt(master), 0);
+            assert_eq!(libc::unlockpt(master), 0);
+            let mut name = [0 as libc::c_char; 128];
+            assert_eq!(libc::ptsname_r(master, name.as_mut_ptr(), name.len()), 0);
+            (
+                master,
+                std::ffi::CStr::from_ptr(name.as_ptr()).to_string_lossy().into_owned(),
+            )
+        };
+        assert_eq!(
+            check_device("hardware.ptu.path", std::path::Path::new(&slave.1)).unwrap(),
+            None
+        );
+        // SAFETY: the master opened above.
+        unsafe { libc::close(slave.0) };
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -89,6 +89,9 @@ pub fn check(config: &Config) -> Result<BTreeMap<String, Arc<Model>>> {
         }
         BackendConfig::Hardware(h) => {
             HardwareBackend::new(h, &config.sweep)?;
+            for w in HardwareBackend::check_devices(h)? {
+                tracing::warn!("{w}");
+            }
         }
     }
     Ok(models)
@@ -117,6 +120,9 @@ impl Daemon {
             }
             BackendConfig::Hardware(h) => {
                 let backend = HardwareBackend::new(h, &config.sweep)?;
+                for w in HardwareBackend::check_devices(h)? {
+                    tracing::warn!("{w}");
+                }
                 let listeners = Listeners::bind(&config).await?;
                 Daemon::serve(config, models, backend, listeners, notifier)
             }
