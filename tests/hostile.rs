@@ -105,6 +105,21 @@ fn a_model_file_over_a_megabyte_is_refused() {
     assert!(e.contains("big.toml") && e.contains("bytes"), "{e}");
 }
 
+/// A scene inside the per-field limits (100,000 profiles of 8,192 columns) aborted at 4 GB when
+/// rendered: a sweep's pixels are capped, and such a scene is refused when it is read.
+#[test]
+fn a_scene_too_large_to_render_is_refused_when_read() {
+    let d = Scratch::new("huge-scene");
+    let text = std::fs::read_to_string(root().join("scenes/fig3_table.toml"))
+        .unwrap()
+        .replace("profiles = 150", "profiles = 100000")
+        .replace("columns = 256", "columns = 8192");
+    let path = d.join("huge.toml");
+    std::fs::write(&path, text).unwrap();
+    let e = Scene::from_file(&path, &root().join("models")).unwrap_err().to_string();
+    assert!(e.contains("rig.profiles") && e.contains("819200000 pixels"), "{e}");
+}
+
 /// `model = "../../../../etc/passwd"` in a scene printed the file's first line in the error.
 /// A file that is not a model is named, its content is not shown.
 #[test]
@@ -215,4 +230,133 @@ property float x\nproperty float y\nproperty float z\n"
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("end of file"), "{stderr}");
     assert!(t.elapsed().as_secs() < 10, "{:?}", t.elapsed());
+}
+
+/// Well-formed files of every kind the tools read: clouds (PCD in its three encodings, PLY in
+/// both, text), a model, a scene and a calibration.
+fn corpus() -> &'static [(&'static str, Vec<u8>)] {
+    use sqscan::cloud::{PcdData, PlyFormat, PointCloud, write_pcd, write_ply, write_text};
+    static CORPUS: std::sync::OnceLock<Vec<(&'static str, Vec<u8>)>> = std::sync::OnceLock::new();
+    CORPUS.get_or_init(|| {
+        let points: Vec<[f32; 3]> = (0..48)
+            .map(|i| {
+                let t = i as f32 * 0.37;
+                if i % 11 == 5 {
+                    [f32::NAN; 3]
+                } else {
+                    [t.cos(), t.sin(), 0.5 + 0.01 * i as f32]
+                }
+            })
+            .collect();
+        let cloud = PointCloud::organized(8, 6, points);
+        let mut out: Vec<(&'static str, Vec<u8>)> = Vec::new();
+        for (name, data) in [
+            ("pcd", PcdData::Ascii),
+            ("pcd", PcdData::Binary),
+            ("pcd", PcdData::BinaryCompressed),
+        ] {
+            let mut b = Vec::new();
+            write_pcd(&mut b, &cloud, data).unwrap();
+            out.push((name, b));
+        }
+        for format in [PlyFormat::Ascii, PlyFormat::BinaryLittleEndian] {
+            let mut b = Vec::new();
+            write_ply(&mut b, &cloud, format).unwrap();
+            out.push(("ply", b));
+        }
+        let mut b = Vec::new();
+        write_text(&mut b, &cloud).unwrap();
+        out.push(("xyz", b));
+        for (kind, path) in [
+            ("model", "models/cup.toml"),
+            ("scene", "scenes/fig3_table.toml"),
+            ("calibration", "calibration/sim_rig.toml"),
+        ] {
+            out.push((kind, std::fs::read(root().join(path)).unwrap()));
+        }
+        out
+    })
+}
+
+/// `bytes` edited: each edit (kind, where, byte, length) flips a byte, inserts or deletes a
+/// stretch, repeats one, or cuts the file there.
+fn mutate(bytes: &[u8], edits: &[(u8, proptest::sample::Index, u8, usize)]) -> Vec<u8> {
+    let mut b = bytes.to_vec();
+    for (kind, at, byte, len) in edits {
+        if b.is_empty() {
+            break;
+        }
+        let i = at.index(b.len());
+        let end = (i + len).min(b.len());
+        match kind {
+            0 => b[i] ^= byte | 1,
+            1 => b.splice(i..i, std::iter::repeat_n(*byte, *len)).for_each(drop),
+            2 => b.drain(i..end).for_each(drop),
+            3 => {
+                let stretch: Vec<u8> = b[i..end].to_vec();
+                b.splice(i..i, stretch.iter().copied().cycle().take(stretch.len() * 50))
+                    .for_each(drop);
+            }
+            _ => b.truncate(i),
+        }
+    }
+    b
+}
+
+/// Reads `bytes` as a file of `kind`, through the reader the tools use; true when it read.
+fn read_as(kind: &str, bytes: &[u8], dir: &std::path::Path) -> bool {
+    use sqscan::cloud::{read_pcd, read_ply, read_text};
+    match kind {
+        "pcd" => read_pcd(bytes).is_ok(),
+        "ply" => read_ply(bytes).is_ok(),
+        "xyz" => read_text(bytes).is_ok(),
+        _ => {
+            let path = dir.join(format!("{kind}.toml"));
+            std::fs::write(&path, bytes).unwrap();
+            match kind {
+                "model" => Model::from_file(&path).is_ok(),
+                "scene" => Scene::from_file(&path, &root().join("models")).is_ok(),
+                _ => sqscan::calibration::Calibration::from_file(&path).is_ok(),
+            }
+        }
+    }
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig {
+        cases: 3000,
+        failure_persistence: None,
+        ..proptest::prelude::ProptestConfig::default()
+    })]
+
+    /// Every reader, fed mutated copies of well-formed files (seeded by proptest), reads them or
+    /// refuses them: no panic, and no case runs long (a hang or a huge allocation would; 10 s is
+    /// a wide margin for files of a few kilobytes).
+    #[test]
+    fn mutated_files_are_read_or_refused_never_a_panic(
+        which in 0usize..9,
+        edits in proptest::collection::vec(
+            (0u8..5, proptest::prelude::any::<proptest::sample::Index>(), proptest::prelude::any::<u8>(), 1usize..64),
+            1..6,
+        ),
+    ) {
+        let (kind, bytes) = &corpus()[which];
+        let dir = std::env::temp_dir().join(format!("sqscan-mutated-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mutated = mutate(bytes, &edits);
+        let t0 = std::time::Instant::now();
+        let _ = read_as(kind, &mutated, &dir);
+        proptest::prop_assert!(t0.elapsed() < std::time::Duration::from_secs(10), "{kind}: {:?}", t0.elapsed());
+    }
+}
+
+/// The corpus itself reads: the mutations start from files the readers take.
+#[test]
+fn the_mutation_corpus_is_well_formed() {
+    let dir = std::env::temp_dir().join(format!("sqscan-corpus-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (kind, bytes) in corpus() {
+        assert!(read_as(kind, bytes, &dir), "{kind}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -339,12 +339,28 @@ impl Scene {
     }
 }
 
+/// Pixels (profiles x columns) a simulated sweep may have.
+pub const MAX_SWEEP_PIXELS: usize = 4 << 20;
+
 fn validate_rig(r: &RigFile, path: &Path) -> Result<Rig, SpecError> {
     let bad = |field: &str, msg: String| SpecError::invalid(path, format!("rig.{field}"), msg);
     let ptu_in_base = r.ptu.to_isometry().map_err(|m| bad("ptu", m))?;
     let sensor_in_tilt = r.sensor_mount.to_isometry().map_err(|m| bad("sensor_mount", m))?;
     if !(1..=100_000).contains(&r.profiles) {
         return Err(bad("profiles", format!("{} profiles: give 1 to 100000", r.profiles)));
+    }
+    // A simulated sweep holds a few tens of bytes a pixel (point, range, stamps, the range
+    // image): this many pixels is about 200 MB, 18 times a real 150 x 1536 sweep.
+    if r.profiles.saturating_mul(r.columns) > MAX_SWEEP_PIXELS {
+        return Err(bad(
+            "profiles",
+            format!(
+                "{} profiles x {} columns = {} pixels: at most {MAX_SWEEP_PIXELS} a sweep",
+                r.profiles,
+                r.columns,
+                r.profiles.saturating_mul(r.columns)
+            ),
+        ));
     }
     for (f, v) in [("pan", r.pan), ("tilt_start", r.tilt_start), ("tilt_end", r.tilt_end)] {
         if !(v.is_finite() && v.abs() <= std::f64::consts::PI) {
