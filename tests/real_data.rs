@@ -284,9 +284,12 @@ fn white_bowl_learned_from_one_scan_is_found_both_ways_up() {
 
 /// The mug learned from mOSD test34 is round, of the radius its outer wall shows (it was an oval
 /// of 42 by 35 mm, its near wall and a handle's root fitted as one closed shape with its inside),
-/// and finds the same plain white mug standing upside down in learn38.
+/// and finds both mugs standing upside down in learn38: the same plain white mug, and the
+/// printed one, 7 mm shorter. On that one the model, fitted to its base, reached 13.9 mm
+/// through the table and was dropped instead of being set on it; set on it, its base's recess
+/// read 0.9 mm across 65-88 % of the model's foot, where the mug's foot ring lies beyond.
 #[test]
 fn mug_learned_from_one_scan_is_found_upside_down() {
     let m = learned_from("test34.pcd", 5, "learned_mug");
-    found_standing_as("learn38.pcd", &m, &[2], false, 5..6);
+    found_standing_as("learn38.pcd", &m, &[2, 3], false, 5..6);
 }

@@ -462,6 +462,7 @@ pub fn search_part(
             if open {
                 orient_opening(space, &mut h.placed);
             }
+            lift_onto_plane(space, check, &mut h);
             let allowed = check.allows(space, &h.placed);
             if !allowed && tracing::enabled!(tracing::Level::TRACE) {
                 let t = h.placed.pose.translation.vector;
@@ -478,6 +479,32 @@ pub fn search_part(
             allowed.then_some(h)
         })
         .collect()
+}
+
+/// Lift a refined pose that reaches through the support plane by more than the check allows
+/// onto the deepest pose it allows, and measure it there. The object rests on the plane, so of
+/// the possible poses the one sitting on it explains the points best: a model a few millimetres
+/// taller than the object (a mug learned from its taller sibling), fitted to the object's base
+/// upside down, sinks its rim into the table.
+fn lift_onto_plane(space: &SearchSpace<'_>, check: &PlaneCheck, h: &mut Hypothesis) {
+    let Some(plane) = space.plane else { return };
+    let excess = check.penetration(&h.placed, &plane) - check.tolerance;
+    if excess <= 0.0 {
+        return;
+    }
+    let mut placed = h.placed;
+    // A micrometre more, so that rounding cannot leave it a hair too deep for the check.
+    placed.pose.translation.vector += plane.normal * (excess + 1e-6);
+    let centre = Point3::from(placed.pose.translation.vector);
+    let band = refine_band(&placed.shape, space.noise.at(&centre));
+    let inliers = thin(inliers_in(space.mid, space.mid_grid, &placed, band), REFINE_POINTS);
+    if inliers.len() < MIN_SAMPLE {
+        return;
+    }
+    *h = Hypothesis {
+        placed,
+        m: measure_of_fit(&placed, &inliers),
+    };
 }
 
 /// Turn an untapered open container the way up that what the sensor saw at its top end says. A
