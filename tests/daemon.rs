@@ -691,17 +691,17 @@ impl sqscan::daemon::Backend for FlatPatch {
 }
 
 /// The daemon serves on a listener and a backend it is handed, and binds nothing itself.
-#[test]
-fn a_daemon_runs_on_an_injected_listener_and_backend() {
+/// A runtime and a daemon serving `backend` on a TCP port of its own (no Unix socket), with the
+/// shipped models; `config` as the test sets it.
+fn serve_on_tcp(
+    mut config: sqscan::daemon::config::Config,
+    backend: FlatPatch,
+) -> (tokio::runtime::Runtime, sqscan::daemon::Daemon, std::net::SocketAddr) {
     let rt = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
         .build()
         .unwrap();
-    let mut config = sqscan::daemon::config::Config::embedded_default();
-    let dir = tmpdir("injected");
-    // Were the daemon to bind the configured socket, this file would appear.
-    config.socket = dir.join("not-bound.sock");
     config.models_dir = root().join("models");
     let models = sqscan::daemon::load_models(&config.models_dir).unwrap();
     let (daemon, addr) = rt.block_on(async {
@@ -711,19 +711,23 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
             unix: None,
             tcp: Some(tcp),
         };
-        let daemon = sqscan::daemon::Daemon::serve(
-            config,
-            models,
-            FlatPatch {
-                sweeps: 0,
-                panic_at: None,
-            },
-            listeners,
-            None,
-        )
-        .unwrap();
+        let daemon = sqscan::daemon::Daemon::serve(config, models, backend, listeners, None).unwrap();
         (daemon, addr)
     });
+    (rt, daemon, addr)
+}
+
+#[test]
+fn a_daemon_runs_on_an_injected_listener_and_backend() {
+    let mut config = sqscan::daemon::config::Config::embedded_default();
+    let dir = tmpdir("injected");
+    // Were the daemon to bind the configured socket, this file would appear.
+    config.socket = dir.join("not-bound.sock");
+    let backend = FlatPatch {
+        sweeps: 0,
+        panic_at: None,
+    };
+    let (rt, daemon, addr) = serve_on_tcp(config, backend);
     assert!(daemon.socket().is_none());
 
     let s = std::net::TcpStream::connect(addr).unwrap();
@@ -761,30 +765,11 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
 /// systemd watchdog stops).
 #[test]
 fn a_panicking_acquisition_task_is_reported_not_hidden() {
-    let rt = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .unwrap();
-    let mut config = sqscan::daemon::config::Config::embedded_default();
-    config.models_dir = root().join("models");
-    let models = sqscan::daemon::load_models(&config.models_dir).unwrap();
     let backend = FlatPatch {
         sweeps: 0,
         panic_at: Some(3),
     };
-    let (daemon, addr) = rt.block_on(async {
-        let tcp = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
-        let addr = tcp.local_addr().unwrap();
-        let listeners = sqscan::daemon::Listeners {
-            unix: None,
-            tcp: Some(tcp),
-        };
-        (
-            sqscan::daemon::Daemon::serve(config, models, backend, listeners, None).unwrap(),
-            addr,
-        )
-    });
+    let (rt, daemon, addr) = serve_on_tcp(sqscan::daemon::config::Config::embedded_default(), backend);
     let why = rt
         .block_on(async { tokio::time::timeout(Duration::from_secs(30), daemon.failed()).await })
         .expect("the failure is noticed");
