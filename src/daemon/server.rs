@@ -378,7 +378,15 @@ where
             }
         };
         active = Instant::now();
-        lock(&idle).idle.remove(&me);
+        // Idle until this line came in: unless a new client took this one's slot meanwhile (the
+        // registry no longer holds it), it is busy now. If it did, that client is waiting for
+        // the slot: close, as the eviction said, and do not leave its signal for a later idle
+        // spell.
+        if is_idle && lock(&idle).idle.remove(&me).is_none() {
+            out.reply(error_reply(None, "closing: idle, and a new client needs the slot"))
+                .await;
+            break;
+        }
         // Stop reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading
         // its replies): backpressure on that client alone. Its writer's timeout ends it if it
         // never reads again.
