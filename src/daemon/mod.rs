@@ -21,6 +21,8 @@ mod acquire;
 mod backend;
 pub mod config;
 mod hardware;
+mod idle;
+mod lines;
 pub mod notify;
 mod protocol;
 mod record;

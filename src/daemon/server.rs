@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use serde_json::{Value, json};
-use tokio::io::{AsyncBufRead, AsyncBufReadExt, AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
+use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 use tokio::net::{TcpListener, UnixListener};
 use tokio::sync::{Notify, Semaphore, mpsc};
 use tokio::task::JoinSet;
@@ -26,6 +26,8 @@ use tokio::task::JoinSet;
 use crate::detect::output::report_json;
 
 use super::config::{Config, MAX_REQUEST_BYTES};
+use super::idle::Idle;
+use super::lines::LineReader;
 use super::protocol::{self, Command, Request, error_reply, with_id};
 use super::socket::bind_unix;
 use super::state::{Shared, SweepEntry, lock, round3, stopped};
@@ -42,29 +44,6 @@ pub const MAX_QUEUED_BYTES: usize = 256 * 1024;
 
 /// How long a new client waits for the slot of an idle client closed to make room for it.
 const EVICT_WAIT: Duration = Duration::from_secs(2);
-
-/// The idle clients, by when they became idle: the oldest is closed when a new client finds
-/// every slot taken.
-#[derive(Default)]
-struct IdleClients {
-    next_id: u64,
-    idle: std::collections::BTreeMap<u64, (Instant, Arc<Notify>)>,
-}
-
-type Idle = Arc<std::sync::Mutex<IdleClients>>;
-
-impl IdleClients {
-    /// Closes the client idle the longest; false when none is idle.
-    fn evict_oldest(&mut self) -> bool {
-        let Some((&id, _)) = self.idle.iter().min_by_key(|(_, (since, _))| *since) else {
-            return false;
-        };
-        if let Some((_, n)) = self.idle.remove(&id) {
-            n.notify_one();
-        }
-        true
-    }
-}
 
 /// What the daemon listens on. The caller binds them (tests bind `127.0.0.1:0` or a socket in
 /// a temporary directory); [`Listeners::bind`] binds the configured ones.
@@ -208,59 +187,6 @@ fn line(v: &Value) -> String {
     let mut s = v.to_string();
     s.push('\n');
     s
-}
-
-/// Request lines of at most [`MAX_REQUEST_BYTES`], read so that a read cancelled at its await
-/// (the client loop also waits on its timers and tasks) loses nothing: what was taken from the
-/// reader is kept here until its line is complete.
-#[derive(Default)]
-struct LineReader {
-    buf: Vec<u8>,
-    /// Bytes of an over-long line skipped so far.
-    too_long: usize,
-}
-
-impl LineReader {
-    /// The next line: `Ok(Some(Ok(())))` with the line in `self.buf` (without its newline),
-    /// `Ok(None)` at end of input, or `Ok(Some(Err(len)))` for an over-long line, whose rest has
-    /// been skipped up to its newline.
-    async fn next<R: AsyncBufRead + Unpin>(&mut self, r: &mut R) -> std::io::Result<Option<Result<(), usize>>> {
-        loop {
-            let chunk = r.fill_buf().await?;
-            if chunk.is_empty() {
-                // End of input; a last line without its newline still counts.
-                let too_long = std::mem::take(&mut self.too_long);
-                return Ok(if self.buf.is_empty() && too_long == 0 {
-                    None
-                } else if too_long > 0 {
-                    Some(Err(too_long))
-                } else {
-                    Some(Ok(()))
-                });
-            }
-            let (take, done) = match chunk.iter().position(|&b| b == b'\n') {
-                Some(i) => (i + 1, true),
-                None => (chunk.len(), false),
-            };
-            if self.too_long == 0 && self.buf.len() + take <= MAX_REQUEST_BYTES + 1 {
-                self.buf.extend_from_slice(&chunk[..take]);
-            } else {
-                self.too_long += self.buf.len() + take;
-                self.buf.clear();
-            }
-            r.consume(take);
-            if done {
-                let too_long = std::mem::take(&mut self.too_long);
-                if too_long > 0 {
-                    return Ok(Some(Err(too_long)));
-                }
-                while self.buf.last().is_some_and(|b| *b == b'\n' || *b == b'\r') {
-                    self.buf.pop();
-                }
-                return Ok(Some(Ok(())));
-            }
-        }
-    }
 }
 
 /// A client's outbound queue: lines, and the bytes they hold.
@@ -627,32 +553,6 @@ fn models_reply(shared: &Shared) -> Value {
 mod tests {
     use super::*;
 
-    async fn lines(input: &[u8]) -> Vec<Result<String, usize>> {
-        let mut r = BufReader::with_capacity(7, input);
-        let mut reader = LineReader::default();
-        let mut out = Vec::new();
-        while let Some(x) = reader.next(&mut r).await.unwrap() {
-            out.push(x.map(|()| String::from_utf8(std::mem::take(&mut reader.buf)).unwrap()));
-        }
-        out
-    }
-
-    #[tokio::test]
-    async fn request_lines_are_bounded() {
-        let mut input = b"{\"cmd\":\"status\"}\r\n".to_vec();
-        input.extend(vec![b'x'; MAX_REQUEST_BYTES + 10]);
-        input.extend(b"\n{\"cmd\":\"models\"}");
-        let got = lines(&input).await;
-        assert_eq!(got.len(), 3, "{got:?}");
-        assert_eq!(got[0], Ok("{\"cmd\":\"status\"}".to_string()));
-        assert_eq!(got[1], Err(MAX_REQUEST_BYTES + 11));
-        assert_eq!(got[2], Ok("{\"cmd\":\"models\"}".to_string()));
-        // Exactly at the limit is fine.
-        let mut at = vec![b' '; MAX_REQUEST_BYTES];
-        at.push(b'\n');
-        assert!(matches!(lines(&at).await[..], [Ok(_)]));
-    }
-
     #[tokio::test]
     async fn watch_updates_to_a_full_queue_are_skipped_not_waited_for() {
         let config = crate::daemon::config::Config::embedded_default();
@@ -685,20 +585,5 @@ mod tests {
         assert_eq!(queued, MAX_QUEUED_BYTES / n * n);
         let skipped = shared.stats.watch_skipped.load(Ordering::Relaxed) as usize;
         assert_eq!(skipped, 1000 - MAX_QUEUED_BYTES / n);
-    }
-
-    /// A read cancelled in the middle of a line (the client loop also waits on timers and
-    /// tasks) loses none of it.
-    #[tokio::test]
-    async fn a_line_read_in_parts_survives_cancelled_reads() {
-        let (mut w, r) = tokio::io::duplex(64);
-        let mut r = BufReader::new(r);
-        let mut reader = LineReader::default();
-        w.write_all(b"{\"cmd\":").await.unwrap();
-        let cut = tokio::time::timeout(Duration::from_millis(50), reader.next(&mut r)).await;
-        assert!(cut.is_err(), "no line yet");
-        w.write_all(b"\"status\"}\n").await.unwrap();
-        assert!(matches!(reader.next(&mut r).await.unwrap(), Some(Ok(()))));
-        assert_eq!(reader.buf, b"{\"cmd\":\"status\"}");
     }
 }

@@ -30,6 +30,7 @@ mod compound;
 mod fit;
 pub mod output;
 mod params;
+mod plane_check;
 mod prepare;
 mod report;
 mod rigid;

@@ -120,35 +120,26 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    let free = free_space(&points, free_points, &centroid, plane, params);
     // Stage A1: every start on the visible points (and the support plane).
     let results: Vec<(String, State)> = starts
         .into_par_iter()
         .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, MIN_DELTA).0))
         .collect();
-    // (From the general starts: a body of revolution about a wrong axis fitted to the visible
-    // points alone can be a disc as wide as the view, which would take the free space with it.)
-    let family = |r: &&(String, State)| !r.1.rev || params.shape == ShapeFamily::Revolution;
-    let by_score = |a: &&(String, State), b: &&(String, State)| {
-        score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1))
-    };
     // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
     // through its opening are not free space. Its top is judged on the best fit standing upright:
     // the visible points alone (a bowl's inner and outer wall) may be fitted better by a shape
-    // lying on its side, whose top says nothing of the object's.
+    // lying on its side, whose top says nothing of the object's. (From the general starts: a
+    // body of revolution about a wrong axis fitted to the visible points alone can be a disc as
+    // wide as the view, which would take the free space with it.)
     let upright = results
         .iter()
-        .filter(family)
+        .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
         .filter(|r| up.is_some_and(|u| (r.1.rot * Vector3::z()).dot(&u).abs() > 0.9))
-        .min_by(by_score)
+        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
         .map(|r| r.1);
     let open_top = match (params.viewpoint, up, upright) {
         (Some(v), Some(u), Some(s)) => unseen_top(&s.placed(), &points, &v, &u),
         _ => false,
-    };
-    let free: Vec<Point3<f64>> = match (open_top, upright) {
-        (true, Some(s)) => drop_rays_through_top(&free, &s.placed()),
-        _ => free,
     };
     tracing::debug!("open top: {open_top}");
     // An open container standing upright is a vessel, a body of revolution: its outer wall's
@@ -165,6 +156,12 @@ pub fn fit_superquadric(
             }
         }
     }
+    // The free space, for the stages from here on (the profile above needs none).
+    let free = free_space(&points, free_points, &centroid, plane, params);
+    let free: Vec<Point3<f64>> = match (open_top, upright) {
+        (true, Some(s)) => drop_rays_through_top(&free, &s.placed()),
+        _ => free,
+    };
     // What faced the sensor must have been seen (from stage A2 on: the starts are rough); an
     // open top is not surface.
     let seen = params.viewpoint.map(|v| Seen::new(v, &points, plane, open_top));
