@@ -163,6 +163,15 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
 /// Points each candidate plane is counted against.
 const CONSENSUS_POINTS: usize = 20_000;
 
+/// Points every candidate plane is first counted against.
+const SCREEN_POINTS: usize = 2_000;
+
+/// Candidates with the most points on the coarse count that are counted on the full set.
+const LEADERS: usize = 8;
+
+/// Points the plane and its band are refined on at most.
+const REFINE_POINTS: usize = 10_000;
+
 /// Points the plane is found on at most.
 const FIT_POINTS: usize = 40_000;
 
@@ -277,16 +286,26 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
         })
         .collect();
     voted.sort_by(|a, b| b.0.cmp(&a.0));
-    let (best, patch_rms) = voted
+    // Counting every hypothesis against thousands of points is most of the plane's cost, and
+    // most hypotheses are near copies of a few planes: each is counted on a coarse share first,
+    // and only the leaders on the full consensus set.
+    let count_within = |h: &Plane, n: usize| {
+        points
+            .iter()
+            .step_by((points.len() / n).max(1))
+            .filter(|p| h.signed_distance(p).abs() < 0.01)
+            .count()
+    };
+    let mut screened: Vec<(usize, Plane, f64)> = voted
         .iter()
-        .map(|(_, h, rms)| {
-            let consensus = points
-                .iter()
-                .step_by((points.len() / CONSENSUS_POINTS).max(1))
-                .filter(|p| h.signed_distance(p).abs() < 0.01)
-                .count();
-            (consensus, *h, *rms)
-        })
+        .map(|(_, h, rms)| (count_within(h, SCREEN_POINTS), *h, *rms))
+        .collect();
+    // Stable: among equal counts the better-voted hypothesis stays first.
+    screened.sort_by(|a, b| b.0.cmp(&a.0));
+    let (best, patch_rms) = screened
+        .iter()
+        .take(LEADERS)
+        .map(|(_, h, rms)| (count_within(h, CONSENSUS_POINTS), *h, *rms))
         .max_by_key(|(c, _, _)| *c)
         .map(|(_, h, rms)| (h, rms))
         .expect("hypotheses is not empty");
@@ -296,6 +315,15 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Refine on the points near the plane: least squares, with a band from their
     // robust spread, until the band settles. A wide first band can hold a second, parallel
     // surface (the far end of a table a step lower); each round sheds part of it.
+    // The refinement runs on an even share of the points: a plane's four parameters and a
+    // band's spread are settled long before ten thousand points, and each round passes over all
+    // of them three times.
+    let refine_points: Vec<Point3<f64>> = points
+        .iter()
+        .step_by(points.len().div_ceil(REFINE_POINTS).max(1))
+        .copied()
+        .collect();
+    let points = &refine_points[..];
     let scale: Vec<f64> = points.iter().map(|p| range_scale.at(p)).collect();
     let norm_dist = |plane: &Plane, i: usize| plane.signed_distance(&points[i]) / scale[i];
     let mut plane = best;
