@@ -6,7 +6,7 @@
 //! `PlacedSuperquadric::residual_pose_jacobian`), and a body of revolution simply drops its
 //! unobservable spin. The solver is [`crate::numeric::lm`].
 
-use crate::geometry::PlacedSuperquadric;
+use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use crate::numeric::{LeastSquares, LmSettings, minimize};
 use nalgebra::{Matrix6, Point3, Vector6};
 
@@ -24,7 +24,8 @@ pub fn measure_of_fit(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> f6
     if points.is_empty() {
         return f64::INFINITY;
     }
-    let ss: f64 = points.iter().map(|p| placed.residual(p).powi(2)).sum();
+    let k = PlacedKernel::new(placed);
+    let ss: f64 = points.iter().map(|p| k.residual(p).powi(2)).sum();
     (ss / points.len() as f64).sqrt()
 }
 
@@ -112,16 +113,33 @@ fn normal_equations(
     points: &[Point3<f64>],
     freedom: Freedom,
 ) -> (f64, Matrix6<f64>, Vector6<f64>) {
-    let mut h = Matrix6::<f64>::zeros();
-    let mut g = Vector6::<f64>::zeros();
+    let kernel = PlacedKernel::new(placed);
+    // J^T J is symmetric: only its upper triangle is summed (21 products a point, not 36).
+    let mut upper = [0.0f64; 21];
+    let mut g = [0.0f64; 6];
     let mut cost = 0.0;
     for p in points {
-        let (r, j) = placed.residual_pose_jacobian(p);
-        let j = Vector6::from_column_slice(&j);
-        h.ger(1.0, &j, &j, 1.0);
-        g += j * r;
+        let (r, j) = kernel.residual_pose_jacobian(p);
+        let mut n = 0;
+        for a in 0..6 {
+            for b in a..6 {
+                upper[n] += j[a] * j[b];
+                n += 1;
+            }
+            g[a] += j[a] * r;
+        }
         cost += r * r;
     }
+    let mut h = Matrix6::<f64>::zeros();
+    let mut n = 0;
+    for a in 0..6 {
+        for b in a..6 {
+            h[(a, b)] = upper[n];
+            h[(b, a)] = upper[n];
+            n += 1;
+        }
+    }
+    let mut g = Vector6::from(g);
     let frozen: &[usize] = match freedom {
         Freedom::Free => &[],
         Freedom::FiveDof => &[5],

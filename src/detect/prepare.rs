@@ -186,6 +186,10 @@ pub struct Prepared {
     pub grid: Grid,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
+    /// `sub` subsampled again to twice its voxel, where the trials count their consensus.
+    pub coarse: Vec<Point3<f64>>,
+    /// Grid over `coarse`, cells the size of the model's smallest part.
+    pub coarse_grid: Grid,
     /// The objects' points subsampled to a twelfth of the smallest size, where the refinement
     /// gathers its inliers.
     pub mid: Vec<Point3<f64>>,
@@ -210,6 +214,8 @@ impl Prepared {
             grid: &self.grid,
             sub: &self.sub,
             sub_grid: &self.sub_grid,
+            coarse: &self.coarse,
+            coarse_grid: &self.coarse_grid,
             mid: &self.mid,
             mid_grid: &self.mid_grid,
             viewpoint: self.viewpoint,
@@ -249,6 +255,13 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
     let mid_grid = Grid::new(&mid, 1.2 * max_size);
     let grid = Grid::new(objects, 1.2 * max_size);
     let sub_grid = Grid::new(&sub, min_size);
+    // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the points
+    // on a surface rank them as well, and counting is a third of a trial's work.
+    let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel)
+        .into_iter()
+        .map(|i| sub[i])
+        .collect();
+    let coarse_grid = Grid::new(&coarse, min_size);
     let spacing = median_spacing(objects, &Grid::new(objects, 0.02));
     let samples = model
         .parts
@@ -264,6 +277,8 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         sub,
         grid,
         sub_grid,
+        coarse,
+        coarse_grid,
         mid,
         mid_grid,
         viewpoint: params.viewpoint,

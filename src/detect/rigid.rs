@@ -8,7 +8,7 @@
 
 use super::fit::measure_of_fit;
 use super::search::SearchSpace;
-use crate::geometry::PlacedSuperquadric;
+use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use crate::model::Model;
 use crate::numeric::{LeastSquares, LmSettings, minimize};
 use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
@@ -24,21 +24,23 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
         .map(|p| (p.pose.translation.vector - centre).norm() + p.shape.bounding_radius())
         .fold(0.0, f64::max)
         + band;
+    let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
     let mut out = Vec::new();
+    let mut d = vec![0.0; parts.len()];
     space
         .grid
         .for_each_within(space.points, &Point3::from(centre), reach, |i| {
             let p = &space.points[i];
             let mut best = (f64::INFINITY, usize::MAX);
-            for (k, part) in parts.iter().enumerate() {
-                let d = part.surface_distance(p);
-                if d.abs() < best.0.abs() {
-                    best = (d, k);
+            for (k, part) in kernels.iter().enumerate() {
+                d[k] = part.surface_distance(p);
+                if d[k].abs() < best.0.abs() {
+                    best = (d[k], k);
                 }
             }
             // A point inside one part but on another's surface belongs to the other: a handle's
             // root sits inside the body.
-            if best.0.abs() < band && parts.iter().all(|q| q.surface_distance(p) > -band) {
+            if best.0.abs() < band && d.iter().all(|&dk| dk > -band) {
                 out.push((best.1, *p));
             }
         });
@@ -50,7 +52,7 @@ fn place(model: &Model, pose: &Isometry3<f64>) -> Vec<PlacedSuperquadric> {
 }
 
 fn cost(model: &Model, pose: &Isometry3<f64>, pts: &[(usize, Point3<f64>)]) -> f64 {
-    let parts = place(model, pose);
+    let parts: Vec<PlacedKernel> = place(model, pose).iter().map(PlacedKernel::new).collect();
     pts.iter().map(|(k, p)| parts[*k].residual(p).powi(2)).sum()
 }
 
@@ -74,7 +76,7 @@ pub fn refine_object(
             break;
         }
         pose = fit_object(model, &pose, &pts, iterations);
-        let parts = place(model, &pose);
+        let parts: Vec<PlacedKernel> = place(model, &pose).iter().map(PlacedKernel::new).collect();
         let new_m = {
             let ss: f64 = pts.iter().map(|(k, p)| parts[*k].residual(p).powi(2)).sum();
             (ss / pts.len() as f64).sqrt()
@@ -127,7 +129,7 @@ impl LeastSquares<6> for RigidFit<'_> {
     }
 
     fn linearize(&self, pose: &Isometry3<f64>, _: &()) -> (Matrix6<f64>, Vector6<f64>) {
-        let parts = place(self.model, pose);
+        let parts: Vec<PlacedKernel> = place(self.model, pose).iter().map(PlacedKernel::new).collect();
         let rot = pose.rotation;
         let mut h = Matrix6::<f64>::zeros();
         let mut g = Vector6::<f64>::zeros();

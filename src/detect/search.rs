@@ -19,7 +19,7 @@ pub use super::plane_check::{PlaneCheck, approximation_tolerance};
 use super::prepare::RangeNoise;
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
-use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::geometry::{PlacedKernel, PlacedSuperquadric, Superquadric};
 use crate::numeric::stream_seed;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -54,6 +54,9 @@ pub struct SearchSpace<'a> {
     pub grid: &'a Grid,
     pub sub: &'a [Point3<f64>],
     pub sub_grid: &'a Grid,
+    /// A coarser subsample, where the trials count their consensus.
+    pub coarse: &'a [Point3<f64>],
+    pub coarse_grid: &'a Grid,
     /// A denser subsample, where the refinement's final rounds gather their points.
     pub mid: &'a [Point3<f64>],
     pub mid_grid: &'a Grid,
@@ -200,10 +203,11 @@ pub fn local_inliers(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band:
 
 fn inliers_in(points: &[Point3<f64>], grid: &Grid, placed: &PlacedSuperquadric, band: f64) -> Vec<Point3<f64>> {
     let centre = Point3::from(placed.pose.translation.vector);
+    let kernel = PlacedKernel::new(placed);
     let mut out = Vec::new();
     grid.for_each_within(points, &centre, placed.shape.bounding_radius() + band, |i| {
         let p = &points[i];
-        if placed.surface_distance(p).abs() < band {
+        if kernel.surface_distance(p).abs() < band {
             out.push(*p);
         }
     });
@@ -356,14 +360,15 @@ pub fn ransac(
     best
 }
 
-/// Subsampled points within `band` of the placed surface.
+/// Points of the coarse subsample within `band` of the placed surface.
 fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
     let centre = Point3::from(placed.pose.translation.vector);
+    let kernel = PlacedKernel::new(placed);
     let mut n = 0;
     space
-        .sub_grid
-        .for_each_within(space.sub, &centre, placed.shape.bounding_radius() + band, |i| {
-            if placed.surface_distance(&space.sub[i]).abs() < band {
+        .coarse_grid
+        .for_each_within(space.coarse, &centre, placed.shape.bounding_radius() + band, |i| {
+            if kernel.surface_distance(&space.coarse[i]).abs() < band {
                 n += 1;
             }
         });

@@ -141,6 +141,7 @@ pub fn score(
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
     let mut inner_wall: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
+    let kernel = crate::geometry::PlacedKernel::new(placed);
     space.grid.for_each_within(
         space.points,
         &centre,
@@ -150,8 +151,8 @@ pub fn score(
             let within_paper_radius = (p - centre).norm() <= radius;
             // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order
             // surface distance and the normal (the lid test).
-            let q = placed.to_local(p);
-            let rg = shape.residual_grad(&q);
+            let q = kernel.to_local(p);
+            let rg = kernel.kernel.residual_grad(&q);
             let g = rg.residual + 1.0;
             if within_paper_radius {
                 if g < 1.0 - gamma {

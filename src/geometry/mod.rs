@@ -4,11 +4,13 @@
 //! Functions named `*_local` or taking `Vector3` points work in the superquadric's own frame;
 //! the methods of [`PlacedSuperquadric`] take points in the frame the pose maps into.
 
+mod kernel;
 mod moments;
 pub(crate) mod ray;
 mod sampling;
 mod superquadric;
 
+pub use kernel::{Kernel, PlacedKernel};
 pub use moments::principal_axes;
 pub use superquadric::*;
 

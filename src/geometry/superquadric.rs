@@ -11,6 +11,7 @@
 //! and accurate everywhere (it is the `max * (1 + (min/max)^(1/t))^t` power sum of METHOD_NOTES
 //! written with logarithms), and `ln 0 = -inf` handles points on the coordinate planes exactly.
 
+use super::kernel::{Kernel, int_exponent, ipow};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::fmt;
 
@@ -193,38 +194,23 @@ impl Superquadric {
     /// at most two transcendental calls instead of about ten, and the detector spends most of
     /// its time here.
     #[inline]
-    fn plain(&self, q: &Vector3<f64>) -> Option<Plain> {
+    fn plain(&self, q: &Vector3<f64>) -> Option<f64> {
         let n1 = int_exponent(2.0 / self.e1)?;
         let n2 = int_exponent(2.0 / self.e2)?;
         let (rx, ry, rz) = (q.x.abs() / self.a[0], q.y.abs() / self.a[1], q.z.abs() / self.a[2]);
         if rx > 1e4 || ry > 1e4 || rz > 1e4 {
             return None;
         }
-        let u = rx.powi(n2);
-        let v = ry.powi(n2);
-        let s = u + v;
+        let s = ipow(rx, n2) + ipow(ry, n2);
         let m = self.e2 / self.e1;
         // e2/e1 is often a whole or a half number (1/0.4 = 2.5): s^(k/2) = s^(k div 2) sqrt(s)
         // costs a fraction of a general power.
         let a = match int_exponent(2.0 * m) {
-            Some(k) if k % 2 == 0 => s.powi(k / 2),
-            Some(k) => s.powi(k / 2) * s.sqrt(),
+            Some(k) if k % 2 == 0 => ipow(s, k / 2),
+            Some(k) => ipow(s, k / 2) * s.sqrt(),
             None => s.powf(m),
         };
-        let b = rz.powi(n1);
-        Some(Plain {
-            n1,
-            n2,
-            rx,
-            ry,
-            rz,
-            u,
-            v,
-            b,
-            s,
-            a,
-            f: a + b,
-        })
+        Some(a + ipow(rz, n1))
     }
 
     /// `F^e1` from `F`.
@@ -234,6 +220,11 @@ impl Superquadric {
             f
         } else if self.e1 == 0.5 {
             f.sqrt()
+        } else if f > 0.0 {
+            // exp(e1 ln F) is two of libm's fast paths, where `powf` takes its general one (the
+            // detector evaluates this hundreds of thousands of times a query); the two differ by
+            // a few units in the last place.
+            (self.e1 * f.ln()).exp()
         } else {
             f.powf(self.e1)
         }
@@ -244,7 +235,7 @@ impl Superquadric {
     pub fn inside_outside(&self, p: &Vector3<f64>) -> f64 {
         let q = self.untaper(p);
         match self.plain(&q) {
-            Some(pl) => pl.f,
+            Some(f) => f,
             None => self.ln_f_parts(&q).lf.exp(),
         }
     }
@@ -255,7 +246,7 @@ impl Superquadric {
     pub fn f_pow_e1(&self, p: &Vector3<f64>) -> f64 {
         let q = self.untaper(p);
         match self.plain(&q) {
-            Some(pl) => self.pow_e1(pl.f),
+            Some(f) => self.pow_e1(f),
             None => (self.e1 * self.ln_f_parts(&q).lf).exp(),
         }
     }
@@ -266,41 +257,15 @@ impl Superquadric {
         self.f_pow_e1(p) - 1.0
     }
 
-    /// The residual and its gradient with respect to the local point coordinates.
+    /// The residual and its gradient with respect to the local point coordinates. (Through a
+    /// [`Kernel`]: to evaluate many points of one shape, make one and keep it.)
     pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
-        let (fx, fy) = self.taper_factors(p.z);
-        let q = Vector3::new(p.x / fx, p.y / fy, p.z);
-        let (g, gx, gy, gz) = match self.plain(&q) {
-            Some(pl) => self.plain_grad(&q, &pl),
-            None => match self.log_grad(&q) {
-                Some(v) => v,
-                None => {
-                    let g = (self.e1 * self.ln_f_parts(&q).lf).exp();
-                    return ResidualGrad {
-                        residual: g - 1.0,
-                        grad: Vector3::zeros(),
-                    };
-                }
-            },
-        };
-        // Chain through the untaper x = X / fx(Z): dx/dX = 1/fx, dx/dZ = -x kx / (a3 fx). Where
-        // the factor is clamped it does not depend on Z.
-        let t = p.z / self.a[2];
-        let dfx = if self.kx * t + 1.0 > 0.5 * (1.0 - self.kx.abs()) {
-            self.kx / self.a[2]
-        } else {
-            0.0
-        };
-        let dfy = if self.ky * t + 1.0 > 0.5 * (1.0 - self.ky.abs()) {
-            self.ky / self.a[2]
-        } else {
-            0.0
-        };
-        let grad = Vector3::new(gx / fx, gy / fy, gz - gx * q.x * dfx / fx - gy * q.y * dfy / fy);
-        ResidualGrad {
-            residual: g - 1.0,
-            grad,
-        }
+        Kernel::new(self).residual_grad(p)
+    }
+
+    /// The residual of an *untapered* local point in the log domain.
+    pub(crate) fn residual_log(&self, q: &Vector3<f64>) -> f64 {
+        (self.e1 * self.ln_f_parts(q).lf).exp() - 1.0
     }
 
     /// `F^e1` evaluated in the log domain only (the reference the fast path is tested against).
@@ -309,36 +274,9 @@ impl Superquadric {
         (self.e1 * self.ln_f_parts(&self.untaper(p)).lf).exp()
     }
 
-    /// `F^e1` and its gradient in the untapered frame, plain form.
-    #[inline]
-    fn plain_grad(&self, q: &Vector3<f64>, pl: &Plain) -> (f64, f64, f64, f64) {
-        let g = self.pow_e1(pl.f);
-        if pl.f == 0.0 {
-            return (g, 0.0, 0.0, 0.0);
-        }
-        let dg_df = self.e1 * g / pl.f;
-        let m = self.e2 / self.e1;
-        let da_ds = if pl.s > 0.0 { m * pl.a / pl.s } else { 0.0 };
-        // d(r^n)/dq = n r^(n-1) sign(q) / a, with r = |q| / a; r^(n-1) = r^n / r from the value
-        // already computed (no second integer power).
-        let d = |r: f64, rn: f64, n: i32, c: f64, a: f64| {
-            if n == 1 {
-                c.signum() / a
-            } else if c == 0.0 || r == 0.0 {
-                0.0
-            } else {
-                n as f64 * (rn / r) * c.signum() / a
-            }
-        };
-        let gx = dg_df * da_ds * d(pl.rx, pl.u, pl.n2, q.x, self.a[0]);
-        let gy = dg_df * da_ds * d(pl.ry, pl.v, pl.n2, q.y, self.a[1]);
-        let gz = dg_df * d(pl.rz, pl.b, pl.n1, q.z, self.a[2]);
-        (g, gx, gy, gz)
-    }
-
     /// `F^e1` and its gradient in the untapered frame, log domain; `None` at the centre or for an
     /// absurdly far point (gradient undefined or not finite).
-    fn log_grad(&self, q: &Vector3<f64>) -> Option<(f64, f64, f64, f64)> {
+    pub(crate) fn log_grad_untapered(&self, q: &Vector3<f64>) -> Option<(f64, f64, f64, f64)> {
         let l = self.ln_f_parts(q);
         let g = (self.e1 * l.lf).exp();
         if g == 0.0 || !g.is_finite() {
@@ -411,48 +349,20 @@ impl Superquadric {
         // With integer exponents F(d) is a few multiplications and one power, where the log
         // domain takes about ten transcendental calls; surface sampling (the detector's coverage
         // samples, the simulator's placement) spends nearly all its time here.
-        if let Some(pl) = self.plain(d)
-            && pl.f.is_finite()
-            && pl.f > 0.0
+        if let Some(f) = self.plain(d)
+            && f.is_finite()
+            && f > 0.0
         {
             let t = if self.e1 == 1.0 {
-                1.0 / pl.f.sqrt()
+                1.0 / f.sqrt()
             } else {
-                pl.f.powf(-0.5 * self.e1)
+                f.powf(-0.5 * self.e1)
             };
             return d * t;
         }
         let lf = self.ln_f_parts(d).lf;
         d * (-0.5 * self.e1 * lf).exp()
     }
-}
-
-/// An exponent that is an integer (to rounding), as a power for `powi`.
-#[inline]
-fn int_exponent(v: f64) -> Option<i32> {
-    // Rounds by truncation of v + 0.5 (v is checked to lie in [0, 64]): `f64::round` is a libm
-    // call on baseline x86-64, and this runs three times for every residual.
-    if !(-0.5..=64.5).contains(&v) {
-        return None;
-    }
-    let r = (v + 0.5) as i32;
-    ((v - r as f64).abs() < 1e-9 && r >= 0).then_some(r)
-}
-
-/// The terms of eq. (1) in plain form: `u = rx^n2`, `s = u + v`, `a = s^(e2/e1)`, `f = a + rz^n1`.
-struct Plain {
-    n1: i32,
-    n2: i32,
-    rx: f64,
-    ry: f64,
-    rz: f64,
-    /// `rx^n2`, `ry^n2`, `rz^n1`.
-    u: f64,
-    v: f64,
-    b: f64,
-    s: f64,
-    a: f64,
-    f: f64,
 }
 
 struct LnParts {

@@ -437,3 +437,40 @@ fn signed_radial_distance_is_the_radial_distance_negative_inside() {
     assert!((s.signed_radial_distance(&Vector3::new(0.0, 0.0, 0.3)) - 0.2).abs() < 1e-14);
     assert_eq!(s.signed_radial_distance(&Vector3::zeros()), -0.1);
 }
+
+/// A kernel, prepared once for many points, gives what the shape and the placed shape give point
+/// by point: residuals (also of the shapes without a plain form), distances and pose Jacobians.
+#[test]
+fn kernels_agree_with_the_pointwise_evaluation() {
+    let mut rng = ChaCha8Rng::seed_from_u64(33);
+    let nice = [0.1, 0.2, 0.4, 0.5, 1.0, 2.0];
+    for _ in 0..2000 {
+        let mut sq = random_sq(&mut rng);
+        if rng.random_bool(0.6) {
+            sq.e1 = nice[rng.random_range(0..nice.len())];
+            sq.e2 = nice[rng.random_range(0..nice.len())];
+        }
+        let placed = PlacedSuperquadric::new(sq, random_pose(&mut rng));
+        let k = PlacedKernel::new(&placed);
+        let centre = Point3::from(placed.pose.translation.vector);
+        let scale = [0.3, 1.0, 2.0, 50.0][rng.random_range(0..4)];
+        let p = centre
+            + Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * sq.max_size()
+                * scale;
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+        let reference = sq.f_pow_e1_log(&placed.to_local(&p)) - 1.0;
+        assert!(close(k.residual(&p), reference), "{} vs {reference} for {sq}", k.residual(&p));
+        assert!(close(k.surface_distance(&p), placed.surface_distance(&p)));
+        let (r0, j0) = placed.residual_pose_jacobian(&p);
+        let (r1, j1) = k.residual_pose_jacobian(&p);
+        assert!(close(r0, r1));
+        let size = j0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (a, b) in j0.iter().zip(&j1) {
+            assert!((a - b).abs() <= 1e-9 * size.max(1e-12), "{j0:?} vs {j1:?} for {sq}");
+        }
+    }
+}
