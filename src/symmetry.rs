@@ -4,7 +4,7 @@
 
 use std::f64::consts::PI;
 
-use nalgebra::{Isometry3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 use crate::geometry::Superquadric;
 use crate::model::Model;
@@ -27,8 +27,9 @@ pub fn same_shape(a: &Superquadric, b: &Superquadric) -> bool {
 }
 
 /// Whether `g` (a rotation of the object frame about its origin) leaves the model unchanged,
-/// checked on surface samples: each moved sample must lie on some part's surface.
-fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
+/// checked on surface samples of each part (`samples`, in the object frame): each moved sample
+/// must lie on some part's surface.
+fn is_symmetry(model: &Model, samples: &[Vec<Point3<f64>>], g: &UnitQuaternion<f64>) -> bool {
     // An open part's opening is not a surface, so turning it to face the other way changes the
     // object even where the shape is the same (a mug's cylinder upside down is a mug on its rim).
     let opening_kept = model.parts.iter().filter(|p| p.open).all(|p| {
@@ -43,15 +44,16 @@ fn is_symmetry(model: &Model, g: &UnitQuaternion<f64>) -> bool {
     if !opening_kept {
         return false;
     }
-    let moved = Isometry3::from_parts(Default::default(), *g);
+    // A part moved by g has the moved samples of the part: each part is sampled once (by the
+    // caller), not once for every rotation tried.
     let parts = model.placed_parts(&Isometry3::identity());
-    let parts_moved = model.placed_parts(&moved);
-    parts_moved.iter().all(|pm| {
+    model.parts.iter().zip(samples).all(|(pm, samples)| {
         let tol = 1e-3 * pm.shape.min_size();
-        pm.sample_surface(pm.shape.min_size() / 3.0).iter().all(|p| {
+        samples.iter().all(|p| {
+            let p = g * p;
             parts
                 .iter()
-                .any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(p).abs() < tol)
+                .any(|q| same_shape(&q.shape, &pm.shape) && q.surface_distance(&p).abs() < tol)
         })
     })
 }
@@ -63,11 +65,16 @@ impl Symmetry {
             let t = p.pose_in_object.translation.vector;
             p.shape.is_revolution() && z.cross(&Vector3::z()).norm() < 1e-9 && t.x.abs() < 1e-9 && t.y.abs() < 1e-9
         });
+        let samples: Vec<Vec<Point3<f64>>> = model
+            .placed_parts(&Isometry3::identity())
+            .iter()
+            .map(|p| p.sample_surface(p.shape.min_size() / 3.0))
+            .collect();
         let mut discrete = vec![UnitQuaternion::identity()];
         for axis in [Vector3::x_axis(), Vector3::y_axis(), Vector3::z_axis()] {
             for angle in [PI, 0.5 * PI, -0.5 * PI] {
                 let g = UnitQuaternion::from_axis_angle(&axis, angle);
-                if is_symmetry(model, &g) {
+                if is_symmetry(model, &samples, &g) {
                     discrete.push(g);
                 }
             }

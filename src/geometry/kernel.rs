@@ -118,6 +118,38 @@ impl Kernel {
         )
     }
 
+    /// The surface point in the untapered frame in unit direction `d` from the centre.
+    #[inline]
+    pub fn untapered_surface_along(&self, d: &Vector3<f64>) -> Vector3<f64> {
+        // F is homogeneous of degree 2/e1 along a ray: the surface lies at t = F(d)^(-e1/2).
+        // With integer exponents F(d) is a few multiplications and one power, where the log
+        // domain takes about ten transcendental calls; surface sampling (the detector's coverage
+        // samples, the simulator's placement) spends nearly all its time here.
+        if let Some(pf) = &self.plain {
+            let r = [d.x.abs() * self.inv_a[0], d.y.abs() * self.inv_a[1], d.z.abs() * self.inv_a[2]];
+            if r[0] <= PLAIN_REACH && r[1] <= PLAIN_REACH && r[2] <= PLAIN_REACH {
+                let s = ipow(r[0], pf.n2) + ipow(r[1], pf.n2);
+                let f = section_power(s, pf.section) + ipow(r[2], pf.n1);
+                if f.is_finite() && f > 0.0 {
+                    let t = match self.outer {
+                        OuterPower::One => 1.0 / f.sqrt(),
+                        OuterPower::Sqrt => 1.0 / f.sqrt().sqrt(),
+                        OuterPower::Real(e1) => (-0.5 * e1 * f.ln()).exp(),
+                    };
+                    return d * t;
+                }
+            }
+        }
+        self.shape.untapered_surface_along_log(d)
+    }
+
+    /// Apply the taper to an untapered local point.
+    #[inline]
+    pub fn taper_point(&self, q: &Vector3<f64>) -> Vector3<f64> {
+        let ([fx, fy], _) = self.taper(q.z);
+        Vector3::new(q.x * fx, q.y * fy, q.z)
+    }
+
     /// The residual `F^e1 - 1` of a local point.
     #[inline]
     pub fn residual(&self, p: &Vector3<f64>) -> f64 {

@@ -9,6 +9,7 @@
 //! point is emitted each time another `spacing^2` of area has been passed. That gives one point
 //! per `spacing^2` of surface, spread evenly, deterministically.
 
+use super::kernel::Kernel;
 use super::Superquadric;
 use super::superquadric::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
@@ -20,27 +21,7 @@ const MIN_DEPTH: u32 = 3;
 /// that makes sense for objects a robot picks up).
 const MAX_DEPTH: u32 = 12;
 
-impl Superquadric {
-    /// Points on the surface, in the local frame, about `spacing` metres apart.
-    ///
-    /// Returns an empty set for a non-positive or non-finite spacing.
-    pub fn sample_surface(&self, spacing: f64) -> Vec<Vector3<f64>> {
-        let mut out = Vec::new();
-        if !(spacing.is_finite() && spacing > 0.0) {
-            return out;
-        }
-        let mut walk = Walk {
-            sq: self,
-            share: spacing * spacing,
-            acc: 0.0,
-            out: &mut out,
-        };
-        for face in 0..6 {
-            walk.cell(face, -1.0, -1.0, 2.0, 0, None);
-        }
-        out
-    }
-
+impl Kernel {
     /// The surface point in the direction of the cube-face point `(u, v)` of face `face`.
     fn cube_surface_point(&self, face: usize, u: f64, v: f64) -> Vector3<f64> {
         let d = match face {
@@ -51,12 +32,35 @@ impl Superquadric {
             4 => Vector3::new(u, v, 1.0),
             _ => Vector3::new(u, -v, -1.0),
         };
-        self.taper(&self.untapered_surface_along(&d.normalize()))
+        self.taper_point(&self.untapered_surface_along(&d.normalize()))
+    }
+}
+
+impl Superquadric {
+    /// Points on the surface, in the local frame, about `spacing` metres apart.
+    ///
+    /// Returns an empty set for a non-positive or non-finite spacing.
+    pub fn sample_surface(&self, spacing: f64) -> Vec<Vector3<f64>> {
+        let mut out = Vec::new();
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return out;
+        }
+        let kernel = Kernel::new(self);
+        let mut walk = Walk {
+            sq: &kernel,
+            share: spacing * spacing,
+            acc: 0.0,
+            out: &mut out,
+        };
+        for face in 0..6 {
+            walk.cell(face, -1.0, -1.0, 2.0, 0, None);
+        }
+        out
     }
 }
 
 struct Walk<'a> {
-    sq: &'a Superquadric,
+    sq: &'a Kernel,
     share: f64,
     acc: f64,
     out: &'a mut Vec<Vector3<f64>>,
@@ -159,10 +163,9 @@ impl PlacedSuperquadric {
     /// pen) took millions.
     pub fn lowest_z(&self) -> f64 {
         const GRID: usize = 24;
+        let kernel = Kernel::new(&self.shape);
         let z = |face: usize, u: f64, v: f64| {
-            let q = self
-                .shape
-                .cube_surface_point(face, u.clamp(-1.0, 1.0), v.clamp(-1.0, 1.0));
+            let q = kernel.cube_surface_point(face, u.clamp(-1.0, 1.0), v.clamp(-1.0, 1.0));
             self.pose.transform_point(&Point3::from(q)).z
         };
         let mut seeds: Vec<(f64, usize, f64, f64)> = Vec::with_capacity(6 * (GRID + 1) * (GRID + 1));

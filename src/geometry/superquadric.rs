@@ -342,24 +342,14 @@ impl Superquadric {
         if lf < 0.0 { -d } else { d }
     }
 
-    /// The surface point in the untapered frame in unit direction `d` from the centre.
-    #[inline]
+    /// The surface point in the untapered frame in unit direction `d` from the centre. (Through
+    /// a [`Kernel`]: to sample many directions of one shape, make one and keep it.)
     pub(crate) fn untapered_surface_along(&self, d: &Vector3<f64>) -> Vector3<f64> {
-        // F is homogeneous of degree 2/e1 along a ray: the surface lies at t = F(d)^(-e1/2).
-        // With integer exponents F(d) is a few multiplications and one power, where the log
-        // domain takes about ten transcendental calls; surface sampling (the detector's coverage
-        // samples, the simulator's placement) spends nearly all its time here.
-        if let Some(f) = self.plain(d)
-            && f.is_finite()
-            && f > 0.0
-        {
-            let t = if self.e1 == 1.0 {
-                1.0 / f.sqrt()
-            } else {
-                f.powf(-0.5 * self.e1)
-            };
-            return d * t;
-        }
+        Kernel::new(self).untapered_surface_along(d)
+    }
+
+    /// [`Self::untapered_surface_along`] in the log domain.
+    pub(crate) fn untapered_surface_along_log(&self, d: &Vector3<f64>) -> Vector3<f64> {
         let lf = self.ln_f_parts(d).lf;
         d * (-0.5 * self.e1 * lf).exp()
     }
