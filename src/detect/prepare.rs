@@ -182,8 +182,6 @@ pub struct Prepared {
     pub scene: Scene,
     /// The objects' points subsampled to a quarter of the model's smallest size.
     pub sub: Vec<Point3<f64>>,
-    /// Grid over `scene.objects`, cells the size of the model's largest part.
-    pub grid: Grid,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
     /// `sub` subsampled again to twice its voxel, where the trials count their consensus.
@@ -210,8 +208,8 @@ impl Prepared {
     /// Where the search and the scores look.
     pub fn space(&self) -> SearchSpace<'_> {
         SearchSpace {
-            points: &self.scene.objects,
-            grid: &self.grid,
+            points: &self.mid,
+            grid: &self.mid_grid,
             sub: &self.sub,
             sub_grid: &self.sub_grid,
             coarse: &self.coarse,
@@ -253,7 +251,6 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         .map(|i| objects[i])
         .collect();
     let mid_grid = Grid::new(&mid, 1.2 * max_size);
-    let grid = Grid::new(objects, 1.2 * max_size);
     let sub_grid = Grid::new(&sub, min_size);
     // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the points
     // on a surface rank them as well, and counting is a third of a trial's work.
@@ -262,7 +259,7 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         .map(|i| sub[i])
         .collect();
     let coarse_grid = Grid::new(&coarse, min_size);
-    let spacing = median_spacing(objects, &Grid::new(objects, 0.02));
+    let spacing = median_spacing(&mid, &Grid::new(&mid, 0.02));
     let samples = model
         .parts
         .iter()
@@ -275,7 +272,6 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         .collect();
     Prepared {
         sub,
-        grid,
         sub_grid,
         coarse,
         coarse_grid,
