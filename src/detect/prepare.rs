@@ -259,7 +259,15 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
         .map(|i| sub[i])
         .collect();
     let coarse_grid = Grid::new(&coarse, min_size);
-    let spacing = median_spacing(&mid, &Grid::new(&mid, 0.02));
+    let spacing = median_spacing(&mid);
+    tracing::debug!(
+        "{} object points: {} subsampled, {} coarse, {} mid; spacing {:.4} m",
+        objects.len(),
+        sub.len(),
+        coarse.len(),
+        mid.len(),
+        spacing
+    );
     let samples = model
         .parts
         .iter()

@@ -492,29 +492,40 @@ pub fn paper_criteria(scores: &[Scores]) -> Vec<(Vec<f64>, bool)> {
     ]
 }
 
-/// Median nearest-neighbour distance of a point set (its sampling spacing), from up to 500 points.
-pub fn median_spacing(points: &[Point3<f64>], grid: &Grid) -> f64 {
+/// Median nearest-neighbour distance of a point set (its sampling spacing), from up to 500 points,
+/// neighbours looked for within 2 cm.
+pub fn median_spacing(points: &[Point3<f64>]) -> f64 {
+    const NEAR: f64 = 0.005;
+    const FAR: f64 = 0.02;
     if points.len() < 2 {
-        return 0.005;
+        return NEAR;
     }
+    // Most points have a neighbour within a few millimetres: a fine grid finds it among a few
+    // dozen points where a 2 cm search passes over hundreds in dense data; the rest look again
+    // out to 2 cm.
+    let grid = Grid::new(points, NEAR);
+    let nearest = |p: &Point3<f64>, r: f64| {
+        let mut best = f64::INFINITY;
+        grid.for_each_within(points, p, r, |k| {
+            let e = (points[k] - p).norm();
+            if e > 0.0 && e < best {
+                best = e;
+            }
+        });
+        best
+    };
     let step = (points.len() / 500).max(1);
-    let r = grid.cell_size();
     let mut d: Vec<f64> = points
         .iter()
         .step_by(step)
         .filter_map(|p| {
-            let mut best = f64::INFINITY;
-            grid.for_each_within(points, p, r, |k| {
-                let e = (points[k] - p).norm();
-                if e > 0.0 && e < best {
-                    best = e;
-                }
-            });
+            let near = nearest(p, NEAR);
+            let best = if near.is_finite() { near } else { nearest(p, FAR) };
             best.is_finite().then_some(best)
         })
         .collect();
     if d.is_empty() {
-        return r;
+        return FAR;
     }
     let mid = d.len() / 2;
     *d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1
