@@ -50,6 +50,10 @@ pub struct Kernel {
     slope: [f64; 2],
     plain: Option<PlainForm>,
     outer: OuterPower,
+    /// `e2 / e1`.
+    section_exponent: f64,
+    /// No taper: the untaper is the identity (most parts: cylinders, boxes, balls).
+    untapered: bool,
 }
 
 /// Points farther than this many sizes along an axis leave the plain form (their integer powers
@@ -86,6 +90,8 @@ impl Kernel {
             slope: [shape.kx / shape.a[2], shape.ky / shape.a[2]],
             plain,
             outer,
+            section_exponent: shape.e2 / shape.e1,
+            untapered: shape.kx == 0.0 && shape.ky == 0.0,
         }
     }
 
@@ -168,6 +174,24 @@ impl Kernel {
     /// The residual and its gradient with respect to the local point coordinates.
     #[inline]
     pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
+        if self.untapered {
+            let (g, gx, gy, gz) = match self.plain_grad(p) {
+                Some(v) => v,
+                None => match self.shape.log_grad_untapered(p) {
+                    Some(v) => v,
+                    None => {
+                        return ResidualGrad {
+                            residual: self.shape.residual_log(p),
+                            grad: Vector3::zeros(),
+                        };
+                    }
+                },
+            };
+            return ResidualGrad {
+                residual: g - 1.0,
+                grad: Vector3::new(gx, gy, gz),
+            };
+        }
         let ([fx, fy], clamped) = self.taper(p.z);
         let (ix, iy) = (1.0 / fx, 1.0 / fy);
         let q = Vector3::new(p.x * ix, p.y * iy, p.z);
@@ -214,7 +238,7 @@ impl Kernel {
         }
         let e1 = self.shape.e1;
         let dg_df = e1 * g / f;
-        let da_ds = if s > 0.0 { self.shape.e2 / e1 * a / s } else { 0.0 };
+        let da_ds = if s > 0.0 { self.section_exponent * a / s } else { 0.0 };
         // d(r^n)/dq = n r^(n-1) sign(q) / a, with r = |q| / a; r^(n-1) = r^n / r from the value
         // already computed (no second integer power).
         let d = |r: f64, rn: f64, n: i32, c: f64, inv_a: f64| {
