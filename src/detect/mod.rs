@@ -104,7 +104,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         let first_new = candidates.len();
         if model.is_compound() {
             let t = Instant::now();
-            let picked = compound::pick(&anchors, model, params);
+            let picked = compound::pick(&anchors, params);
             let combos = compound::combinations(&prep, model, &anchors, &picked, params, round);
             timing.search_ms += ms(t);
             let t = Instant::now();

@@ -550,19 +550,22 @@ pub fn distinct(mut fits: Vec<(usize, Fit)>, known: &[PlacedSuperquadric]) -> Ve
     let mut kept: Vec<PlacedSuperquadric> = known.to_vec();
     let mut out: Vec<Fit> = Vec::with_capacity(fits.len());
     for (_, f) in fits {
-        let shape = &f.placed.shape;
-        let z = f.placed.pose.rotation * Vector3::z();
-        let repeat = kept.iter().any(|k| {
-            let dz = axis_angle_deg(&z, &(k.pose.rotation * Vector3::z()), shape.is_tapered());
-            (k.pose.translation.vector - f.placed.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
-                && dz < 30.0
-        });
-        if !repeat {
+        if !kept.iter().any(|k| same_pose(k, &f.placed)) {
             kept.push(f.placed);
             out.push(f);
         }
     }
     out
+}
+
+/// Whether two placements of one shape are the same hypothesis: the same place within half the
+/// sample radius and the same axis within 30 degrees.
+pub fn same_pose(a: &PlacedSuperquadric, b: &PlacedSuperquadric) -> bool {
+    let shape = &b.shape;
+    let za = a.pose.rotation * Vector3::z();
+    let zb = b.pose.rotation * Vector3::z();
+    (a.pose.translation.vector - b.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
+        && axis_angle_deg(&za, &zb, shape.is_tapered()) < 30.0
 }
 
 fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
