@@ -285,7 +285,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
             (support, *h, *rms)
         })
         .collect();
-    voted.sort_by(|a, b| b.0.cmp(&a.0));
+    voted.sort_by_key(|v| std::cmp::Reverse(v.0));
     // Counting every hypothesis against thousands of points is most of the plane's cost, and
     // most hypotheses are near copies of a few planes: each is counted on a coarse share first,
     // and only the leaders on the full consensus set.
@@ -301,7 +301,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
         .map(|(_, h, rms)| (count_within(h, SCREEN_POINTS), *h, *rms))
         .collect();
     // Stable: among equal counts the better-voted hypothesis stays first.
-    screened.sort_by(|a, b| b.0.cmp(&a.0));
+    screened.sort_by_key(|s| std::cmp::Reverse(s.0));
     let (best, patch_rms) = screened
         .iter()
         .take(LEADERS)
