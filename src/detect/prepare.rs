@@ -254,10 +254,7 @@ pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
     let sub_grid = Grid::new(&sub, min_size);
     // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the points
     // on a surface rank them as well, and counting is a third of a trial's work.
-    let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel)
-        .into_iter()
-        .map(|i| sub[i])
-        .collect();
+    let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel).into_iter().map(|i| sub[i]).collect();
     let coarse_grid = Grid::new(&coarse, min_size);
     let spacing = median_spacing(&mid);
     tracing::debug!(

@@ -132,7 +132,11 @@ impl Kernel {
         // domain takes about ten transcendental calls; surface sampling (the detector's coverage
         // samples, the simulator's placement) spends nearly all its time here.
         if let Some(pf) = &self.plain {
-            let r = [d.x.abs() * self.inv_a[0], d.y.abs() * self.inv_a[1], d.z.abs() * self.inv_a[2]];
+            let r = [
+                d.x.abs() * self.inv_a[0],
+                d.y.abs() * self.inv_a[1],
+                d.z.abs() * self.inv_a[2],
+            ];
             if r[0] <= PLAIN_REACH && r[1] <= PLAIN_REACH && r[2] <= PLAIN_REACH {
                 let s = ipow(r[0], pf.n2) + ipow(r[1], pf.n2);
                 let f = section_power(s, pf.section) + ipow(r[2], pf.n1);
@@ -162,7 +166,11 @@ impl Kernel {
         let ([fx, fy], _) = self.taper(p.z);
         let q = Vector3::new(p.x / fx, p.y / fy, p.z);
         if let Some(pf) = &self.plain {
-            let r = [q.x.abs() * self.inv_a[0], q.y.abs() * self.inv_a[1], q.z.abs() * self.inv_a[2]];
+            let r = [
+                q.x.abs() * self.inv_a[0],
+                q.y.abs() * self.inv_a[1],
+                q.z.abs() * self.inv_a[2],
+            ];
             if r[0] <= PLAIN_REACH && r[1] <= PLAIN_REACH && r[2] <= PLAIN_REACH {
                 let s = ipow(r[0], pf.n2) + ipow(r[1], pf.n2);
                 return self.pow_e1(section_power(s, pf.section) + ipow(r[2], pf.n1)) - 1.0;
@@ -222,7 +230,11 @@ impl Kernel {
     #[inline(always)]
     fn plain_grad(&self, q: &Vector3<f64>) -> Option<(f64, f64, f64, f64)> {
         let pf = self.plain.as_ref()?;
-        let r = [q.x.abs() * self.inv_a[0], q.y.abs() * self.inv_a[1], q.z.abs() * self.inv_a[2]];
+        let r = [
+            q.x.abs() * self.inv_a[0],
+            q.y.abs() * self.inv_a[1],
+            q.z.abs() * self.inv_a[2],
+        ];
         if r[0] > PLAIN_REACH || r[1] > PLAIN_REACH || r[2] > PLAIN_REACH {
             return None;
         }

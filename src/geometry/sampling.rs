@@ -9,8 +9,8 @@
 //! point is emitted each time another `spacing^2` of area has been passed. That gives one point
 //! per `spacing^2` of surface, spread evenly, deterministically.
 
-use super::kernel::Kernel;
 use super::Superquadric;
+use super::kernel::Kernel;
 use super::superquadric::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 

@@ -463,7 +463,11 @@ fn kernels_agree_with_the_pointwise_evaluation() {
                 * scale;
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
         let reference = sq.f_pow_e1_log(&placed.to_local(&p)) - 1.0;
-        assert!(close(k.residual(&p), reference), "{} vs {reference} for {sq}", k.residual(&p));
+        assert!(
+            close(k.residual(&p), reference),
+            "{} vs {reference} for {sq}",
+            k.residual(&p)
+        );
         assert!(close(k.surface_distance(&p), placed.surface_distance(&p)));
         let (r0, j0) = placed.residual_pose_jacobian(&p);
         let (r1, j1) = k.residual_pose_jacobian(&p);
