@@ -105,6 +105,26 @@ impl Grid {
         }
     }
 
+    /// Whether any point lies within `radius` of `centre` (stops at the first).
+    pub fn any_within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64) -> bool {
+        let r2 = radius * radius;
+        let lo = self.coords(&(centre - nalgebra::Vector3::repeat(radius)));
+        let hi = self.coords(&(centre + nalgebra::Vector3::repeat(radius)));
+        for z in lo[2]..=hi[2] {
+            for y in lo[1]..=hi[1] {
+                let row = (z * self.dims[1] + y) * self.dims[0];
+                let (a, b) = (self.starts[row + lo[0]] as usize, self.starts[row + hi[0] + 1] as usize);
+                if self.order[a..b]
+                    .iter()
+                    .any(|&i| (points[i as usize] - centre).norm_squared() <= r2)
+                {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
     /// Indices of the points within `radius` of `centre`.
     pub fn within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64) -> Vec<usize> {
         let mut out = Vec::new();

@@ -342,13 +342,7 @@ impl Superquadric {
         if lf < 0.0 { -d } else { d }
     }
 
-    /// The surface point in the untapered frame in unit direction `d` from the centre. (Through
-    /// a [`Kernel`]: to sample many directions of one shape, make one and keep it.)
-    pub(crate) fn untapered_surface_along(&self, d: &Vector3<f64>) -> Vector3<f64> {
-        Kernel::new(self).untapered_surface_along(d)
-    }
-
-    /// [`Self::untapered_surface_along`] in the log domain.
+    /// [`Kernel::untapered_surface_along`] in the log domain.
     pub(crate) fn untapered_surface_along_log(&self, d: &Vector3<f64>) -> Vector3<f64> {
         let lf = self.ln_f_parts(d).lf;
         d * (-0.5 * self.e1 * lf).exp()

@@ -17,6 +17,7 @@
 
 mod compound;
 mod family;
+mod gradient;
 mod model_file;
 mod profile;
 mod residual;
@@ -92,7 +93,7 @@ pub struct LearnParams {
     pub silhouette: bool,
     pub cost: Cost,
     /// From stage C on, fit the distance along the sensor's ray through each point (the
-    /// sensor's error, [`ray_residual`]) instead of `cost`; needs the viewpoint.
+    /// sensor's error, `ray_read`) instead of `cost`; needs the viewpoint.
     pub along_rays: bool,
     /// Which shape families the fit may return.
     pub shape: ShapeFamily,

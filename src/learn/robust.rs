@@ -1,7 +1,8 @@
 //! The robust fit: IRLS with redescending Huber weights around the one Levenberg-Marquardt solver
-//! ([`crate::numeric::lm`]), with a forward-difference Jacobian.
+//! ([`crate::numeric::lm`]), with the Jacobian of [`super::gradient`] (forward differences for
+//! the costs it does not differentiate).
 
-use super::residual::Problem;
+use super::residual::{Problem, RayRead};
 use super::state::{Mat, NP, STEPS, State, Vect, sk_param};
 use crate::numeric::{Budget, Damping, LeastSquares, LmSettings, huber_weight, median, minimize};
 use rayon::prelude::*;
@@ -34,63 +35,72 @@ pub(super) struct Weighted<'a> {
 
 impl LeastSquares<NP> for Weighted<'_> {
     type Params = State;
-    /// The residuals: the base of the forward differences.
-    type Evaluation = Vec<f64>;
+    /// The residuals, and what the points' rays read (where the Jacobian is taken).
+    type Evaluation = (Vec<f64>, Vec<Option<RayRead>>);
 
-    fn evaluate(&self, s: &State) -> (f64, Vec<f64>) {
+    fn evaluate(&self, s: &State) -> (f64, Self::Evaluation) {
         let mut r = Vec::with_capacity(self.problem.len());
-        self.problem.residuals(s, &mut r);
+        let mut reads = Vec::new();
+        let record = self.problem.rays.is_some().then_some(&mut reads);
+        self.problem.residuals_read(s, &mut r, record);
         let cost = r.iter().zip(self.weights).map(|(r, w)| w * r * r).sum::<f64>();
-        (cost, r)
+        (cost, (r, reads))
     }
 
-    fn linearize(&self, s: &State, r0: &Vec<f64>) -> (Mat, Vect) {
-        let (problem, n) = (self.problem, self.problem.len());
-        // The columns in parallel: the later stages fit one start at a time, and a residual
-        // evaluation (thousands of points and free-space samples, the seen-surface queries)
-        // is the whole cost. The same arithmetic as one after the other, so the same result.
-        // A held parameter gets no column (a zero one: the step leaves it alone).
-        let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
-            .into_par_iter()
-            .map(|k| {
-                if problem.fix_taper && matches!(k, 5 | 6) {
-                    return None;
-                }
-                let mut d = Vect::zeros();
-                d[k] = STEPS[k];
-                let sk = s.step(&d);
-                // A parameter at its bound steps inwards.
-                let (sk, h) = if sk_param(&sk, k) == sk_param(s, k) {
-                    d[k] = -STEPS[k];
-                    (s.step(&d), -STEPS[k])
-                } else {
-                    (sk, STEPS[k])
-                };
-                let mut r = Vec::with_capacity(n);
-                problem.residuals(&sk, &mut r);
-                Some((r, h))
-            })
-            .collect();
-        let mut h = Mat::zeros();
-        let mut g = Vect::zeros();
-        for i in 0..n {
-            let w = self.weights[i];
-            if w == 0.0 || !r0[i].is_finite() {
-                continue;
-            }
-            let j = Vect::from_fn(|k, _| columns[k].as_ref().map_or(0.0, |(r, h)| (r[i] - r0[i]) / h));
-            if j.iter().any(|v| !v.is_finite()) {
-                continue;
-            }
-            h.ger(w, &j, &j, 1.0);
-            g += j * (w * r0[i]);
-        }
-        (h, g)
+    fn linearize(&self, s: &State, (r0, reads): &Self::Evaluation) -> (Mat, Vect) {
+        super::gradient::normal_equations(self.problem, s, r0, reads, self.weights)
+            .unwrap_or_else(|| forward_differences(self.problem, s, r0, self.weights))
     }
 
     fn step(&self, s: &State, d: &Vect) -> State {
         s.step(d)
     }
+}
+
+/// `J^T W J` and `J^T W r` by forward differences of every residual (the costs
+/// [`super::gradient`] does not differentiate, and its reference in the tests).
+pub(super) fn forward_differences(problem: &Problem, s: &State, r0: &[f64], weights: &[f64]) -> (Mat, Vect) {
+    let n = problem.len();
+    // The columns in parallel: the later stages fit one start at a time, and a residual
+    // evaluation (thousands of points and free-space samples, the seen-surface queries)
+    // is the whole cost. The same arithmetic as one after the other, so the same result.
+    // A held parameter gets no column (a zero one: the step leaves it alone).
+    let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
+        .into_par_iter()
+        .map(|k| {
+            if problem.fix_taper && matches!(k, 5 | 6) {
+                return None;
+            }
+            let mut d = Vect::zeros();
+            d[k] = STEPS[k];
+            let sk = s.step(&d);
+            // A parameter at its bound steps inwards.
+            let (sk, h) = if sk_param(&sk, k) == sk_param(s, k) {
+                d[k] = -STEPS[k];
+                (s.step(&d), -STEPS[k])
+            } else {
+                (sk, STEPS[k])
+            };
+            let mut r = Vec::with_capacity(n);
+            problem.residuals(&sk, &mut r);
+            Some((r, h))
+        })
+        .collect();
+    let mut h = Mat::zeros();
+    let mut g = Vect::zeros();
+    for i in 0..n {
+        let w = weights[i];
+        if w == 0.0 || !r0[i].is_finite() {
+            continue;
+        }
+        let j = Vect::from_fn(|k, _| columns[k].as_ref().map_or(0.0, |(r, h)| (r[i] - r0[i]) / h));
+        if j.iter().any(|v| !v.is_finite()) {
+            continue;
+        }
+        h.ger(w, &j, &j, 1.0);
+        g += j * (w * r0[i]);
+    }
+    (h, g)
 }
 
 /// IRLS around LM: Huber weights from the robust spread of the residuals, re-estimated each round.

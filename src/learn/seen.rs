@@ -2,8 +2,10 @@
 //! surface that faced the sensor and so must have been seen, and the silhouette.
 
 use crate::cloud::plane::Plane;
+#[cfg(test)]
+use crate::geometry::Kernel;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The counterpart of free space: surface that faces the sensor squarely (and is above the
 /// table) would have been seen, so an object point must lie near it. Without this a shape is
@@ -14,6 +16,8 @@ pub(super) struct Seen {
     /// The visible object points and a grid over them.
     pub(super) points: Vec<Point3<f64>>,
     pub(super) grid: crate::cloud::grid::Grid,
+    /// A finer grid for the common case, a sample within [`SEEN_TOLERANCE`] of a point.
+    pub(super) near: crate::cloud::grid::Grid,
     pub(super) plane: Option<Plane>,
     /// An open container: its lid is not surface.
     pub(super) open: bool,
@@ -39,6 +43,7 @@ impl Seen {
             viewpoint,
             points: points.to_vec(),
             grid: crate::cloud::grid::Grid::new(points, SEEN_RADIUS),
+            near: crate::cloud::grid::Grid::new(points, SEEN_TOLERANCE),
             plane: plane.copied(),
             open,
             // The samples together weigh like half the points.
@@ -46,16 +51,17 @@ impl Seen {
         }
     }
 
-    pub(super) fn residuals(&self, placed: &PlacedSuperquadric, out: &mut Vec<f64>) {
-        for q in seen_samples(&placed.shape) {
-            let p = placed.pose.transform_point(&Point3::from(q));
-            let g = placed.shape.residual_grad(&q).grad;
-            if self.open && crate::model::is_lid(&g) {
+    /// The residuals of the local samples of [`seen_local`] placed at `pose` (a change of pose
+    /// alone moves the samples without re-sampling the surface).
+    pub(super) fn residuals_of(&self, local: &[SeenSample], pose: &Isometry3<f64>, out: &mut Vec<f64>) {
+        for sample in local {
+            let p = pose.transform_point(&Point3::from(sample.q));
+            if self.open && sample.lid {
                 out.push(0.0);
                 continue;
             }
             let (Some(n), Some(to_sensor)) = (
-                (placed.pose.rotation * g).try_normalize(1e-300),
+                (pose.rotation * sample.grad).try_normalize(1e-300),
                 (self.viewpoint - p).try_normalize(1e-12),
             ) else {
                 out.push(0.0);
@@ -64,6 +70,10 @@ impl Seen {
             let ramp = ((n.dot(&to_sensor) - SEEN_COS_FROM) / (SEEN_COS_FULL - SEEN_COS_FROM)).clamp(0.0, 1.0);
             let above = self.plane.is_none_or(|pl| pl.signed_distance(&p) > 0.005);
             if ramp == 0.0 || !above {
+                out.push(0.0);
+                continue;
+            }
+            if self.near.any_within(&self.points, &p, SEEN_TOLERANCE) {
                 out.push(0.0);
                 continue;
             }
@@ -76,6 +86,126 @@ impl Seen {
     }
 }
 
+/// A seen-surface sample in the shape's frame: the point, the residual's gradient there (the
+/// outward normal, any length) and whether that normal is a lid's.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct SeenSample {
+    q: Vector3<f64>,
+    grad: Vector3<f64>,
+    lid: bool,
+}
+
+/// What the seen samples of a shape owe to its exponents alone. Along the direction `c * a`
+/// (`c` a point of the grid on the unit cube's faces, `*` per axis) the untapered surface lies
+/// at `t (c * a)` with `t = F(c)^(-e1/2)` (F is homogeneous of degree `2/e1` and
+/// `F(c * a) = F(c)` with the sizes as units), and its gradient there is parallel to
+/// `u / a` (per axis) with `u` from `c` and the exponents alone. So the sizes and the tapers
+/// scale and shear these (the forward differences of five of the seven shape parameters need
+/// no logarithm), and only a change of exponent recomputes them.
+pub(super) struct SeenUnit {
+    e: (f64, f64),
+    /// Per sample: `c`, `t` and `u`.
+    samples: Vec<(Vector3<f64>, f64, Vector3<f64>)>,
+}
+
+impl SeenUnit {
+    pub(super) fn new(e1: f64, e2: f64) -> SeenUnit {
+        let samples = seen_directions()
+            .map(|c| {
+                let ln = |v: f64| v.abs().ln();
+                let lu = (2.0 / e2) * ln(c.x);
+                let lv = (2.0 / e2) * ln(c.y);
+                let ls = logsumexp(lu, lv);
+                let la = (e2 / e1) * ls;
+                let lb = (2.0 / e1) * ln(c.z);
+                let lf = logsumexp(la, lb);
+                let t = (-0.5 * e1 * lf).exp();
+                // d ln F / d ln|x| = (2/e1) wA wU and so on: the weights of the log-sum-exps.
+                let (wa, wb) = ((la - lf).exp(), (lb - lf).exp());
+                let (wu, wv) = if ls == f64::NEG_INFINITY {
+                    (0.0, 0.0)
+                } else {
+                    ((lu - ls).exp(), (lv - ls).exp())
+                };
+                let part = |w: f64, c: f64| if c == 0.0 { 0.0 } else { w / c };
+                (
+                    c,
+                    t,
+                    Vector3::new(part(wa * wu, c.x), part(wa * wv, c.y), part(wb, c.z)),
+                )
+            })
+            .collect();
+        SeenUnit { e: (e1, e2), samples }
+    }
+
+    /// Whether these are `sq`'s exponents.
+    pub(super) fn fits(&self, sq: &Superquadric) -> bool {
+        self.e == (sq.e1, sq.e2)
+    }
+}
+
+/// `ln(e^a + e^b)`, exact for `-inf` arguments.
+fn logsumexp(a: f64, b: f64) -> f64 {
+    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
+    if hi == f64::NEG_INFINITY {
+        return f64::NEG_INFINITY;
+    }
+    hi + (lo - hi).exp().ln_1p()
+}
+
+/// The seen samples of `sq` with their normals, from its exponents' [`SeenUnit`].
+pub(super) fn seen_local(unit: &SeenUnit, sq: &Superquadric) -> Vec<SeenSample> {
+    let a = Vector3::from(sq.a);
+    unit.samples
+        .iter()
+        .map(|(c, t, u)| {
+            let qu = c.component_mul(&a) * *t;
+            let q = sq.taper(&qu);
+            let gu = u.component_div(&a);
+            // Through the taper as `Kernel::residual_grad` does: X = x fx(z), so dx/dX = 1/fx and
+            // dx/dz = -x fx'(z) / fx, where the factor is not clamped.
+            let factor = |k: f64| {
+                let f = k * qu.z / sq.a[2] + 1.0;
+                if f >= 0.5 * (1.0 - k.abs()) {
+                    (f, k / sq.a[2])
+                } else {
+                    (0.5 * (1.0 - k.abs()), 0.0)
+                }
+            };
+            let ((fx, sx), (fy, sy)) = (factor(sq.kx), factor(sq.ky));
+            let grad = Vector3::new(
+                gu.x / fx,
+                gu.y / fy,
+                gu.z - gu.x * qu.x * sx / fx - gu.y * qu.y * sy / fy,
+            );
+            SeenSample {
+                q,
+                grad,
+                lid: crate::model::is_lid(&grad),
+            }
+        })
+        .collect()
+}
+
+/// The directions of the seen samples: a grid on each face of the unit cube, scaled by the
+/// shape's sizes (see [`seen_samples`]).
+fn seen_directions() -> impl Iterator<Item = Vector3<f64>> {
+    let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
+    (0..6).flat_map(move |face| {
+        (0..SEEN_GRID * SEEN_GRID).map(move |k| {
+            let (u, v) = (at(k % SEEN_GRID), at(k / SEEN_GRID));
+            match face {
+                0 => Vector3::new(1.0, u, v),
+                1 => Vector3::new(-1.0, u, v),
+                2 => Vector3::new(u, 1.0, v),
+                3 => Vector3::new(u, -1.0, v),
+                4 => Vector3::new(u, v, 1.0),
+                _ => Vector3::new(u, v, -1.0),
+            }
+        })
+    })
+}
+
 /// Cells per cube-face side of [`seen_samples`].
 pub(super) const SEEN_GRID: usize = 7;
 /// How many residuals [`Seen::residuals`] gives (one per [`seen_samples`] sample).
@@ -84,39 +214,32 @@ pub(super) const SEEN_SAMPLES: usize = 6 * SEEN_GRID * SEEN_GRID;
 /// Surface points along fixed directions through a grid on the six faces of a box with the
 /// shape's half-sizes (the parametric angles crowd a box's edges and leave its faces empty, and
 /// directions through a cube's faces meet a pen only near its middle; through the box they
-/// spread over the faces of a box and the length of a pen alike).
+/// spread over the faces of a box and the length of a pen alike). Directly, as the reference
+/// [`seen_local`] is tested against.
+#[cfg(test)]
 pub(super) fn seen_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
-    let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
-    (0..6).flat_map(move |face| {
-        (0..SEEN_GRID * SEEN_GRID).map(move |k| {
-            let (u, v) = (at(k % SEEN_GRID), at(k / SEEN_GRID));
-            let c = match face {
-                0 => Vector3::new(1.0, u, v),
-                1 => Vector3::new(-1.0, u, v),
-                2 => Vector3::new(u, 1.0, v),
-                3 => Vector3::new(u, -1.0, v),
-                4 => Vector3::new(u, v, 1.0),
-                _ => Vector3::new(u, v, -1.0),
-            };
-            let d = Vector3::new(c.x * sq.a[0], c.y * sq.a[1], c.z * sq.a[2]).normalize();
-            sq.taper(&sq.untapered_surface_along(&d))
-        })
+    let kernel = Kernel::new(sq);
+    seen_directions().map(move |c| {
+        let d = Vector3::new(c.x * sq.a[0], c.y * sq.a[1], c.z * sq.a[2]).normalize();
+        sq.taper(&kernel.untapered_surface_along(&d))
     })
 }
 
 /// Fixed parametric angles for the lowest point: the poles, the equator and every 15 degrees.
 pub(super) fn surface_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
     let spow = |c: f64, e: f64| c.signum() * c.abs().powf(e);
-    (0..=12).flat_map(move |i| {
+    // The powers of each latitude and longitude once, not once per sample.
+    let lat: [(f64, f64); 13] = std::array::from_fn(|i| {
         let eta = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * i as f64 / 12.0;
-        (0..24).map(move |j| {
-            let om = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * j as f64 / 24.0;
-            let (ce, se) = (eta.cos(), eta.sin());
-            let p = Vector3::new(
-                sq.a[0] * spow(ce, sq.e1) * spow(om.cos(), sq.e2),
-                sq.a[1] * spow(ce, sq.e1) * spow(om.sin(), sq.e2),
-                sq.a[2] * spow(se, sq.e1),
-            );
+        (spow(eta.cos(), sq.e1), spow(eta.sin(), sq.e1))
+    });
+    let lon: [(f64, f64); 24] = std::array::from_fn(|j| {
+        let om = -std::f64::consts::PI + 2.0 * std::f64::consts::PI * j as f64 / 24.0;
+        (spow(om.cos(), sq.e2), spow(om.sin(), sq.e2))
+    });
+    lat.into_iter().flat_map(move |(ce, se)| {
+        lon.into_iter().map(move |(co, so)| {
+            let p = Vector3::new(sq.a[0] * ce * co, sq.a[1] * ce * so, sq.a[2] * se);
             sq.taper(&p)
         })
     })
@@ -332,4 +455,31 @@ pub fn inside_convex(hull: &[(f64, f64)], p: (f64, f64)) -> bool {
         let (a, b) = (hull[i], hull[(i + 1) % hull.len()]);
         (b.0 - a.0) * (p.1 - a.1) - (b.1 - a.1) * (p.0 - a.0) >= 0.0
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn seen_samples_from_the_exponents_are_the_direct_ones() {
+        let shapes = [
+            Superquadric::new([0.04, 0.03, 0.05], 0.3, 0.7, 0.25, -0.15).unwrap(),
+            Superquadric::new([0.005, 0.005, 0.07], 0.1, 1.0, 0.0, 0.0).unwrap(),
+            Superquadric::new([0.06, 0.06, 0.02], 1.7, 2.0, -0.6, 0.9).unwrap(),
+        ];
+        for sq in shapes {
+            let kernel = Kernel::new(&sq);
+            let local = seen_local(&SeenUnit::new(sq.e1, sq.e2), &sq);
+            let direct: Vec<Vector3<f64>> = seen_samples(&sq).collect();
+            assert_eq!(local.len(), SEEN_SAMPLES);
+            for (l, d) in local.iter().zip(&direct) {
+                assert!((l.q - d).norm() < 1e-12 * sq.max_size(), "{sq}: {:?} vs {d:?}", l.q);
+                let g = kernel.residual_grad(d).grad;
+                let cos = l.grad.normalize().dot(&g.normalize());
+                assert!(cos > 1.0 - 1e-9, "{sq} at {d:?}: normal {:?} vs {g:?}", l.grad);
+                assert_eq!(l.lid, crate::model::is_lid(&g));
+            }
+        }
+    }
 }

@@ -186,7 +186,7 @@ pub fn fit_superquadric(
     };
     // Stages B and C for each family (general, revolution), then the choice between them.
     let finals: Vec<FamilyResult> = [false, true]
-        .into_iter()
+        .into_par_iter()
         .filter_map(|family| stages_b_c(&ctx, &results, family))
         .collect();
     let FamilyResult {

@@ -2,6 +2,7 @@
 //! Levenberg-Marquardt solver behind a small least-squares trait ([`lm`]), order statistics and
 //! robust weights ([`stats`]), and independent random streams from one seed ([`stream_seed`]).
 
+pub mod dual;
 pub mod lm;
 pub mod stats;
 
