@@ -196,7 +196,10 @@ mod tests {
             (Box::new(|x, y| x / y - y), Box::new(|x, y| x / y - y)),
             (Box::new(|x, y| (x * y).exp()), Box::new(|x, y| (x * y).exp())),
             (Box::new(|x, y| (x - y).ln_abs()), Box::new(|x, y| (x - y).abs().ln())),
-            (Box::new(|x, y| (x * x + y * y).sqrt()), Box::new(|x, y| (x * x + y * y).sqrt())),
+            (
+                Box::new(|x, y| (x * x + y * y).sqrt()),
+                Box::new(|x, y| (x * x + y * y).sqrt()),
+            ),
             (
                 Box::new(|x, y| D::log_sum_exp(x * 3.0, y.ln_abs())),
                 Box::new(|x, y| ((3.0 * x).exp() + y.abs()).ln()),
