@@ -175,7 +175,7 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    let results = stage_a2(results, &problem_free);
+    let results = stage_a2(distinct_starts(results, &problem_visible), &problem_free);
     let ctx = Context {
         points: &points,
         up,
@@ -342,6 +342,28 @@ fn free_space(
         free.retain(|p| pl.signed_distance(p) > 0.003);
     }
     free
+}
+
+/// The results of stage A1 less those that converged to the same fit as a better one of their
+/// family (most of them: the starts differ in exponents and tapers that the visible points
+/// settle), best first.
+fn distinct_starts(results: Vec<(String, State)>, problem: &Problem) -> Vec<(String, State)> {
+    let mut scored: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(n, s)| {
+            let sc = score(problem, &s);
+            (n, s, sc)
+        })
+        .collect();
+    scored.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let mut kept: Vec<(String, State, f64)> = Vec::new();
+    for r in scored {
+        if !kept.iter().any(|k| k.1.rev == r.1.rev && same_fit(&k.1, &r.1)) {
+            kept.push(r);
+        }
+    }
+    tracing::debug!("{} distinct starts after stage A1", kept.len());
+    kept.into_iter().map(|(n, s, _)| (n, s)).collect()
 }
 
 /// Stage A2: every start again with a thinned free space (at most 1500 samples), which is
