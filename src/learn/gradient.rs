@@ -268,7 +268,7 @@ fn point_row(
             const H: f64 = 1e-5;
             let ((gp, rowp), (gm, rowm)) = (at(t + H), at(t - H));
             let curvature = (gp - 2.0 * g0 + gm) / (H * H);
-            if !(curvature > 1e-3) {
+            if curvature.is_nan() || curvature <= 1e-3 {
                 // Flat along the ray: the closest approach is not defined by it.
                 return Some(differences(problem, shifted, i, r));
             }
@@ -309,7 +309,10 @@ mod tests {
 
     /// A tapered, rounded shape standing on the plane z = 0, its visible points with noise, some
     /// free-space samples (a few inside it) and a viewpoint above and in front.
-    fn scene() -> (State, Vec<Point3<f64>>, Vec<Point3<f64>>, Point3<f64>, Plane) {
+    /// The truth, the visible points, the free-space samples, the viewpoint and the table.
+    type Scene = (State, Vec<Point3<f64>>, Vec<Point3<f64>>, Point3<f64>, Plane);
+
+    fn scene() -> Scene {
         let truth = State {
             ln_a: [0.04f64.ln(), 0.03f64.ln(), 0.05f64.ln()],
             e: [0.4, 0.8],

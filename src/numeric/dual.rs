@@ -81,11 +81,10 @@ impl<const N: usize> Dual<N> {
         // ln(e^hi (1 + e^(lo-hi))): the weight of `lo` is w = e^(lo-hi) / (1 + e^(lo-hi)).
         let e = (lo.v - hi.v).exp();
         let w = e / (1.0 + e);
-        let mut d = [0.0; N];
-        for (k, dk) in d.iter_mut().enumerate() {
-            *dk = (1.0 - w) * hi.d[k] + w * lo.d[k];
+        Dual {
+            v: hi.v + e.ln_1p(),
+            d: std::array::from_fn(|k| (1.0 - w) * hi.d[k] + w * lo.d[k]),
         }
-        Dual { v: hi.v + e.ln_1p(), d }
     }
 
     /// `c * self` for a log-domain value: `-inf` stays an absent term whatever `c` is.
@@ -122,12 +121,13 @@ impl<const N: usize> Sub for Dual<N> {
 impl<const N: usize> Mul for Dual<N> {
     type Output = Self;
     #[inline]
+    // The product rule.
+    #[allow(clippy::suspicious_arithmetic_impl)]
     fn mul(self, o: Self) -> Self {
-        let mut d = [0.0; N];
-        for k in 0..N {
-            d[k] = self.d[k] * o.v + self.v * o.d[k];
+        Dual {
+            v: self.v * o.v,
+            d: std::array::from_fn(|k| self.d[k] * o.v + self.v * o.d[k]),
         }
-        Dual { v: self.v * o.v, d }
     }
 }
 
@@ -137,11 +137,10 @@ impl<const N: usize> Div for Dual<N> {
     fn div(self, o: Self) -> Self {
         let inv = 1.0 / o.v;
         let v = self.v * inv;
-        let mut d = [0.0; N];
-        for k in 0..N {
-            d[k] = (self.d[k] - v * o.d[k]) * inv;
+        Dual {
+            v,
+            d: std::array::from_fn(|k| (self.d[k] - v * o.d[k]) * inv),
         }
-        Dual { v, d }
     }
 }
 
@@ -191,7 +190,8 @@ mod tests {
     #[test]
     fn the_operations_match_central_differences() {
         type D = Dual<2>;
-        let cases: Vec<(Box<dyn Fn(D, D) -> D>, Box<dyn Fn(f64, f64) -> f64>)> = vec![
+        type Case = (Box<dyn Fn(D, D) -> D>, Box<dyn Fn(f64, f64) -> f64>);
+        let cases: Vec<Case> = vec![
             (Box::new(|x, y| x * y + x), Box::new(|x, y| x * y + x)),
             (Box::new(|x, y| x / y - y), Box::new(|x, y| x / y - y)),
             (Box::new(|x, y| (x * y).exp()), Box::new(|x, y| (x * y).exp())),
@@ -214,14 +214,9 @@ mod tests {
                 let got = fd(D::variable(x, 0), D::variable(y, 1));
                 assert!((got.v - ff(x, y)).abs() < 1e-12, "case {i} value");
                 let want = numeric(ff, x, y);
-                for k in 0..2 {
-                    let tol = 1e-6 * (1.0 + want[k].abs());
-                    assert!(
-                        (got.d[k] - want[k]).abs() < tol,
-                        "case {i} at ({x}, {y}): d{k} {} vs {}",
-                        got.d[k],
-                        want[k]
-                    );
+                for (k, (got, want)) in got.d.iter().zip(want).enumerate() {
+                    let tol = 1e-6 * (1.0 + want.abs());
+                    assert!((got - want).abs() < tol, "case {i} at ({x}, {y}): d{k} {got} vs {want}");
                 }
             }
         }
