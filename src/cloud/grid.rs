@@ -89,35 +89,36 @@ impl Grid {
     /// Call `f(index)` for every point within `radius` of `centre`.
     pub fn for_each_within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64, mut f: impl FnMut(usize)) {
         let r2 = radius * radius;
-        let lo = self.coords(&(centre - nalgebra::Vector3::repeat(radius)));
-        let hi = self.coords(&(centre + nalgebra::Vector3::repeat(radius)));
-        for z in lo[2]..=hi[2] {
-            for y in lo[1]..=hi[1] {
-                let row = (z * self.dims[1] + y) * self.dims[0];
-                let (a, b) = (self.starts[row + lo[0]] as usize, self.starts[row + hi[0] + 1] as usize);
-                for &i in &self.order[a..b] {
-                    let i = i as usize;
-                    if (points[i] - centre).norm_squared() <= r2 {
-                        f(i);
-                    }
+        self.visit_rows(centre, radius, |row| {
+            for &i in row {
+                let i = i as usize;
+                if (points[i] - centre).norm_squared() <= r2 {
+                    f(i);
                 }
             }
-        }
+            false
+        });
     }
 
     /// Whether any point lies within `radius` of `centre` (stops at the first).
     pub fn any_within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64) -> bool {
         let r2 = radius * radius;
+        self.visit_rows(centre, radius, |row| {
+            row.iter().any(|&i| (points[i as usize] - centre).norm_squared() <= r2)
+        })
+    }
+
+    /// The points of the cells of the box `centre +- radius`, a row of cells at a time, until
+    /// `f` returns true (then true).
+    #[inline]
+    fn visit_rows(&self, centre: &Point3<f64>, radius: f64, mut f: impl FnMut(&[u32]) -> bool) -> bool {
         let lo = self.coords(&(centre - nalgebra::Vector3::repeat(radius)));
         let hi = self.coords(&(centre + nalgebra::Vector3::repeat(radius)));
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 let row = (z * self.dims[1] + y) * self.dims[0];
                 let (a, b) = (self.starts[row + lo[0]] as usize, self.starts[row + hi[0] + 1] as usize);
-                if self.order[a..b]
-                    .iter()
-                    .any(|&i| (points[i as usize] - centre).norm_squared() <= r2)
-                {
+                if f(&self.order[a..b]) {
                     return true;
                 }
             }

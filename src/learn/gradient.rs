@@ -100,24 +100,30 @@ fn state_row(g: &D, q: &Vector3<f64>, rotation: &UnitQuaternion<f64>, s: &State,
     row
 }
 
-/// The states a forward-difference column is taken at, and its step (a parameter at its bound
-/// steps inwards); `None` for a held parameter.
+/// The state forward-difference column `k` is taken at, and its step (a parameter at its bound
+/// steps inwards); `None` for a held parameter (its column is zero: the step leaves it alone).
+pub(super) fn column_step(problem: &Problem, s: &State, k: usize) -> Option<(State, f64)> {
+    if problem.fix_taper && matches!(k, 5 | 6) {
+        return None;
+    }
+    let mut d = Vect::zeros();
+    d[k] = STEPS[k];
+    let sk = s.step(&d);
+    Some(if sk_param(&sk, k) == sk_param(s, k) {
+        d[k] = -STEPS[k];
+        (s.step(&d), -STEPS[k])
+    } else {
+        (sk, STEPS[k])
+    })
+}
+
+/// The placed shapes of [`column_step`], with their inverse rotations.
 fn perturbed(problem: &Problem, s: &State) -> [Option<(PlacedSuperquadric, UnitQuaternion<f64>, f64)>; NP] {
     std::array::from_fn(|k| {
-        if problem.fix_taper && matches!(k, 5 | 6) {
-            return None;
-        }
-        let mut d = Vect::zeros();
-        d[k] = STEPS[k];
-        let sk = s.step(&d);
-        let (sk, h) = if sk_param(&sk, k) == sk_param(s, k) {
-            d[k] = -STEPS[k];
-            (s.step(&d), -STEPS[k])
-        } else {
-            (sk, STEPS[k])
-        };
-        let placed = sk.placed();
-        Some((placed, placed.pose.rotation.inverse(), h))
+        column_step(problem, s, k).map(|(sk, h)| {
+            let placed = sk.placed();
+            (placed, placed.pose.rotation.inverse(), h)
+        })
     })
 }
 

@@ -3,7 +3,7 @@
 //! the costs it does not differentiate).
 
 use super::residual::{Problem, RayRead};
-use super::state::{Mat, NP, STEPS, State, Vect, sk_param};
+use super::state::{Mat, NP, State, Vect};
 use crate::numeric::{Budget, Damping, LeastSquares, LmSettings, huber_weight, median, minimize};
 use rayon::prelude::*;
 
@@ -64,23 +64,10 @@ pub(super) fn forward_differences(problem: &Problem, s: &State, r0: &[f64], weig
     // The columns in parallel: the later stages fit one start at a time, and a residual
     // evaluation (thousands of points and free-space samples, the seen-surface queries)
     // is the whole cost. The same arithmetic as one after the other, so the same result.
-    // A held parameter gets no column (a zero one: the step leaves it alone).
     let columns: Vec<Option<(Vec<f64>, f64)>> = (0..NP)
         .into_par_iter()
         .map(|k| {
-            if problem.fix_taper && matches!(k, 5 | 6) {
-                return None;
-            }
-            let mut d = Vect::zeros();
-            d[k] = STEPS[k];
-            let sk = s.step(&d);
-            // A parameter at its bound steps inwards.
-            let (sk, h) = if sk_param(&sk, k) == sk_param(s, k) {
-                d[k] = -STEPS[k];
-                (s.step(&d), -STEPS[k])
-            } else {
-                (sk, STEPS[k])
-            };
+            let (sk, h) = super::gradient::column_step(problem, s, k)?;
             let mut r = Vec::with_capacity(n);
             problem.residuals(&sk, &mut r);
             Some((r, h))
