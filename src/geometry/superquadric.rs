@@ -67,7 +67,7 @@ pub struct ResidualGrad {
 
 /// `ln(e^a + e^b)` that is exact for `-inf` arguments.
 #[inline]
-fn logsumexp(a: f64, b: f64) -> f64 {
+pub(crate) fn logsumexp(a: f64, b: f64) -> f64 {
     let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
     if hi == f64::NEG_INFINITY {
         return f64::NEG_INFINITY;

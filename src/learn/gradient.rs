@@ -6,9 +6,11 @@
 //! rotation `w` and by `-R^T t` under a translation `t`). A distance along a sensor ray that hits
 //! the surface is the root `t*` of `g(q + d t) = 0`, so by the implicit function theorem its
 //! derivative is `-dg/dθ / (grad g . d)` at the hit point: one differentiated evaluation where
-//! forward differences would repeat the whole ray search per parameter. Rays that pass the
-//! surface (their residual is a closest approach), grazing hits and the few hundred residuals
-//! after the points (support, size, seen surface) keep forward differences.
+//! forward differences would repeat the whole ray search per parameter. A ray that passes the
+//! surface reads its closest approach: the envelope theorem gives the gap's change, and the
+//! closest approach's shift is `-g_tθ / g_tt` from differences along the ray. Grazing hits,
+//! misses where the distance is flat along the ray and the few hundred residuals after the
+//! points (support, size, seen surface) keep forward differences.
 
 use super::Cost;
 use super::residual::{FREE_WEIGHT, Problem, RAY_WINDOW, RayRead};
@@ -117,8 +119,11 @@ pub(super) fn column_step(problem: &Problem, s: &State, k: usize) -> Option<(Sta
     })
 }
 
+/// Per parameter, the placed shape of [`column_step`], its inverse rotation and its step.
+type Shifted = [Option<(PlacedSuperquadric, UnitQuaternion<f64>, f64)>; NP];
+
 /// The placed shapes of [`column_step`], with their inverse rotations.
-fn perturbed(problem: &Problem, s: &State) -> [Option<(PlacedSuperquadric, UnitQuaternion<f64>, f64)>; NP] {
+fn perturbed(problem: &Problem, s: &State) -> Shifted {
     std::array::from_fn(|k| {
         column_step(problem, s, k).map(|(sk, h)| {
             let placed = sk.placed();
@@ -157,7 +162,15 @@ pub(super) fn normal_equations(
                 continue;
             }
             let row = if i < np {
-                point_row(problem, s, &placed, &shifted, reads.get(i).copied().flatten(), i, r)
+                Some(point_row(
+                    problem,
+                    s,
+                    &placed,
+                    &shifted,
+                    reads.get(i).copied().flatten(),
+                    i,
+                    r,
+                ))
             } else if r < 0.0 {
                 // A free-space sample inside the shape (outside it the residual is zero).
                 let q = placed.to_local(&problem.free[i - np]);
@@ -233,11 +246,11 @@ fn point_row(
     problem: &Problem,
     s: &State,
     placed: &PlacedSuperquadric,
-    shifted: &[Option<(PlacedSuperquadric, UnitQuaternion<f64>, f64)>; NP],
+    shifted: &Shifted,
     read: Option<RayRead>,
     i: usize,
     r: f64,
-) -> Option<Vect> {
+) -> Vect {
     let p = &problem.points[i];
     let q = placed.to_local(p);
     let rotation = &placed.pose.rotation;
@@ -253,9 +266,9 @@ fn point_row(
             let slope = g.d[0] * d.x + g.d[1] * d.y + g.d[2] * d.z;
             let norm = (g.d[0] * g.d[0] + g.d[1] * g.d[1] + g.d[2] * g.d[2]).sqrt();
             if slope.abs() > 0.05 * norm {
-                return Some(state_row(&g, &x, rotation, s, fix) * (-1.0 / slope));
+                return state_row(&g, &x, rotation, s, fix) * (-1.0 / slope);
             }
-            Some(differences(problem, shifted, i, r))
+            differences(problem, shifted, i, r)
         }
         (Some(RayRead::Miss { t, .. }), Some(d)) => {
             // r = t_m + g(t_m) sign(t_m) at the closest approach t_m: g's own change there
@@ -269,35 +282,24 @@ fn point_row(
             let sign = 1.0f64.copysign(t);
             if t.abs() >= RAY_WINDOW - 1e-9 {
                 // At the window's end: the end stays put.
-                return Some(row0 * sign);
+                return row0 * sign;
             }
             const H: f64 = 1e-5;
             let ((gp, rowp), (gm, rowm)) = (at(t + H), at(t - H));
             let curvature = (gp - 2.0 * g0 + gm) / (H * H);
             if curvature.is_nan() || curvature <= 1e-3 {
                 // Flat along the ray: the closest approach is not defined by it.
-                return Some(differences(problem, shifted, i, r));
+                return differences(problem, shifted, i, r);
             }
             let moves = (rowp - rowm) * (-1.0 / (2.0 * H * curvature));
-            Some(moves + row0 * sign)
+            moves + row0 * sign
         }
-        _ => Some(state_row(
-            &signed_radial_distance(&placed.shape, &q),
-            &q,
-            rotation,
-            s,
-            fix,
-        )),
+        _ => state_row(&signed_radial_distance(&placed.shape, &q), &q, rotation, s, fix),
     }
 }
 
 /// Forward differences of point `i`'s residual alone.
-fn differences(
-    problem: &Problem,
-    shifted: &[Option<(PlacedSuperquadric, UnitQuaternion<f64>, f64)>; NP],
-    i: usize,
-    r: f64,
-) -> Vect {
+fn differences(problem: &Problem, shifted: &Shifted, i: usize, r: f64) -> Vect {
     Vect::from_fn(|k, _| match &shifted[k] {
         Some((placed, to_local, h)) => (problem.point_value(placed, to_local, i) - r) / h,
         None => 0.0,
@@ -313,11 +315,11 @@ mod tests {
     use nalgebra::Point3;
     use rand::{RngExt, SeedableRng};
 
-    /// A tapered, rounded shape standing on the plane z = 0, its visible points with noise, some
-    /// free-space samples (a few inside it) and a viewpoint above and in front.
     /// The truth, the visible points, the free-space samples, the viewpoint and the table.
     type Scene = (State, Vec<Point3<f64>>, Vec<Point3<f64>>, Point3<f64>, Plane);
 
+    /// A tapered, rounded shape standing on the plane z = 0, its visible points with noise, some
+    /// free-space samples (a few inside it) and a viewpoint above and in front.
     fn scene() -> Scene {
         let truth = State {
             ln_a: [0.04f64.ln(), 0.03f64.ln(), 0.05f64.ln()],
@@ -495,7 +497,7 @@ mod tests {
             if t.abs() > RAY_WINDOW - 1e-3 {
                 continue;
             }
-            let row = point_row(&along, &far, &placed, &shifted, reads[i], i, r[i]).expect("a row");
+            let row = point_row(&along, &far, &placed, &shifted, reads[i], i, r[i]);
             let mut reference = Vect::zeros();
             let mut same_kind = true;
             for k in 0..NP {

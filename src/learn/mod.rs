@@ -4,9 +4,9 @@
 //! 1. [`segment`] (`segment.rs`): remove the supporting plane and keep the largest connected
 //!    cluster standing on it (a voxel flood fill).
 //! 2. The fit (`stages.rs`): robust Levenberg-Marquardt (`robust.rs`) over the 13 parameters of
-//!    `state.rs` (a1 a2 a3, e1 e2, kx ky, 3 rotation, 3 translation) from several starts, on the
-//!    residuals of `residual.rs`: the visible points (in the later stages along their sensor
-//!    rays), the free space and the surface that must have been seen (`seen.rs`), the support
+//!    `state.rs` (a1 a2 a3, e1 e2, kx ky, 3 rotation, 3 translation) from several starts
+//!    (`starts.rs`), with the Jacobian of `gradient.rs`, on the residuals of `residual.rs`: the
+//!    visible points (in the later stages along their sensor rays), the free space and the surface that must have been seen (`seen.rs`), the support
 //!    plane, and the visible points' twins turned 180 degrees about the vertical axis (a symmetry
 //!    of any superquadric that rests on a table with one of its axes vertical). `family.rs`
 //!    chooses between a general shape and a body of revolution. An open container standing
@@ -26,6 +26,7 @@ mod seen;
 mod segment;
 pub mod simulated;
 mod stages;
+mod starts;
 mod state;
 #[cfg(test)]
 mod tests;

@@ -134,8 +134,8 @@ pub(super) fn ray_read(shape: &Superquadric, q: &Vector3<f64>, d: &Vector3<f64>,
     }
 }
 
-/// Illinois regula falsi on `ga > 0 >= gb`, to 1e-12 m: the LM differentiates this by finite
-/// steps down to 1e-7 m. Not `ray`'s refinement, which returns the inside end of the bracket
+/// Illinois regula falsi on `ga > 0 >= gb`, to 1e-12 m: the Jacobian is taken at the root, and
+/// its forward-difference fallbacks step down to 1e-7 m. Not `ray`'s refinement, which returns the inside end of the bracket
 /// (a hit never short of the surface): the secant of the final bracket is smooth in the
 /// shape's parameters, and an exact zero (a sample on the surface, which happens) ends it.
 pub(super) fn ray_refine(g: &impl Fn(f64) -> f64, mut ta: f64, mut ga: f64, mut tb: f64, mut gb: f64) -> f64 {

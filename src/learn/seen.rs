@@ -4,7 +4,7 @@
 use crate::cloud::plane::Plane;
 #[cfg(test)]
 use crate::geometry::Kernel;
-use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::geometry::{PlacedSuperquadric, Superquadric, logsumexp};
 use nalgebra::{Isometry3, Point3, Vector3};
 
 /// The counterpart of free space: surface that faces the sensor squarely (and is above the
@@ -144,15 +144,6 @@ impl SeenUnit {
     }
 }
 
-/// `ln(e^a + e^b)`, exact for `-inf` arguments.
-fn logsumexp(a: f64, b: f64) -> f64 {
-    let (hi, lo) = if a >= b { (a, b) } else { (b, a) };
-    if hi == f64::NEG_INFINITY {
-        return f64::NEG_INFINITY;
-    }
-    hi + (lo - hi).exp().ln_1p()
-}
-
 /// The seen samples of `sq` with their normals, from its exponents' [`SeenUnit`].
 pub(super) fn seen_local(unit: &SeenUnit, sq: &Superquadric) -> Vec<SeenSample> {
     let a = Vector3::from(sq.a);
@@ -188,7 +179,9 @@ pub(super) fn seen_local(unit: &SeenUnit, sq: &Superquadric) -> Vec<SeenSample> 
 }
 
 /// The directions of the seen samples: a grid on each face of the unit cube, scaled by the
-/// shape's sizes (see [`seen_samples`]).
+/// shape's sizes (the parametric angles crowd a box's edges and leave its faces empty, and
+/// directions through a cube's faces meet a pen only near its middle; through the box they
+/// spread over the faces of a box and the length of a pen alike).
 fn seen_directions() -> impl Iterator<Item = Vector3<f64>> {
     let at = |i: usize| -1.0 + (2 * i + 1) as f64 / SEEN_GRID as f64;
     (0..6).flat_map(move |face| {
@@ -206,16 +199,13 @@ fn seen_directions() -> impl Iterator<Item = Vector3<f64>> {
     })
 }
 
-/// Cells per cube-face side of [`seen_samples`].
+/// Cells per cube-face side of [`seen_directions`].
 pub(super) const SEEN_GRID: usize = 7;
-/// How many residuals [`Seen::residuals`] gives (one per [`seen_samples`] sample).
+/// How many residuals [`Seen::residuals_of`] gives (one per [`seen_directions`] direction).
 pub(super) const SEEN_SAMPLES: usize = 6 * SEEN_GRID * SEEN_GRID;
 
-/// Surface points along fixed directions through a grid on the six faces of a box with the
-/// shape's half-sizes (the parametric angles crowd a box's edges and leave its faces empty, and
-/// directions through a cube's faces meet a pen only near its middle; through the box they
-/// spread over the faces of a box and the length of a pen alike). Directly, as the reference
-/// [`seen_local`] is tested against.
+/// The surface points along [`seen_directions`], directly: the reference [`seen_local`] is
+/// tested against.
 #[cfg(test)]
 pub(super) fn seen_samples(sq: &Superquadric) -> impl Iterator<Item = Vector3<f64>> + '_ {
     let kernel = Kernel::new(sq);

@@ -1,4 +1,4 @@
-//! The stages of the single-part fit: starts, A (visible points), A2 and B (free space), C (the
+//! The stages of the single-part fit (from the starts of `starts.rs`): A (visible points), A2 and B (free space), C (the
 //! mirrored twins, along the rays), D (the smallest equally good shape), E (along the rays again).
 
 use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
@@ -7,80 +7,13 @@ use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
 use super::seen::{Seen, drop_rays_through_top, free_space_samples, silhouette_samples, unseen_top};
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
-use super::state::{SIZE_MAX, State};
+use super::starts::{moments, starts};
+use super::state::State;
 use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use crate::cloud::plane::Plane;
 use crate::numeric::{huber, median};
-use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
-
-/// The centroid and the covariance's eigenvectors (columns, by decreasing variance).
-pub(super) fn moments(points: &[Point3<f64>]) -> (Vector3<f64>, [Vector3<f64>; 3]) {
-    let (c, [small, mid, large]) = crate::geometry::principal_axes(points);
-    (c, [large, mid, small])
-}
-
-/// A right-handed frame with z along `z` and x along the major moment direction across it.
-pub(super) fn frame_with_z(points: &[Point3<f64>], centroid: &Vector3<f64>, z: &Vector3<f64>) -> UnitQuaternion<f64> {
-    let z = z.normalize();
-    let helper = if z.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-    let u = z.cross(&helper).normalize();
-    let v = z.cross(&u);
-    let (mut suu, mut suv, mut svv) = (0.0, 0.0, 0.0);
-    for p in points {
-        let d = p.coords - centroid;
-        let (a, b) = (d.dot(&u), d.dot(&v));
-        suu += a * a;
-        suv += a * b;
-        svv += b * b;
-    }
-    let angle = 0.5 * (2.0 * suv).atan2(suu - svv);
-    let x = u * angle.cos() + v * angle.sin();
-    let y = z.cross(&x);
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_basis_unchecked(&[x, y, z]))
-}
-
-/// Start sizes and centre from the extents of the points in a frame (2-98 percent), the centre
-/// pushed away from the sensor by half the sizes along the view (only the front half is seen).
-pub(super) fn start_state(
-    points: &[Point3<f64>],
-    rot: UnitQuaternion<f64>,
-    viewpoint: Option<&Point3<f64>>,
-    e: (f64, f64),
-) -> State {
-    let local: Vec<Vector3<f64>> = points.iter().map(|p| rot.inverse() * p.coords).collect();
-    let mut lo = [0.0; 3];
-    let mut hi = [0.0; 3];
-    for k in 0..3 {
-        let mut v: Vec<f64> = local.iter().map(|q| q[k]).collect();
-        v.sort_by(f64::total_cmp);
-        lo[k] = v[(v.len() as f64 * 0.02) as usize];
-        hi[k] = v[((v.len() as f64 * 0.98) as usize).min(v.len() - 1)];
-    }
-    let mut a = [0.0; 3];
-    let mut c = Vector3::zeros();
-    for k in 0..3 {
-        a[k] = (0.5 * (hi[k] - lo[k])).clamp(0.003, SIZE_MAX);
-        c[k] = 0.5 * (hi[k] + lo[k]);
-    }
-    if let Some(v) = viewpoint {
-        let centre = rot * c;
-        if let Some(view) = (centre - v.coords).try_normalize(1e-9) {
-            let d = rot.inverse() * view;
-            for k in 0..3 {
-                c[k] += 0.3 * d[k] * a[k];
-            }
-        }
-    }
-    State {
-        ln_a: a.map(f64::ln),
-        e: [e.0, e.1],
-        k: [0.0, 0.0],
-        rot,
-        t: rot * c,
-        rev: false,
-    }
-}
 
 /// The inlier threshold of the statistics of a shape from the outer wall's profile (m).
 const PROFILE_DELTA: f64 = 0.003;
@@ -131,11 +64,20 @@ pub fn fit_superquadric(
     // lying on its side, whose top says nothing of the object's. (From the general starts: a
     // body of revolution about a wrong axis fitted to the visible points alone can be a disc as
     // wide as the view, which would take the free space with it.)
+    // Each result scored once on the visible points: for this choice and for the distinct ones
+    // stage A2 refits.
+    let results: Vec<(String, State, f64)> = results
+        .into_par_iter()
+        .map(|(n, s)| {
+            let sc = score(&problem_visible, &s);
+            (n, s, sc)
+        })
+        .collect();
     let upright = results
         .iter()
         .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
         .filter(|r| up.is_some_and(|u| (r.1.rot * Vector3::z()).dot(&u).abs() > 0.9))
-        .min_by(|a, b| score(&problem_visible, &a.1).total_cmp(&score(&problem_visible, &b.1)))
+        .min_by(|a, b| a.2.total_cmp(&b.2))
         .map(|r| r.1);
     let open_top = match (params.viewpoint, up, upright) {
         (Some(v), Some(u), Some(s)) => unseen_top(&s.placed(), &points, &v, &u),
@@ -175,7 +117,11 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    let results = stage_a2(distinct_starts(results, &problem_visible), &problem_free);
+    // Most starts converge to the same fit (they differ in exponents and tapers that the
+    // visible points settle): the best of each is refitted.
+    let results = distinct(results, usize::MAX);
+    tracing::debug!("{} distinct starts after stage A1", results.len());
+    let results = stage_a2(results.into_iter().map(|(n, s, _)| (n, s)).collect(), &problem_free);
     let ctx = Context {
         points: &points,
         up,
@@ -262,62 +208,6 @@ fn object_points(
     Ok(subsample(&kept, params.max_points))
 }
 
-/// The starts: z along up and along each moment axis, three exponent pairs each, tapered ones
-/// standing on the plane, and each also as a body of revolution (as `params.shape` allows).
-fn starts(
-    points: &[Point3<f64>],
-    centroid: &Vector3<f64>,
-    axes: &[Vector3<f64>; 3],
-    up: Option<&Vector3<f64>>,
-    params: &LearnParams,
-) -> Vec<(String, State)> {
-    let mut starts: Vec<(String, State)> = Vec::new();
-    let mut zs: Vec<(String, Vector3<f64>)> = Vec::new();
-    if let Some(u) = up {
-        zs.push(("up".into(), *u));
-    }
-    for (k, a) in axes.iter().enumerate() {
-        // A moment axis within 15 degrees of up duplicates the up start.
-        if up.is_some_and(|u| a.dot(u).abs() > 0.966) {
-            continue;
-        }
-        zs.push((format!("moment{k}"), *a));
-    }
-    for (zn, z) in &zs {
-        let rot = frame_with_z(points, centroid, z);
-        for e in [(1.0, 1.0), (0.3, 1.0), (0.3, 0.3)] {
-            starts.push((
-                format!("z={zn} e=({},{})", e.0, e.1),
-                start_state(points, rot, params.viewpoint.as_ref(), e),
-            ));
-        }
-        // The z-flipped starts of a tapered shape (EMS's switch): an untapered start standing on
-        // the plane can slide into the taper of the wrong sign (a bowl widening downwards).
-        if zn == "up" {
-            for k in [0.3, -0.3] {
-                for e in [(1.0, 1.0), (0.3, 1.0)] {
-                    let mut s = start_state(points, rot, params.viewpoint.as_ref(), e);
-                    s.k = [k, k];
-                    starts.push((format!("z={zn} e=({},{}) k={k}", e.0, e.1), s));
-                }
-            }
-        }
-    }
-    // Every start also as a body of revolution about its z axis: the simpler family, which the
-    // end prefers unless the general shape explains the view clearly better (a hidden foot or
-    // back leaves a general shape free to bulge or flatten where nothing was seen).
-    let rev: Vec<(String, State)> = starts
-        .iter()
-        .map(|(n, s)| (format!("{n} revolution"), s.as_revolution()))
-        .collect();
-    match params.shape {
-        ShapeFamily::Auto => starts.extend(rev),
-        ShapeFamily::General => {}
-        ShapeFamily::Revolution => starts = rev,
-    }
-    starts
-}
-
 /// Free space: the sensor saw the scene beyond the object along rays that pass by it, so the
 /// surface must not cross them. Without this nothing stops the hidden back of a flat top (a
 /// cylinder's disc, a book's cover) from growing: the points on a face say where its plane
@@ -344,26 +234,17 @@ fn free_space(
     free
 }
 
-/// The results of stage A1 less those that converged to the same fit as a better one of their
-/// family (most of them: the starts differ in exponents and tapers that the visible points
-/// settle), best first.
-fn distinct_starts(results: Vec<(String, State)>, problem: &Problem) -> Vec<(String, State)> {
-    let mut scored: Vec<(String, State, f64)> = results
-        .into_par_iter()
-        .map(|(n, s)| {
-            let sc = score(problem, &s);
-            (n, s, sc)
-        })
-        .collect();
+/// The best of each group of results that converged to the same fit ([`same_fit`], within a
+/// family), best first, at most `limit`.
+fn distinct(mut scored: Vec<(String, State, f64)>, limit: usize) -> Vec<(String, State, f64)> {
     scored.sort_by(|a, b| a.2.total_cmp(&b.2));
     let mut kept: Vec<(String, State, f64)> = Vec::new();
     for r in scored {
-        if !kept.iter().any(|k| k.1.rev == r.1.rev && same_fit(&k.1, &r.1)) {
+        if kept.len() < limit && !kept.iter().any(|k| k.1.rev == r.1.rev && same_fit(&k.1, &r.1)) {
             kept.push(r);
         }
     }
-    tracing::debug!("{} distinct starts after stage A1", kept.len());
-    kept.into_iter().map(|(n, s, _)| (n, s)).collect()
+    kept
 }
 
 /// Stage A2: every start again with a thinned free space (at most 1500 samples), which is
@@ -425,18 +306,11 @@ impl Context<'_> {
 fn stages_b_c(ctx: &Context, results: &[(String, State, f64)], rev: bool) -> Option<FamilyResult> {
     let (points, params, problem_free) = (ctx.points, ctx.params, ctx.problem_free);
     // Stage B: the best three starts again with all of the free space.
-    let mut results: Vec<(String, State, f64)> = results.iter().filter(|r| r.1.rev == rev).cloned().collect();
-    results.sort_by(|a, b| a.2.total_cmp(&b.2));
     // Three distinct ones: starts that converged to the same shape count once.
-    let mut distinct: Vec<(String, State, f64)> = Vec::new();
-    for r in results {
-        if distinct.len() < 3 && !distinct.iter().any(|d| same_fit(&d.1, &r.1)) {
-            distinct.push(r);
-        }
-    }
+    let three = distinct(results.iter().filter(|r| r.1.rev == rev).cloned().collect(), 3);
     let free = problem_free.free;
     let results = refit_scored(
-        distinct.into_iter().map(|(n, s, _)| (n, s)).collect(),
+        three.into_iter().map(|(n, s, _)| (n, s)).collect(),
         (!free.is_empty()).then_some(problem_free),
         (3, 40),
         MIN_DELTA,
