@@ -207,7 +207,7 @@ fn inliers_in(points: &[Point3<f64>], grid: &Grid, placed: &PlacedSuperquadric, 
     let mut out = Vec::new();
     grid.for_each_within(points, &centre, placed.shape.bounding_radius() + band, |i| {
         let p = &points[i];
-        if kernel.surface_distance(p).abs() < band {
+        if kernel.surface_distance_near(p, band).is_some_and(|d| d.abs() < band) {
             out.push(*p);
         }
     });
@@ -368,7 +368,10 @@ fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) ->
     space
         .coarse_grid
         .for_each_within(space.coarse, &centre, placed.shape.bounding_radius() + band, |i| {
-            if kernel.surface_distance(&space.coarse[i]).abs() < band {
+            if kernel
+                .surface_distance_near(&space.coarse[i], band)
+                .is_some_and(|d| d.abs() < band)
+            {
                 n += 1;
             }
         });
