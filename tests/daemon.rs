@@ -684,6 +684,7 @@ impl sqscan::daemon::Backend for FlatPatch {
             sweep,
             started,
             last_profile: started,
+            recorded: None,
         })
     }
 
@@ -789,4 +790,110 @@ fn a_panicking_acquisition_task_is_reported_not_hidden() {
     let status: Value = serde_json::from_str(&line).unwrap();
     assert_eq!(status["failure"], why.as_str(), "{status}");
     rt.block_on(daemon.stop());
+}
+
+/// A detection reply without what depends on when and how fast it was made.
+fn answer_only(r: &Value) -> Value {
+    let mut r = r.clone();
+    let o = r.as_object_mut().unwrap();
+    for k in ["timing_ms", "latency_ms", "sweep", "id"] {
+        o.remove(k);
+    }
+    r
+}
+
+#[test]
+fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
+    let dir = tmpdir("replay");
+    // Record: one sweep on demand, asked for the cup and the bowl.
+    let recorder = dir.join("recorder");
+    std::fs::create_dir_all(&recorder).unwrap();
+    let rec = dir.join("rec");
+    let config = format!(
+        "{}\n[acquisition]\nmode = \"on_demand\"\n[record]\ndir = \"{}\"\nkeep = 0\n",
+        sim_config(),
+        rec.display()
+    );
+    let (daemon, socket) = start_daemon(&recorder, &config, &[]);
+    let mut c = Client::connect(&socket);
+    // Sweep 1 is recorded and then removed, so that the replayed sweep's own id (1) differs
+    // from its recorded one (2), which the detector's seed must come from.
+    assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":60}))["class"], "sweep");
+    let cup = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":60}));
+    assert_eq!(cup["found"], true, "{cup}");
+    let bowl = c.ask(json!({"cmd":"find","object":"bowl","max_age_s":600,"timeout_s":60}));
+    assert_eq!(bowl["found"], true, "{bowl}");
+    let id = cup["sweep"]["id"].as_u64().unwrap();
+    assert_eq!(bowl["sweep"]["id"].as_u64(), Some(id), "{bowl}");
+    assert!(cup["sweep"]["recorded"].is_null(), "{cup}");
+    wait_for("the recording", Duration::from_secs(10), || {
+        rec.join(format!("sweep-{id:08}.json")).exists()
+    });
+    drop(c);
+    drop(daemon);
+    assert_eq!(id, 2);
+    wait_for("the first recording", Duration::from_secs(10), || {
+        rec.join("sweep-00000001.json").exists()
+    });
+    for ext in ["json", "pcd"] {
+        std::fs::remove_file(rec.join(format!("sweep-00000001.{ext}"))).unwrap();
+    }
+
+    // Beside the recording, a cloud from elsewhere: an organized PCD with a viewpoint.
+    let sim = dir.join("sim");
+    let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .args(["simulate"])
+        .arg(root().join("scenes/fig4_tools.toml"))
+        .arg("--out")
+        .arg(&sim)
+        .args(["--seed", "2"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::copy(sim.join("cloud.pcd"), rec.join("tools.pcd")).unwrap();
+
+    // Replay, one sweep a request.
+    let player = dir.join("player");
+    std::fs::create_dir_all(&player).unwrap();
+    let config = format!(
+        "[acquisition]\nmode = \"on_demand\"\n[replay]\ndir = \"{}\"\nspeed = 0\n",
+        rec.display()
+    );
+    let (_d, socket) = start_daemon(&player, &config, &[]);
+    let mut c = Client::connect(&socket);
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["backend"], "replay", "{s}");
+    assert_eq!(s["devices"][0]["name"], "replay", "{s}");
+    let cup2 = c.ask(json!({"cmd":"find","object":"cup","timeout_s":60}));
+    assert_eq!(cup2["class"], "detection", "{cup2}\n{}", log(&player));
+    assert_eq!(cup2["sweep"]["recorded"]["id"].as_u64(), Some(id), "{cup2}");
+    assert_eq!(answer_only(&cup2), answer_only(&cup));
+    let bowl2 = c.ask(json!({"cmd":"find","object":"bowl","max_age_s":600,"timeout_s":60}));
+    assert_eq!(answer_only(&bowl2), answer_only(&bowl));
+
+    // The next sweep is the other cloud: the mallet's scene.
+    let mallet = c.ask(json!({"cmd":"find","object":"mallet","max_age_s":0.0,"timeout_s":60}));
+    assert_eq!(mallet["found"], true, "{mallet}");
+    assert!(mallet["sweep"]["recorded"]["id"].is_null(), "{mallet}");
+    assert!(
+        mallet["sweep"]["recorded"]["file"]
+            .as_str()
+            .unwrap()
+            .ends_with("tools.pcd"),
+        "{mallet}"
+    );
+    let (dp, dr) = pose_error(&mallet, &root().join("scenes/fig4_tools.toml"), "mallet");
+    assert!(dp < 0.010 && dr < 10.0, "mallet off by {dp} m, {dr} deg: {mallet}");
+
+    // Then the replay is over, and says so.
+    let r = c.ask(json!({"cmd":"scan","timeout_s":1.0}));
+    assert_eq!(r["class"], "error", "{r}");
+    let s = c.ask(json!({"cmd":"status"}));
+    assert!(
+        s["devices"][0]["last_error"]
+            .as_str()
+            .unwrap_or("")
+            .contains("the replay is over"),
+        "{s}"
+    );
 }

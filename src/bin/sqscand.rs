@@ -29,6 +29,16 @@ struct Cli {
     /// Unix socket to listen on (overrides the file's server.socket)
     #[arg(long, value_name = "PATH")]
     socket: Option<PathBuf>,
+    /// Serve the recorded sweeps in DIR instead of scanning (overrides the file's backend): the
+    /// daemon's recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint
+    #[arg(long, value_name = "DIR")]
+    replay: Option<PathBuf>,
+    /// With --replay: 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0, requires = "replay")]
+    replay_speed: f64,
+    /// With --replay: start again after the last sweep instead of stopping there
+    #[arg(long, requires = "replay")]
+    replay_loop: bool,
     /// Run every start-up check (configuration, models, scene or calibration, serial devices) and exit
     #[arg(long)]
     check: bool,
@@ -46,6 +56,17 @@ fn load_config(cli: &Cli) -> Result<Config> {
     if let Some(s) = &cli.socket {
         config.socket = s.clone();
     }
+    if let Some(dir) = &cli.replay {
+        let (lo, hi) = sqscan::daemon::config::limits::REPLAY_SPEED;
+        if !(cli.replay_speed.is_finite() && (lo..=hi).contains(&cli.replay_speed)) {
+            anyhow::bail!("--replay-speed {}: give a factor from {lo} to {hi}", cli.replay_speed);
+        }
+        config.backend = BackendConfig::Replay {
+            dir: dir.clone(),
+            speed: cli.replay_speed,
+            looping: cli.replay_loop,
+        };
+    }
     Ok(config)
 }
 
@@ -57,6 +78,12 @@ fn describe(config: &Config) -> String {
     let backend = match &config.backend {
         BackendConfig::Sim { scene, .. } => format!("the simulated scanner on {}", scene.display()),
         BackendConfig::Hardware(h) => format!("the PTU at {} and the sensor at {}", h.ptu_path.display(), h.sensor),
+        BackendConfig::Replay { dir, speed, .. } if *speed == 0.0 => {
+            format!("the recorded sweeps in {}, as fast as asked", dir.display())
+        }
+        BackendConfig::Replay { dir, speed, .. } => {
+            format!("the recorded sweeps in {} at {speed} times their pace", dir.display())
+        }
     };
     format!("configuration from {source}; scanning with {backend}")
 }

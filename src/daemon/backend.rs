@@ -39,6 +39,18 @@ pub struct Swept {
     /// When the last profile was exposed (hardware) or the sweep rendered (simulator): where
     /// sweep-to-answer latency starts.
     pub last_profile: Instant,
+    /// Where a replayed sweep came from; `None` for a sweep made now.
+    pub recorded: Option<Recorded>,
+}
+
+/// The recording a replayed sweep was read from.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recorded {
+    /// The sweep id it had when recorded (`None`: a cloud that is not one of the daemon's
+    /// recordings). The detector's seed comes from it, so a replay answers as the recording
+    /// daemon did.
+    pub id: Option<u64>,
+    pub file: std::path::PathBuf,
 }
 
 /// Why a sweep failed.

@@ -226,6 +226,7 @@ impl Backend for HardwareBackend {
                     started,
                     last_profile: started + Duration::from_secs_f64(last),
                     sweep,
+                    recorded: None,
                 })
             }
             Err(e) => {

@@ -26,6 +26,7 @@ mod lines;
 pub mod notify;
 mod protocol;
 mod record;
+mod replay;
 mod server;
 mod simulator;
 mod socket;
@@ -40,9 +41,10 @@ use anyhow::{Result, bail};
 
 use crate::model::{self, Model};
 
-pub use backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
+pub use backend::{Backend, DeviceStatus, Devices, Recorded, SweepFailure, Swept};
 use config::{BackendConfig, Config};
 use hardware::HardwareBackend;
+use replay::ReplayBackend;
 pub use server::Listeners;
 use simulator::SimBackend;
 use state::Shared;
@@ -95,6 +97,9 @@ pub fn check(config: &Config) -> Result<BTreeMap<String, Arc<Model>>> {
                 tracing::warn!("{w}");
             }
         }
+        BackendConfig::Replay { dir, speed, looping } => {
+            ReplayBackend::new(dir, *speed, *looping)?.check_all()?;
+        }
     }
     Ok(models)
 }
@@ -125,6 +130,12 @@ impl Daemon {
                 for w in HardwareBackend::check_devices(h)? {
                     tracing::warn!("{w}");
                 }
+                let listeners = Listeners::bind(&config).await?;
+                Daemon::serve(config, models, backend, listeners, notifier)
+            }
+            BackendConfig::Replay { dir, speed, looping } => {
+                let backend = ReplayBackend::new(dir, *speed, *looping)?;
+                tracing::info!("replaying {} sweeps from {}", backend.sweeps(), dir.display());
                 let listeners = Listeners::bind(&config).await?;
                 Daemon::serve(config, models, backend, listeners, notifier)
             }

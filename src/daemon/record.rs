@@ -114,6 +114,7 @@ mod tests {
                     sweep,
                     started: Instant::now(),
                     last_profile: Instant::now(),
+                    recorded: None,
                 },
             );
             write_sweep(&dir, &e, 2).unwrap();

@@ -445,6 +445,7 @@ pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bo
         "time": entry.time_s(),
         "age_s": round3(entry.age().as_secs_f64()),
         "points": entry.points,
+        "recorded": entry.recorded_json(),
     });
     v["latency_ms"] = json!(round3(det.latency.as_secs_f64() * 1e3));
     v

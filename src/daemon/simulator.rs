@@ -93,6 +93,7 @@ impl Backend for SimBackend {
             sweep,
             started,
             last_profile: Instant::now(),
+            recorded: None,
         })
     }
 

@@ -20,7 +20,7 @@ use crate::model::Model;
 use crate::numeric::median;
 use crate::sweep::Sweep;
 
-use super::backend::{DeviceStatus, Devices, Swept};
+use super::backend::{DeviceStatus, Devices, Recorded, Swept};
 use super::config::Config;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
@@ -44,6 +44,8 @@ pub struct SweepEntry {
     pub last_profile: Instant,
     pub completed_wall: SystemTime,
     pub sweep: Sweep,
+    /// Where a replayed sweep was read from.
+    pub recorded: Option<Recorded>,
     /// Points with a return in the cloud.
     pub points: usize,
     detections: Mutex<HashMap<(String, bool), DetectionCell>>,
@@ -71,6 +73,7 @@ impl SweepEntry {
             completed_wall: SystemTime::now(),
             points: swept.sweep.cloud.finite_count(),
             sweep: swept.sweep,
+            recorded: swept.recorded,
             detections: Mutex::new(HashMap::new()),
         }
     }
@@ -85,6 +88,20 @@ impl SweepEntry {
             .duration_since(SystemTime::UNIX_EPOCH)
             .map(|d| d.as_secs_f64())
             .unwrap_or(0.0)
+    }
+
+    /// The id the detector's seed comes from: the recorded sweep's for a replay (so the replay
+    /// answers as the daemon that recorded it did), else this sweep's.
+    pub fn seed_id(&self) -> u64 {
+        self.recorded.as_ref().and_then(|r| r.id).unwrap_or(self.id)
+    }
+
+    /// Where a replayed sweep came from, as replies show it (`null` for a sweep made now).
+    pub fn recorded_json(&self) -> Value {
+        match &self.recorded {
+            Some(r) => json!({"id": r.id, "file": r.file.display().to_string()}),
+            None => Value::Null,
+        }
     }
 
     /// The sensor position for the detector: the cloud's viewpoint.
@@ -104,7 +121,7 @@ impl SweepEntry {
             let _permit = shared.detect_slots.acquire().await.ok();
             let entry = self.clone();
             let params = Params {
-                seed: shared.config.detect_seed ^ entry.id,
+                seed: shared.config.detect_seed ^ entry.seed_id(),
                 viewpoint: entry.viewpoint(),
                 max_range: shared.config.max_range_m,
                 all,
@@ -147,6 +164,7 @@ impl SweepEntry {
             "columns": self.sweep.columns,
             "points": self.points,
             "report": self.sweep.report,
+            "recorded": self.recorded_json(),
         })
     }
 }

@@ -53,7 +53,8 @@ use crate::cloud::{Field, FieldData, PointCloud};
 pub use acquire::acquire;
 
 /// What happened to the profiles of one sweep.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct SweepReport {
     /// Profiles handed to the assembler.
     pub received: usize,

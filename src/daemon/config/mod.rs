@@ -32,6 +32,7 @@ struct ConfigFile {
     acquisition: AcquisitionFile,
     sim: Option<SimFile>,
     hardware: Option<HardwareFile>,
+    replay: Option<ReplayFile>,
     #[serde(default)]
     sweep: SweepFile,
     #[serde(default)]
@@ -75,6 +76,18 @@ struct SimFile {
     seed: Option<u64>,
     /// Pace sweeps like the real rig (default true); false renders back to back.
     realtime: Option<bool>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ReplayFile {
+    /// Recordings (`sweep-*.json` and `.pcd`) or organized PCD files.
+    dir: PathBuf,
+    /// 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked (default 1).
+    speed: Option<f64>,
+    /// Start again after the last (default false: serve each once).
+    #[serde(rename = "loop")]
+    looping: Option<bool>,
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -156,6 +169,8 @@ pub enum BackendConfig {
     Sim { scene: PathBuf, seed: u64, realtime: bool },
     /// A PTU and a profile sensor.
     Hardware(HardwareConfig),
+    /// Recorded sweeps served again (see `daemon::replay`).
+    Replay { dir: PathBuf, speed: f64, looping: bool },
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -282,6 +297,8 @@ pub mod limits {
     pub const TIMEOUT_S: (f64, f64) = (0.01, 3600.0);
     /// The longest a sweep's tilt range may take at its speed (s).
     pub const SWEEP_S: f64 = 3600.0;
+    /// Replay speed against the recorded pace (0: as fast as asked).
+    pub const REPLAY_SPEED: (f64, f64) = (0.0, 1000.0);
     /// Range cut of the detector (m).
     pub const MAX_RANGE_M: (f64, f64) = (0.01, 1000.0);
 }
@@ -419,7 +436,15 @@ impl Config {
         }
 
         let backend = match raw.acquisition.backend.as_deref() {
+            None if raw.hardware.is_some() && raw.replay.is_some() => {
+                return Err(SpecError::invalid(
+                    path,
+                    "acquisition.backend",
+                    "both [hardware] and [replay] are given: say which to run, \"hardware\" or \"replay\"",
+                ));
+            }
             None if raw.hardware.is_some() => "hardware",
+            None if raw.replay.is_some() => "replay",
             None => "sim",
             Some(b) => b,
         };
@@ -481,11 +506,29 @@ impl Config {
                     sensor_baud: h.sensor.baud.unwrap_or(SensorConfig::default().baud),
                 })
             }
+            "replay" => {
+                let r = raw
+                    .replay
+                    .as_ref()
+                    .ok_or_else(|| SpecError::invalid(path, "replay", "backend \"replay\" needs a [replay] table"))?;
+                BackendConfig::Replay {
+                    dir: rel(&r.dir),
+                    speed: within(
+                        path,
+                        "replay.speed",
+                        r.speed,
+                        limits::REPLAY_SPEED,
+                        "(times the recorded pace)",
+                    )?
+                    .unwrap_or(1.0),
+                    looping: r.looping.unwrap_or(false),
+                }
+            }
             other => {
                 return Err(SpecError::invalid(
                     path,
                     "acquisition.backend",
-                    format!("{other:?}: give \"sim\" or \"hardware\""),
+                    format!("{other:?}: give \"sim\", \"hardware\" or \"replay\""),
                 ));
             }
         };

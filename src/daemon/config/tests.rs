@@ -46,6 +46,28 @@ fn hardware_paths_are_relative_to_the_file() {
 }
 
 #[test]
+fn a_replay_table_replays_from_a_directory_beside_the_file() {
+    let c = parse("[replay]\ndir = \"recordings\"").unwrap();
+    assert_eq!(
+        c.backend,
+        BackendConfig::Replay {
+            dir: PathBuf::from("/etc/sqscan/recordings"),
+            speed: 1.0,
+            looping: false
+        }
+    );
+    let c = parse("[acquisition]\nbackend = \"replay\"\n[replay]\ndir = \"/r\"\nspeed = 0\nloop = true").unwrap();
+    assert_eq!(
+        c.backend,
+        BackendConfig::Replay {
+            dir: PathBuf::from("/r"),
+            speed: 0.0,
+            looping: true
+        }
+    );
+}
+
+#[test]
 fn errors_name_the_field() {
     for (text, field) in [
         ("[acquisition]\nmode = \"sometimes\"", "acquisition.mode"),
@@ -99,6 +121,14 @@ fn absurd_numbers_are_refused_naming_the_field() {
         ("[server]\ntcp = \"0.0.0.0:29481\"", "server.tcp"),
         ("[server]\ntcp = \"[::]:29481\"\nallow_remote = false", "server.tcp"),
         ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
+        ("[replay]\ndir = \"r\"\nspeed = -1.0", "replay.speed"),
+        ("[replay]\ndir = \"r\"\nspeed = inf", "replay.speed"),
+        ("[acquisition]\nbackend = \"replay\"", "replay"),
+        ("[acquisition]\nbackend = \"tape\"", "acquisition.backend"),
+        (
+            "[replay]\ndir = \"r\"\n[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
+            "acquisition.backend",
+        ),
         (
             "[sweep]\ntilt_from_rad = -3.0\ntilt_to_rad = 3.0\nspeed_rad_s = 0.001",
             "sweep.speed_rad_s",
