@@ -483,7 +483,38 @@ fn an_unplugged_ptu_shows_drops_the_sweep_and_comes_back() {
     // so into the first sweep, plug back in 3 s later.
     let (_rig, ptu, sensor) = start_rig(&dir, &["--disconnect-after", "400", "--ptu-replug-after", "3"]);
     let (_d, socket) = start_daemon(&dir, &hardware_config(&ptu, &sensor), &[]);
-    let mut c = Client::connect(&socket);
+    unplugged_ptu_comes_back(&dir, &socket);
+}
+
+#[test]
+fn an_unplugged_flir_ptu_shows_drops_the_sweep_and_comes_back() {
+    let dir = tmpdir("unplug-flir");
+    // The FLIR driver at 9600 baud polls the unit about 50 times a second: 100 replies is about
+    // two seconds into the first sweep (which takes three, the move to its start included).
+    let after = FLIR_UNPLUG_AFTER.to_string();
+    let (_rig, ptu, sensor) = start_rig_with(
+        &dir,
+        "flir",
+        &[
+            "--tilt-sign",
+            "-1",
+            "--disconnect-after",
+            &after,
+            "--ptu-replug-after",
+            "3",
+        ],
+    );
+    let config = hardware_config_with(&ptu, &sensor, "flir", "sim_rig_flir.toml", 0.80);
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    unplugged_ptu_comes_back(&dir, &socket);
+}
+
+const FLIR_UNPLUG_AFTER: u64 = 100;
+
+/// The PTU of a running rig was unplugged mid-sweep and is plugged back in: the fault shows, the
+/// sweep is dropped, and a fresh sweep after the replug finds the cup.
+fn unplugged_ptu_comes_back(dir: &Path, socket: &Path) {
+    let mut c = Client::connect(socket);
     // The fault shows in status: the PTU down (or back up, with a failure counted) and a
     // dropped sweep.
     let t0 = Instant::now();
@@ -495,7 +526,7 @@ fn an_unplugged_ptu_shows_drops_the_sweep_and_comes_back() {
         assert!(
             t0.elapsed() < Duration::from_secs(60),
             "no dropped sweep: {s}\n{}",
-            log(&dir)
+            log(dir)
         );
         std::thread::sleep(Duration::from_millis(100));
     };
@@ -513,7 +544,7 @@ fn an_unplugged_ptu_shows_drops_the_sweep_and_comes_back() {
     );
     // Back: a fresh find answers from a sweep made after the replug.
     let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":90}));
-    assert_eq!(r["class"], "detection", "{r}\n{}", log(&dir));
+    assert_eq!(r["class"], "detection", "{r}\n{}", log(dir));
     assert_eq!(r["found"], true, "{r}");
     let s = c.ask(json!({"cmd":"status"}));
     assert_eq!(s["devices"][0]["state"], "ok", "{s}");
