@@ -36,6 +36,15 @@ pub enum Error {
     #[error("{module} fault: {state}")]
     DeviceFault { module: ModuleId, state: CubeState },
 
+    /// A GigE Vision camera could not be opened, set up or driven (the message names its
+    /// address).
+    #[error("GigE Vision camera {0}")]
+    Camera(String),
+
+    /// A GenICam feature could not be set or read, or holds what cannot be used.
+    #[error("camera feature {feature}: {message}")]
+    Feature { feature: String, message: String },
+
     /// The device went away (port closed, pty master dropped, EOF).
     #[error("device disconnected")]
     Disconnected,

@@ -9,6 +9,8 @@
 //! - [`flir`]: FLIR / Directed Perception PTU-D46 ASCII protocol: codec and the async
 //!   [`flir::FlirPtu`].
 //! - [`profile`]: our own binary frame for laser profile streams (codec).
+//! - [`gige`]: GigE Vision line-profile cameras: their blocks of profiles (pure), and with the
+//!   `gige` feature the camera through aravis.
 //! - [`ptu`]: the [`PanTilt`] trait every PTU driver implements.
 //! - [`kind`]: the table of PTU kinds ([`PtuKind`]): names, default line speeds, how to open
 //!   each driver ([`AnyPtu`]) and which mock device stands in for it.
@@ -16,10 +18,13 @@
 //! - [`link`]: opening serial ports; telling an unplugged device from other IO errors.
 //! - [`mock`]: mock devices written from the device's side, served on pseudo-terminals.
 
-#![forbid(unsafe_code)]
+// The only unsafe code is the aravis glue of the `gige` feature (raw frame buffers and the
+// camera emulator's fill callback), each use allowed where it is.
+#![deny(unsafe_code)]
 
 pub mod error;
 pub mod flir;
+pub mod gige;
 pub mod kind;
 pub mod link;
 pub mod mock;

@@ -9,6 +9,8 @@
 //! with a simulated profile sensor that asks it for [`MockDevice::joint_angles`].
 
 pub mod flir;
+#[cfg(feature = "gige")]
+pub mod gige;
 pub mod powercube;
 pub mod sensor;
 

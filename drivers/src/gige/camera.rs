@@ -1,0 +1,486 @@
+//! A GigE Vision line-profile camera through aravis, as a [`ProfileSource`].
+//!
+//! aravis objects stay on one thread of their own (the grab thread): it opens the camera by
+//! address, sets the configured features by name, reads what a block means (size, pixel format,
+//! coordinate scale and offset, invalid value, line rate), then starts and stops acquisition on
+//! command and decodes every block it receives into profiles ([`super::decode_block`]), each
+//! stamped with the host's monotonic time of the block's arrival. The camera's own clock stamps
+//! each row's exposure; the sweep assembler maps it onto the host's as it does for any sensor
+//! (`sweep` module docs: the least-delayed profile).
+//!
+//! A camera that sends nothing while acquiring is asked for a register; when that fails too,
+//! the camera is gone: [`Error::Disconnected`], and the thread ends. The owner reopens it.
+
+#![allow(unsafe_code)]
+
+use std::collections::VecDeque;
+use std::sync::mpsc as std_mpsc;
+use std::time::{Duration, Instant};
+
+use aravis::prelude::*;
+use aravis::{Buffer, BufferStatus, Camera};
+use tokio::sync::{mpsc, oneshot};
+
+use super::{BlockError, RangeEncoding, RangePixel, RowTiming, StampedRow, decode_block};
+use crate::Error;
+use crate::profile::{SeqCounts, SequenceTracker};
+use crate::sensor::{ProfileSource, ReceivedProfile};
+
+/// A feature value to set, by its GenICam type.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FeatureValue {
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    /// An enumeration entry or a string.
+    Str(String),
+}
+
+impl std::fmt::Display for FeatureValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FeatureValue::Bool(b) => write!(f, "{b}"),
+            FeatureValue::Int(i) => write!(f, "{i}"),
+            FeatureValue::Float(x) => write!(f, "{x}"),
+            FeatureValue::Str(s) => write!(f, "{s:?}"),
+        }
+    }
+}
+
+/// How to open and set up the camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GigeConfig {
+    /// The camera's IP address (or an aravis device id). Opened directly, without discovery.
+    pub address: String,
+    /// Features set in this order after opening, e.g. `DeviceScanType = "Linescan3D"`.
+    pub features: Vec<(String, FeatureValue)>,
+    /// Profiles a block (`Height`); `None` keeps the camera's.
+    pub rows_per_frame: Option<u32>,
+    /// Fixed-point fraction bits of the profiles (the calibration's).
+    pub fraction_bits: u8,
+    /// Which row of a block its timestamp belongs to.
+    pub stamped: StampedRow,
+    /// Buffers queued for the stream.
+    pub buffers: usize,
+    /// Backward sequence steps up to this many are late blocks; beyond, a restart.
+    pub reorder_window: u32,
+}
+
+impl GigeConfig {
+    pub fn new(address: impl Into<String>) -> GigeConfig {
+        GigeConfig {
+            address: address.into(),
+            features: Vec::new(),
+            rows_per_frame: None,
+            fraction_bits: 4,
+            stamped: StampedRow::First,
+            buffers: 16,
+            reorder_window: SequenceTracker::DEFAULT_REORDER_WINDOW,
+        }
+    }
+}
+
+/// What the camera said about itself and its blocks once set up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CameraInfo {
+    pub vendor: String,
+    pub model: String,
+    pub serial: String,
+    pub width: usize,
+    pub rows_per_frame: usize,
+    pub pixel_format: String,
+    pub encoding: RangeEncoding,
+    pub line_rate_hz: f64,
+}
+
+enum Command {
+    Start(oneshot::Sender<Result<(), Error>>),
+    Stop(oneshot::Sender<Result<(), Error>>),
+}
+
+type Block = Result<(Vec<crate::profile::Profile>, Instant), Error>;
+
+/// An open GigE Vision line-profile camera.
+pub struct GigeSensor {
+    commands: std_mpsc::Sender<Command>,
+    blocks: mpsc::UnboundedReceiver<Block>,
+    pending: VecDeque<ReceivedProfile>,
+    tracker: SequenceTracker,
+    info: CameraInfo,
+    /// The grab thread reported a failure (said once; then the camera is gone).
+    failed: bool,
+}
+
+/// How long a camera may send nothing while acquiring before its control channel is probed.
+const SILENCE_PROBE: Duration = Duration::from_secs(1);
+/// How long one wait for a buffer lasts on the grab thread (µs): commands are served between.
+const POP_WAIT_US: u64 = 20_000;
+
+fn camera_error(address: &str, what: &str, e: impl std::fmt::Display) -> Error {
+    Error::Camera(format!("{address}: {what}: {e}"))
+}
+
+fn feature_error(feature: &str, e: impl std::fmt::Display) -> Error {
+    Error::Feature {
+        feature: feature.to_string(),
+        message: e.to_string(),
+    }
+}
+
+impl GigeSensor {
+    /// Opens the camera at `cfg.address`, sets its features and reads what its blocks mean.
+    /// Errors name the address, or the feature that could not be set or read.
+    pub async fn open(cfg: GigeConfig) -> Result<GigeSensor, Error> {
+        let (commands, command_rx) = std_mpsc::channel();
+        let (block_tx, blocks) = mpsc::unbounded_channel();
+        let (ready_tx, ready_rx) = oneshot::channel();
+        let reorder_window = cfg.reorder_window;
+        std::thread::Builder::new()
+            .name("gige-grab".into())
+            .spawn(move || grab_thread(cfg, command_rx, block_tx, ready_tx))
+            .map_err(Error::Io)?;
+        let info = ready_rx
+            .await
+            .map_err(|_| Error::Camera("the grab thread ended while opening".into()))??;
+        Ok(GigeSensor {
+            commands,
+            blocks,
+            pending: VecDeque::new(),
+            tracker: SequenceTracker::new(reorder_window),
+            info,
+            failed: false,
+        })
+    }
+
+    pub fn info(&self) -> &CameraInfo {
+        &self.info
+    }
+
+    /// Sequence totals over the profiles handed out.
+    pub fn counts(&self) -> SeqCounts {
+        self.tracker.counts()
+    }
+
+    async fn command(&mut self, make: impl FnOnce(oneshot::Sender<Result<(), Error>>) -> Command) -> Result<(), Error> {
+        let (tx, rx) = oneshot::channel();
+        self.commands.send(make(tx)).map_err(|_| Error::Disconnected)?;
+        match tokio::time::timeout(Duration::from_secs(15), rx).await {
+            Ok(Ok(r)) => r,
+            Ok(Err(_)) => Err(Error::Disconnected),
+            Err(_) => Err(Error::Timeout {
+                waiting_for: "the camera to answer a command",
+                after: Duration::from_secs(15),
+            }),
+        }
+    }
+}
+
+impl ProfileSource for GigeSensor {
+    async fn start(&mut self) -> Result<(), Error> {
+        self.command(Command::Start).await
+    }
+
+    async fn stop(&mut self) -> Result<(), Error> {
+        self.command(Command::Stop).await
+    }
+
+    async fn next_profile(&mut self, wait: Duration) -> Result<ReceivedProfile, Error> {
+        let deadline = tokio::time::Instant::now() + wait;
+        loop {
+            if let Some(p) = self.pending.pop_front() {
+                return Ok(p);
+            }
+            if self.failed {
+                return Err(Error::Disconnected);
+            }
+            match tokio::time::timeout_at(deadline, self.blocks.recv()).await {
+                Err(_) => {
+                    return Err(Error::Timeout {
+                        waiting_for: "a profile",
+                        after: wait,
+                    });
+                }
+                Ok(None) => self.failed = true,
+                Ok(Some(Err(e))) => {
+                    self.failed = true;
+                    return Err(e);
+                }
+                Ok(Some(Ok((profiles, received)))) => {
+                    for profile in profiles {
+                        let seq = self.tracker.observe(profile.seq);
+                        self.pending.push_back(ReceivedProfile { profile, received, seq });
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Opens and sets up the camera; the `Result` says why not.
+fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
+    let address = cfg.address.as_str();
+    let cam = Camera::new(Some(address)).map_err(|e| camera_error(address, "cannot open the GigE Vision camera", e))?;
+    for (name, value) in &cfg.features {
+        let r = match value {
+            FeatureValue::Bool(b) => cam.set_boolean(name, *b),
+            FeatureValue::Int(i) => cam.set_integer(name, *i),
+            FeatureValue::Float(x) => cam.set_float(name, *x),
+            FeatureValue::Str(s) => cam.set_string(name, s),
+        };
+        r.map_err(|e| feature_error(name, format!("cannot set it to {value}: {e}")))?;
+    }
+    if let Some(h) = cfg.rows_per_frame {
+        cam.set_integer("Height", i64::from(h))
+            .map_err(|e| feature_error("Height", format!("cannot set {h} rows a frame: {e}")))?;
+    }
+    let device = cam
+        .device()
+        .ok_or_else(|| camera_error(address, "no device behind the camera", "aravis gave none"))?;
+    let has = |name: &str| device.feature(name).is_some();
+    let int = |name: &str| cam.integer(name).map_err(|e| feature_error(name, e));
+    let float = |name: &str| cam.float(name).map_err(|e| feature_error(name, e));
+    let string = |name: &str| {
+        if has(name) {
+            cam.string(name).map(|s| s.to_string()).unwrap_or_default()
+        } else {
+            String::new()
+        }
+    };
+    let width = int("Width")?;
+    let height = int("Height")?;
+    let (width, height) = match (usize::try_from(width), usize::try_from(height)) {
+        (Ok(w), Ok(h)) if (1..=usize::from(u16::MAX)).contains(&w) && h >= 1 => (w, h),
+        _ => {
+            return Err(feature_error(
+                "Width",
+                format!("{width} x {height}: a block needs 1 to 65535 columns and at least one row"),
+            ));
+        }
+    };
+    let pixel_format = cam
+        .string("PixelFormat")
+        .map_err(|e| feature_error("PixelFormat", e))?
+        .to_string();
+    let pixel = RangePixel::from_name(&pixel_format).ok_or_else(|| {
+        feature_error(
+            "PixelFormat",
+            format!("{pixel_format}: not a range format; set Coord3D_C16, Coord3D_C12p or Mono16"),
+        )
+    })?;
+    let scale = if has("Scan3dCoordinateScale") {
+        float("Scan3dCoordinateScale")?
+    } else {
+        1.0
+    };
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(feature_error(
+            "Scan3dCoordinateScale",
+            format!("{scale}: not a positive number"),
+        ));
+    }
+    let offset = if has("Scan3dCoordinateOffset") {
+        float("Scan3dCoordinateOffset")?
+    } else {
+        0.0
+    };
+    let flagged = !has("Scan3dInvalidDataFlag")
+        || cam
+            .boolean("Scan3dInvalidDataFlag")
+            .map_err(|e| feature_error("Scan3dInvalidDataFlag", e))?;
+    let invalid = if flagged && has("Scan3dInvalidDataValue") {
+        Some(float("Scan3dInvalidDataValue")?)
+    } else {
+        None
+    };
+    let line_rate_hz = float("AcquisitionLineRate")?;
+    if !(line_rate_hz.is_finite() && line_rate_hz > 0.0) {
+        return Err(feature_error(
+            "AcquisitionLineRate",
+            format!("{line_rate_hz}: not a rate"),
+        ));
+    }
+    let info = CameraInfo {
+        vendor: string("DeviceVendorName"),
+        model: string("DeviceModelName"),
+        serial: string("DeviceSerialNumber"),
+        width,
+        rows_per_frame: height,
+        pixel_format,
+        encoding: RangeEncoding {
+            pixel,
+            scale,
+            offset,
+            invalid,
+            fraction_bits: cfg.fraction_bits,
+        },
+        line_rate_hz,
+    };
+    Ok((cam, info))
+}
+
+/// Unwraps GigE Vision's 16-bit block ids (0 is never used) into a running block count.
+#[derive(Default)]
+struct BlockCounter {
+    last: Option<u16>,
+    count: u64,
+}
+
+impl BlockCounter {
+    fn next(&mut self, id: u16) -> u64 {
+        if let Some(last) = self.last {
+            let step = if id > last {
+                u64::from(id - last)
+            } else if id < last {
+                u64::from(id) + 65_535 - u64::from(last)
+            } else {
+                0
+            };
+            self.count += step;
+        }
+        self.last = Some(id);
+        self.count
+    }
+}
+
+fn grab_thread(
+    cfg: GigeConfig,
+    commands: std_mpsc::Receiver<Command>,
+    blocks: mpsc::UnboundedSender<Block>,
+    ready: oneshot::Sender<Result<CameraInfo, Error>>,
+) {
+    let (cam, info) = match setup(&cfg) {
+        Ok(v) => v,
+        Err(e) => {
+            let _ = ready.send(Err(e));
+            return;
+        }
+    };
+    let address = cfg.address.clone();
+    let stream = match cam.create_stream() {
+        Ok(s) => s,
+        Err(e) => {
+            let _ = ready.send(Err(camera_error(&address, "cannot open a stream", e)));
+            return;
+        }
+    };
+    let payload = match cam.payload() {
+        Ok(p) => p as usize,
+        Err(e) => {
+            let _ = ready.send(Err(feature_error("PayloadSize", e)));
+            return;
+        }
+    };
+    for _ in 0..cfg.buffers.max(2) {
+        stream.push_buffer(Buffer::new_allocate(payload));
+    }
+    let line_period_ns = 1e9 / info.line_rate_hz;
+    let (width, height, enc) = (info.width, info.rows_per_frame, info.encoding);
+    if ready.send(Ok(info)).is_err() {
+        return;
+    }
+    let mut acquiring = false;
+    let mut counter = BlockCounter::default();
+    let mut last_block = Instant::now();
+    loop {
+        let command = if acquiring {
+            commands
+                .try_recv()
+                .map_err(|e| matches!(e, std_mpsc::TryRecvError::Disconnected))
+        } else {
+            commands
+                .recv_timeout(Duration::from_millis(100))
+                .map_err(|e| matches!(e, std_mpsc::RecvTimeoutError::Disconnected))
+        };
+        match command {
+            Ok(Command::Start(reply)) => {
+                let r = cam
+                    .start_acquisition()
+                    .map_err(|e| camera_error(&address, "cannot start acquisition", e));
+                acquiring = r.is_ok();
+                last_block = Instant::now();
+                let _ = reply.send(r);
+            }
+            Ok(Command::Stop(reply)) => {
+                acquiring = false;
+                let _ = reply.send(
+                    cam.stop_acquisition()
+                        .map_err(|e| camera_error(&address, "cannot stop acquisition", e)),
+                );
+            }
+            // The owner is gone: leave the camera quiet.
+            Err(true) => {
+                if acquiring {
+                    let _ = cam.stop_acquisition();
+                }
+                return;
+            }
+            Err(false) => {}
+        }
+        if !acquiring {
+            continue;
+        }
+        let Some(buffer) = stream.timeout_pop_buffer(POP_WAIT_US) else {
+            if last_block.elapsed() > SILENCE_PROBE {
+                // Nothing for a while: is the camera still there? A register read fails
+                // after GVCP's retries when it is not.
+                if let Err(e) = cam.integer("Width") {
+                    tracing::warn!("{address}: the camera stopped answering: {e}");
+                    let _ = blocks.send(Err(Error::Disconnected));
+                    return;
+                }
+                last_block = Instant::now();
+            }
+            continue;
+        };
+        let received = Instant::now();
+        last_block = received;
+        if buffer.status() == BufferStatus::Success {
+            let block = counter.next(buffer.frame_id() as u16);
+            let (ptr, len) = buffer.data();
+            let bytes: &[u8] = if ptr.is_null() || len == 0 {
+                &[]
+            } else {
+                // SAFETY: aravis hands out the buffer's own data and its length; the buffer is
+                // alive (owned here) and not pushed back to the stream until `bytes` is dead.
+                unsafe { std::slice::from_raw_parts(ptr, len) }
+            };
+            let timing = RowTiming {
+                block_ns: buffer.timestamp(),
+                line_period_ns,
+                stamped: cfg.stamped,
+            };
+            let first_seq = (block.wrapping_mul(height as u64)) as u32;
+            let decoded = decode_block(bytes, width, height, &enc, &timing, first_seq)
+                .map_err(|e: BlockError| Error::Camera(format!("{address}: block {}: {e}", buffer.frame_id())));
+            match decoded {
+                Ok(profiles) => {
+                    if blocks.send(Ok((profiles, received))).is_err() {
+                        let _ = cam.stop_acquisition();
+                        return;
+                    }
+                }
+                // A block that does not decode is lost, as a corrupt SQPF frame is: its
+                // sequence numbers show as missing.
+                Err(e) => tracing::warn!("{e}"),
+            }
+        }
+        stream.push_buffer(buffer);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_ids_unwrap_past_their_sixteen_bits() {
+        let mut c = BlockCounter::default();
+        assert_eq!(c.next(65_534), 0);
+        assert_eq!(c.next(65_535), 1);
+        // 0 is never used: 65535 is followed by 1.
+        assert_eq!(c.next(1), 2);
+        // A lost block shows as a step of two.
+        assert_eq!(c.next(3), 4);
+        assert_eq!(c.next(3), 4);
+    }
+}
