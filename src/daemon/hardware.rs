@@ -4,7 +4,7 @@
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
+use sqscan_drivers::sensor::{ProfileSensor, ProfileSource, ReceivedProfile, SensorConfig};
 use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, SerialLink};
 
 use crate::calibration::Calibration;
@@ -22,7 +22,38 @@ const BACKOFF_MAX: Duration = Duration::from_secs(5);
 pub trait SensorLink: Link + Sync {}
 impl<T: Link + Sync> SensorLink for T {}
 
-type Sensor = ProfileSensor<Box<dyn SensorLink>>;
+/// The configured profile sensor: an SQPF stream, or a GigE Vision camera.
+enum Sensor {
+    Sqpf(ProfileSensor<Box<dyn SensorLink>>),
+    #[cfg(feature = "gige")]
+    Gige(sqscan_drivers::gige::camera::GigeSensor),
+}
+
+impl ProfileSource for Sensor {
+    async fn start(&mut self) -> Result<(), DriverError> {
+        match self {
+            Sensor::Sqpf(s) => s.start().await,
+            #[cfg(feature = "gige")]
+            Sensor::Gige(s) => ProfileSource::start(s).await,
+        }
+    }
+
+    async fn stop(&mut self) -> Result<(), DriverError> {
+        match self {
+            Sensor::Sqpf(s) => s.stop().await,
+            #[cfg(feature = "gige")]
+            Sensor::Gige(s) => ProfileSource::stop(s).await,
+        }
+    }
+
+    async fn next_profile(&mut self, wait: Duration) -> Result<ReceivedProfile, DriverError> {
+        match self {
+            Sensor::Sqpf(s) => s.next_profile(wait).await,
+            #[cfg(feature = "gige")]
+            Sensor::Gige(s) => ProfileSource::next_profile(s, wait).await,
+        }
+    }
+}
 
 /// A device slot: the open device or when to try opening it again.
 struct Slot<T> {
@@ -131,12 +162,68 @@ impl HardwareBackend {
         Ok(match &self.cfg.sensor {
             SensorEndpoint::Serial(p) => {
                 let link: Box<dyn SensorLink> = Box::new(sqscan_drivers::open_serial(p, cfg.baud)?);
-                ProfileSensor::new(link, cfg)
+                Sensor::Sqpf(ProfileSensor::new(link, cfg))
             }
             SensorEndpoint::Tcp(a) => {
                 let s = ProfileSensor::connect_tcp(a, cfg.clone()).await?;
                 let link: Box<dyn SensorLink> = Box::new(s.into_inner());
-                ProfileSensor::new(link, cfg)
+                Sensor::Sqpf(ProfileSensor::new(link, cfg))
+            }
+            #[cfg(feature = "gige")]
+            SensorEndpoint::Gige(g) => {
+                use super::config::FeatureSetting;
+                use sqscan_drivers::gige::StampedRow;
+                use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
+                let mut c = GigeConfig::new(g.address.clone());
+                c.features = g
+                    .features
+                    .iter()
+                    .map(|(name, v)| {
+                        let v = match v {
+                            FeatureSetting::Bool(b) => FeatureValue::Bool(*b),
+                            FeatureSetting::Int(i) => FeatureValue::Int(*i),
+                            FeatureSetting::Float(x) => FeatureValue::Float(*x),
+                            FeatureSetting::Str(s) => FeatureValue::Str(s.clone()),
+                        };
+                        (name.clone(), v)
+                    })
+                    .collect();
+                c.rows_per_frame = g.rows_per_frame;
+                c.fraction_bits = self.calib.fraction_bits;
+                c.stamped = if g.stamp_last_row {
+                    StampedRow::Last
+                } else {
+                    StampedRow::First
+                };
+                let camera = GigeSensor::open(c).await?;
+                let info = camera.info();
+                if info.width != self.calib.columns {
+                    return Err(DriverError::Feature {
+                        feature: "Width".into(),
+                        message: format!(
+                            "the camera sends {} columns, the calibration has {}",
+                            info.width, self.calib.columns
+                        ),
+                    });
+                }
+                tracing::info!(
+                    "camera {} {} ({}): {} columns, {} profiles a block at {} Hz, {}",
+                    info.vendor,
+                    info.model,
+                    info.serial,
+                    info.width,
+                    info.rows_per_frame,
+                    info.line_rate_hz,
+                    info.pixel_format
+                );
+                Sensor::Gige(camera)
+            }
+            #[cfg(not(feature = "gige"))]
+            SensorEndpoint::Gige(g) => {
+                return Err(DriverError::Camera(format!(
+                    "{}: this sqscand was built without GigE Vision support (cargo feature gige)",
+                    g.address
+                )));
             }
         })
     }
@@ -199,7 +286,15 @@ impl Backend for HardwareBackend {
                 self.cfg.ptu_path.display().to_string(),
                 format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
             ),
-            DeviceStatus::new("sensor", self.cfg.sensor.to_string(), "SQPF profile sensor".into()),
+            DeviceStatus::new(
+                "sensor",
+                self.cfg.sensor.to_string(),
+                match self.cfg.sensor {
+                    SensorEndpoint::Gige(_) => "GigE Vision line-profile camera",
+                    _ => "SQPF profile sensor",
+                }
+                .into(),
+            ),
         ]
     }
 

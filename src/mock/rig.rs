@@ -182,3 +182,84 @@ fn scene_source(
         }
     }
 }
+
+/// The rig's sensor as a GigE Vision line-profile camera: aravis's camera emulator on
+/// `address` serving blocks of `rows_per_frame` profiles at `rate_hz`, each profile the scene
+/// rendered at the PTU's angles when it was exposed. A block is sent after its last row, so its
+/// rows lie in the past when rendered: the PTU's angles are sampled every 2 ms into a history
+/// that the rows are interpolated from. Runs until the returned camera is dropped; the sampler
+/// stops with it.
+#[cfg(feature = "gige")]
+pub fn gige_camera(
+    scene: Arc<Scene>,
+    ptu: Arc<Mutex<dyn MockDevice>>,
+    cfg: &RigConfig,
+    camera: &sqscan_drivers::mock::gige::FakeCameraConfig,
+) -> Result<sqscan_drivers::mock::gige::FakeLineCamera, sqscan_drivers::Error> {
+    use sqscan_drivers::mock::gige::FakeLineCamera;
+    use std::collections::VecDeque;
+
+    const KEEP: Duration = Duration::from_secs(5);
+    type History = Arc<Mutex<VecDeque<(Instant, f64, f64)>>>;
+    let history: History = Arc::new(Mutex::new(VecDeque::new()));
+    let sample = {
+        let (ptu, history) = (ptu.clone(), history.clone());
+        move || {
+            let now = Instant::now();
+            let (pan, tilt) = ptu.lock().unwrap_or_else(|p| p.into_inner()).joint_angles(now);
+            let mut h = history.lock().unwrap_or_else(|p| p.into_inner());
+            h.push_back((now, pan, tilt));
+            while h.front().is_some_and(|f| now.duration_since(f.0) > KEEP) {
+                h.pop_front();
+            }
+        }
+    };
+    sample();
+    // A thread, not a task: the camera's rows need the history whether or not a runtime runs.
+    let alive = Arc::new(());
+    let watch = Arc::downgrade(&alive);
+    std::thread::Builder::new()
+        .name("rig-ptu-history".into())
+        .spawn(move || {
+            while watch.upgrade().is_some() {
+                sample();
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        })
+        .map_err(sqscan_drivers::Error::Io)?;
+    let angles_at = move |t: Instant| -> (f64, f64) {
+        let h = history.lock().unwrap_or_else(|p| p.into_inner());
+        let after = h.partition_point(|s| s.0 <= t);
+        match (after.checked_sub(1).and_then(|i| h.get(i)), h.get(after)) {
+            (Some(a), Some(b)) => {
+                let span = b.0.duration_since(a.0).as_secs_f64();
+                let w = if span > 0.0 {
+                    t.duration_since(a.0).as_secs_f64() / span
+                } else {
+                    0.0
+                };
+                (a.1 + w * (b.1 - a.1), a.2 + w * (b.2 - a.2))
+            }
+            (Some(a), None) => (a.1, a.2),
+            (None, Some(b)) => (b.1, b.2),
+            (None, None) => (0.0, 0.0),
+        }
+    };
+    let (pan_axis, tilt_axis, seed) = (cfg.pan_axis, cfg.tilt_axis, cfg.seed);
+    let unit = f64::from(1u32 << scene.rig.sensor.fraction_bits);
+    let mut index = 0u64;
+    let source = move |exposed: Instant, rows: &mut [f64]| {
+        let _alive = &alive;
+        let (pan, tilt) = angles_at(exposed);
+        let pose = scene
+            .rig
+            .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
+        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, index));
+        index += 1;
+        let raw = sim::render_profile(&scene, &pose, &mut rng);
+        for (out, r) in rows.iter_mut().zip(&raw.rows) {
+            *out = if *r == 0 { f64::NAN } else { f64::from(*r) / unit };
+        }
+    };
+    FakeLineCamera::start(camera, Box::new(source))
+}

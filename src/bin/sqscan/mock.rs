@@ -40,6 +40,30 @@ pub struct MockRigArgs {
     /// Profiles a second while acquiring
     #[arg(long, value_name = "HZ", default_value_t = 50.0)]
     rate: f64,
+    /// The sensor: an SQPF stream on a pty, or a GigE Vision line-profile camera (aravis's
+    /// camera emulator; needs the gige feature) on --gige-address, alongside the idle SQPF pty
+    #[arg(long, value_name = "KIND", default_value = "sqpf", value_parser = ["sqpf", "gige"])]
+    sensor: String,
+    /// Interface address the GigE Vision camera serves on (run it in a private network
+    /// namespace: see drivers/README.md)
+    #[arg(long, value_name = "ADDRESS", default_value = "127.0.0.1")]
+    gige_address: String,
+    /// Profiles a GigE Vision block (the camera's Height)
+    #[arg(long, value_name = "N", default_value_t = 10)]
+    rows_per_frame: u32,
+    /// The GigE Vision camera's clock reads this much ahead of the host's (s)
+    #[arg(long, value_name = "SECS", default_value_t = 1234.5, allow_negative_numbers = true)]
+    camera_clock_offset: f64,
+    /// ...and runs this much fast (ppm; negative: slow)
+    #[arg(long, value_name = "PPM", default_value_t = 0.0, allow_negative_numbers = true)]
+    camera_clock_drift: f64,
+    /// Unplug the GigE Vision camera SECS after the rig starts (the emulator stops and closes its
+    /// sockets)...
+    #[arg(long, value_name = "SECS")]
+    camera_unplug_after: Option<f64>,
+    /// ...and plug a fresh one in on the same address SECS later
+    #[arg(long, value_name = "SECS", requires = "camera_unplug_after")]
+    camera_replug_after: Option<f64>,
     /// After the PTU's --disconnect-after unplug, plug the same unit back in SECS later: a new
     /// pty, the --ptu-link symlink re-pointed at it, same angles; once (it is not unplugged
     /// again). The sensor keeps streaming meanwhile
@@ -175,13 +199,10 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         ..RigConfig::default()
     };
     let columns = scene.rig.sensor.columns;
-    let rig = RigMock::start(
-        std::sync::Arc::new(scene),
-        &cfg,
-        a.ptu_link.as_deref(),
-        a.sensor_link.as_deref(),
-    )
-    .context("cannot start the mock rig")?;
+    let fraction_bits = scene.rig.sensor.fraction_bits;
+    let scene = std::sync::Arc::new(scene);
+    let rig = RigMock::start(scene.clone(), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
+        .context("cannot start the mock rig")?;
     let shown = |path: &Path, link: &Option<PathBuf>| {
         format!(
             "{}{}",
@@ -201,6 +222,49 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         a.rate,
         shown(&rig.sensor_path, &a.sensor_link)
     );
+    let secs = |flag: &str, s: Option<f64>| {
+        s.map(|s| {
+            Duration::try_from_secs_f64(s)
+                .ok()
+                .filter(|d| *d <= Duration::from_secs(86_400))
+                .with_context(|| format!("{flag} {s}: give 0 to 86400 seconds"))
+        })
+        .transpose()
+    };
+    let unplug_after = secs("--camera-unplug-after", a.camera_unplug_after)?;
+    let replug_after = secs("--camera-replug-after", a.camera_replug_after)?;
+    // Kept until the rig stops, or unplugged and plugged back in when asked to.
+    let _camera = if a.sensor == "gige" {
+        let camera = start_camera(&a, scene.clone(), &rig, &cfg, columns, fraction_bits)?;
+        match unplug_after {
+            Some(after) => {
+                let (a2, ptu, cfg2) = (a.clone_camera_args(), rig.ptu.clone(), cfg.clone());
+                tokio::spawn(async move {
+                    tokio::time::sleep(after).await;
+                    unplug(camera);
+                    println!("mock rig: GigE Vision camera unplugged");
+                    let Some(again) = replug_after else { return };
+                    tokio::time::sleep(again).await;
+                    match start_camera_with(&a2, scene, ptu, &cfg2, columns, fraction_bits) {
+                        Ok(_camera) => {
+                            println!("mock rig: GigE Vision camera plugged back in");
+                            // Kept plugged in until the rig stops.
+                            std::future::pending::<()>().await;
+                        }
+                        Err(e) => eprintln!("mock rig: cannot plug the camera back in: {e:#}"),
+                    }
+                });
+                None
+            }
+            None => Some(camera),
+        }
+    } else {
+        if unplug_after.is_some() {
+            anyhow::bail!("--camera-unplug-after is for --sensor gige");
+        }
+        drop(scene);
+        None
+    };
     let RigMock {
         ptu_task,
         sensor_task,
@@ -232,6 +296,101 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
         let _ = std::fs::remove_file(link);
     }
     result
+}
+
+/// Unplugs the camera: the emulator stops and closes its sockets.
+fn unplug(_camera: Camera) {}
+
+/// What starting the rig's camera needs of its arguments, on its own so a task can keep it.
+#[derive(Clone)]
+#[cfg_attr(not(feature = "gige"), allow(dead_code))]
+struct CameraArgs {
+    gige_address: String,
+    rows_per_frame: u32,
+    rate: f64,
+    camera_clock_offset: f64,
+    camera_clock_drift: f64,
+}
+
+impl MockRigArgs {
+    fn clone_camera_args(&self) -> CameraArgs {
+        CameraArgs {
+            gige_address: self.gige_address.clone(),
+            rows_per_frame: self.rows_per_frame,
+            rate: self.rate,
+            camera_clock_offset: self.camera_clock_offset,
+            camera_clock_drift: self.camera_clock_drift,
+        }
+    }
+}
+
+#[cfg(feature = "gige")]
+type Camera = sqscan_drivers::mock::gige::FakeLineCamera;
+#[cfg(not(feature = "gige"))]
+type Camera = ();
+
+fn start_camera(
+    a: &MockRigArgs,
+    scene: std::sync::Arc<sqscan::sim::Scene>,
+    rig: &sqscan::mock::rig::RigMock,
+    cfg: &sqscan::mock::rig::RigConfig,
+    columns: usize,
+    fraction_bits: u8,
+) -> Result<Camera> {
+    start_camera_with(
+        &a.clone_camera_args(),
+        scene,
+        rig.ptu.clone(),
+        cfg,
+        columns,
+        fraction_bits,
+    )
+}
+
+#[cfg(feature = "gige")]
+fn start_camera_with(
+    a: &CameraArgs,
+    scene: std::sync::Arc<sqscan::sim::Scene>,
+    ptu: std::sync::Arc<std::sync::Mutex<dyn sqscan_drivers::mock::MockDevice>>,
+    cfg: &sqscan::mock::rig::RigConfig,
+    columns: usize,
+    fraction_bits: u8,
+) -> Result<Camera> {
+    use sqscan_drivers::mock::gige::FakeCameraConfig;
+    let width = u32::try_from(columns).context("too many columns for a camera")?;
+    let mut camera = FakeCameraConfig::new(a.gige_address.clone(), width);
+    camera.rows_per_frame = a.rows_per_frame;
+    camera.line_rate_hz = a.rate;
+    camera.scale = 1.0 / f64::from(1u32 << fraction_bits);
+    if !(a.camera_clock_offset.is_finite() && a.camera_clock_offset.abs() <= 1e9) {
+        anyhow::bail!("--camera-clock-offset {}: give -1e9 to 1e9 s", a.camera_clock_offset);
+    }
+    if !(a.camera_clock_drift.is_finite() && a.camera_clock_drift.abs() <= 1e5) {
+        anyhow::bail!("--camera-clock-drift {}: give -1e5 to 1e5 ppm", a.camera_clock_drift);
+    }
+    camera.clock = sqscan_drivers::mock::gige::CameraClock {
+        offset_s: a.camera_clock_offset,
+        drift_ppm: a.camera_clock_drift,
+    };
+    let c = sqscan::mock::rig::gige_camera(scene, ptu, cfg, &camera)
+        .with_context(|| format!("cannot start the GigE Vision camera on {}", a.gige_address))?;
+    println!(
+        "mock rig: GigE Vision camera {} ({columns} columns, {} Hz, {} profiles a block) on {}",
+        camera.serial, a.rate, a.rows_per_frame, a.gige_address
+    );
+    Ok(c)
+}
+
+#[cfg(not(feature = "gige"))]
+fn start_camera_with(
+    _: &CameraArgs,
+    _: std::sync::Arc<sqscan::sim::Scene>,
+    _: std::sync::Arc<std::sync::Mutex<dyn sqscan_drivers::mock::MockDevice>>,
+    _: &sqscan::mock::rig::RigConfig,
+    _: usize,
+    _: u8,
+) -> Result<Camera> {
+    anyhow::bail!("--sensor gige: this sqscan was built without GigE Vision support (cargo feature gige)")
 }
 
 async fn mock_ptu(a: MockPtuArgs) -> Result<()> {

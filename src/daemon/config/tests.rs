@@ -161,3 +161,98 @@ fn the_shipped_example_parses() {
     );
     assert_eq!(c.record_keep, 20);
 }
+
+const GIGE: &str = r#"
+[hardware]
+calibration = "rig.toml"
+ptu = { path = "/dev/ttyS0", protocol = "powercube" }
+[hardware.sensor]
+kind = "gige"
+address = "192.168.10.20"
+rows_per_frame = 16
+stamp = "last_row"
+features = [
+  { name = "DeviceScanType", value = "Linescan3D" },
+  { name = "ExposureTime", value = 50.0 },
+  { name = "Scan3dInvalidDataFlag", value = true },
+  { name = "AcquisitionLineRate", value = 1000 },
+]
+[sweep]
+tilt_from_rad = 0.5
+tilt_to_rad = 0.8
+speed_rad_s = 0.1
+"#;
+
+#[test]
+fn a_gige_vision_camera_by_address_and_features_by_name() {
+    let parsed = parse(GIGE);
+    if !cfg!(feature = "gige") {
+        let e = parsed.unwrap_err().to_string();
+        assert!(e.contains("hardware.sensor.kind") && e.contains("feature gige"), "{e}");
+        return;
+    }
+    let c = parsed.unwrap();
+    let BackendConfig::Hardware(h) = &c.backend else {
+        panic!("{:?}", c.backend)
+    };
+    let SensorEndpoint::Gige(g) = &h.sensor else {
+        panic!("{:?}", h.sensor)
+    };
+    assert_eq!(h.sensor.to_string(), "gige://192.168.10.20");
+    assert_eq!(g.rows_per_frame, Some(16));
+    assert!(g.stamp_last_row);
+    assert_eq!(
+        g.features,
+        vec![
+            ("DeviceScanType".to_string(), FeatureSetting::Str("Linescan3D".into())),
+            ("ExposureTime".to_string(), FeatureSetting::Float(50.0)),
+            ("Scan3dInvalidDataFlag".to_string(), FeatureSetting::Bool(true)),
+            ("AcquisitionLineRate".to_string(), FeatureSetting::Int(1000)),
+        ]
+    );
+}
+
+#[test]
+fn gige_settings_that_make_no_sense_are_named() {
+    let sqpf = "[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\n[hardware.sensor]\n";
+    let mut cases = vec![
+        (
+            format!("{sqpf}path = \"s\"\naddress = \"10.0.0.1\""),
+            "hardware.sensor.address",
+        ),
+        (format!("{sqpf}kind = \"usb3\"\npath = \"s\""), "hardware.sensor.kind"),
+    ];
+    if cfg!(feature = "gige") {
+        cases.extend([
+            (format!("{sqpf}kind = \"gige\""), "hardware.sensor.address"),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\npath = \"s\""),
+                "hardware.sensor.path",
+            ),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\nrows_per_frame = 0"),
+                "hardware.sensor.rows_per_frame",
+            ),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\nstamp = \"middle\""),
+                "hardware.sensor.stamp",
+            ),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\nfeatures = [{{ name = \"Gain\", value = [1, 2] }}]"),
+                "hardware.sensor.features[0]",
+            ),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\nfeatures = [{{ name = \"Gain; rm\", value = 1 }}]"),
+                "hardware.sensor.features[0]",
+            ),
+            (
+                format!("{sqpf}kind = \"gige\"\naddress = \"a\"\nfeatures = [{{ name = \"Gain\", value = nan }}]"),
+                "hardware.sensor.features[0]",
+            ),
+        ]);
+    }
+    for (text, field) in cases {
+        let e = parse(&text).unwrap_err().to_string();
+        assert!(e.contains(field), "{text:?}: {e}");
+    }
+}
