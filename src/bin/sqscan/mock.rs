@@ -15,6 +15,8 @@ pub struct MockArgs {
     device: MockDevice,
 }
 
+// Parsed once at start: the size of the rig's arguments does not matter.
+#[allow(clippy::large_enum_variant)]
 #[derive(Subcommand)]
 enum MockDevice {
     /// Run a mock pan-tilt unit on a pty until interrupted

@@ -253,7 +253,7 @@ fn gige_endpoint(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecErro
         if given {
             return Err(SpecError::invalid(
                 path,
-                &field(name),
+                field(name),
                 "not for a GigE Vision camera (kind = \"gige\"): give address",
             ));
         }
@@ -270,7 +270,7 @@ fn gige_endpoint(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecErro
         _ => {
             return Err(SpecError::invalid(
                 path,
-                &field("address"),
+                field("address"),
                 "give the camera's IP address",
             ));
         }
@@ -305,7 +305,7 @@ fn gige_endpoint(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecErro
     {
         return Err(SpecError::invalid(
             path,
-            &field("rows_per_frame"),
+            field("rows_per_frame"),
             format!("{n}: give 1 to {MAX_ROWS_PER_FRAME}"),
         ));
     }
@@ -315,7 +315,7 @@ fn gige_endpoint(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecErro
         Some(other) => {
             return Err(SpecError::invalid(
                 path,
-                &field("stamp"),
+                field("stamp"),
                 format!("{other:?}: give \"first_row\" or \"last_row\""),
             ));
         }
@@ -616,7 +616,7 @@ impl Config {
                             if given {
                                 return Err(SpecError::invalid(
                                     path,
-                                    &format!("hardware.sensor.{name}"),
+                                    format!("hardware.sensor.{name}"),
                                     "only for a GigE Vision camera (kind = \"gige\")",
                                 ));
                             }
