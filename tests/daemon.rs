@@ -929,44 +929,10 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
     );
 }
 
-/// A GigE Vision rig (the mock camera on aravis's emulator, the PowerCube on a pty) runs only
-/// inside a private network namespace with only loopback: the test re-runs itself under
-/// `unshare -n` (root) and says SKIPPED where it cannot.
+// A GigE Vision rig (the mock camera on aravis's emulator, the PowerCube on a pty) runs only
+// inside a private network namespace with only loopback.
 #[cfg(feature = "gige")]
-fn in_private_network(test: &str) -> bool {
-    const INSIDE: &str = "SQSCAN_IN_PRIVATE_NETWORK";
-    if std::env::var_os(INSIDE).is_some() {
-        return true;
-    }
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
-        .arg(std::env::current_exe().unwrap())
-        .args([test, "--exact", "--nocapture", "--test-threads=1"])
-        .env(INSIDE, "1")
-        .output();
-    match out {
-        Ok(o) if o.status.success() => {
-            let text = String::from_utf8_lossy(&o.stdout);
-            assert!(
-                text.contains("1 passed"),
-                "{test} did not run in the namespace:\n{text}"
-            );
-        }
-        Ok(o) => {
-            let err = String::from_utf8_lossy(&o.stderr);
-            if err.contains("unshare failed") || err.contains("Operation not permitted") {
-                eprintln!("SKIPPED {test}: no private network namespace here (unshare -n needs root): {err}");
-            } else {
-                panic!(
-                    "{test} failed in its namespace:\n{}\n{err}",
-                    String::from_utf8_lossy(&o.stdout)
-                );
-            }
-        }
-        Err(e) => eprintln!("SKIPPED {test}: cannot run unshare: {e}"),
-    }
-    false
-}
+use sqscan_drivers::mock::gige::in_private_network;
 
 #[cfg(feature = "gige")]
 #[test]

@@ -231,3 +231,94 @@ fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
     drop(mock);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[cfg(feature = "gige")]
+#[test]
+fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
+    if !sqscan_drivers::mock::gige::in_private_network(
+        "sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf",
+    ) {
+        return;
+    }
+    let dir = std::env::temp_dir().join(format!("sqscan-cli-gige-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
+    let mut mock = Reaper(
+        Command::new(SQSCAN)
+            .args([
+                "mock",
+                "rig",
+                "--protocol",
+                "powercube",
+                "--rate",
+                "100",
+                "--sensor",
+                "gige",
+                "--scene",
+            ])
+            .arg(&scene)
+            .arg("--ptu-link")
+            .arg(&ptu_link)
+            .arg("--sensor-link")
+            .arg(&sensor_link)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    );
+    let lines: Vec<String> = BufReader::new(mock.0.stdout.take().unwrap())
+        .lines()
+        .take(3)
+        .map(|l| l.unwrap())
+        .collect();
+    assert!(
+        lines[2].contains("GigE Vision camera SQ-LP-0001 (256 columns, 100 Hz, 10 profiles a block) on 127.0.0.1"),
+        "{lines:?}"
+    );
+    let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
+    assert!(ok, "{err}");
+    let out = Command::new(SQSCAN)
+        .args([
+            "sensor",
+            "--device",
+            "gige://127.0.0.1",
+            "--feature",
+            "DeviceScanType=Linescan3D",
+            "grab",
+            "30",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        text.contains("256 columns, 10 profiles a block, Coord3D_C16 at 100 Hz"),
+        "{text}"
+    );
+    assert!(text.contains("profiles: 30  seq "), "{text}");
+    assert!(text.contains("dropped 0"), "{text}");
+    let min_returns: usize = text
+        .split("with a return: min ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a returns line");
+    assert!(min_returns > 200, "{text}");
+    // Without the 3D mode the camera sends no range: a bring-up shows it.
+    let out = Command::new(SQSCAN)
+        .args([
+            "sensor",
+            "--device",
+            "gige://127.0.0.1",
+            "--feature",
+            "DeviceScanType=Areascan",
+            "grab",
+            "10",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("with a return: min 0  mean 0.0  max 0"), "{text}");
+    drop(mock);
+    let _ = std::fs::remove_dir_all(&dir);
+}

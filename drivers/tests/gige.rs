@@ -4,52 +4,12 @@
 //! re-runs itself under `unshare -n` (root); where no namespace can be had it says so and skips.
 #![cfg(feature = "gige")]
 
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 use sqscan_drivers::Error;
 use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
-use sqscan_drivers::mock::gige::{CameraClock, FakeCameraConfig, FakeLineCamera};
+use sqscan_drivers::mock::gige::{CameraClock, FakeCameraConfig, FakeLineCamera, in_private_network};
 use sqscan_drivers::sensor::ProfileSource;
-
-const INSIDE: &str = "SQSCAN_IN_PRIVATE_NETWORK";
-
-/// Whether to run the test's body here: true inside the namespace. Outside, runs this test
-/// again inside one and checks that it passed there.
-fn in_private_network(test: &str) -> bool {
-    if std::env::var_os(INSIDE).is_some() {
-        return true;
-    }
-    let exe = std::env::current_exe().unwrap();
-    let out = Command::new("unshare")
-        .args(["-n", "sh", "-c", "ip link set lo up && exec \"$0\" \"$@\""])
-        .arg(&exe)
-        .args([test, "--exact", "--nocapture", "--test-threads=1"])
-        .env(INSIDE, "1")
-        .output();
-    match out {
-        Ok(o) if o.status.success() => {
-            let text = String::from_utf8_lossy(&o.stdout);
-            assert!(
-                text.contains("1 passed"),
-                "{test} did not run in the namespace:\n{text}"
-            );
-        }
-        Ok(o) => {
-            let err = String::from_utf8_lossy(&o.stderr);
-            if err.contains("unshare failed") || err.contains("Operation not permitted") {
-                eprintln!("SKIPPED {test}: no private network namespace here (unshare -n needs root): {err}");
-            } else {
-                panic!(
-                    "{test} failed in its private network namespace:\n{}\n{err}",
-                    String::from_utf8_lossy(&o.stdout)
-                );
-            }
-        }
-        Err(e) => eprintln!("SKIPPED {test}: cannot run unshare: {e}"),
-    }
-    false
-}
 
 /// What the mock camera sees: column `c` at sub-pixel row 50 + c / 4 (every tenth column from
 /// the third on has no return), moving down one row a second.

@@ -109,6 +109,7 @@ pub struct GigeSensor {
     info: CameraInfo,
     /// The grab thread reported a failure (said once; then the camera is gone).
     failed: bool,
+    thread: Option<std::thread::JoinHandle<()>>,
 }
 
 /// How long a camera may send nothing while acquiring before its control channel is probed.
@@ -135,7 +136,7 @@ impl GigeSensor {
         let (block_tx, blocks) = mpsc::unbounded_channel();
         let (ready_tx, ready_rx) = oneshot::channel();
         let reorder_window = cfg.reorder_window;
-        std::thread::Builder::new()
+        let thread = std::thread::Builder::new()
             .name("gige-grab".into())
             .spawn(move || grab_thread(cfg, command_rx, block_tx, ready_tx))
             .map_err(Error::Io)?;
@@ -149,7 +150,20 @@ impl GigeSensor {
             tracker: SequenceTracker::new(reorder_window),
             info,
             failed: false,
+            thread: Some(thread),
         })
+    }
+
+    /// Closes the camera and waits until it is released (its control channel given up), so
+    /// that another client can take it at once. Dropping the sensor releases it too, but in the
+    /// background: a process that exits right after may leave the camera to time out its
+    /// heartbeat first (a few seconds).
+    pub fn close(self) {
+        let GigeSensor { commands, thread, .. } = self;
+        drop(commands);
+        if let Some(t) = thread {
+            let _ = t.join();
+        }
     }
 
     pub fn info(&self) -> &CameraInfo {

@@ -2,15 +2,27 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use sqscan_drivers::sensor::{ProfileSensor, ReceivedProfile, SensorConfig};
+use sqscan_drivers::profile::SeqCounts;
+use sqscan_drivers::sensor::{ProfileSensor, ProfileSource, ReceivedProfile, SensorConfig};
 use std::path::PathBuf;
 use std::time::Duration;
 
 #[derive(Args)]
 pub struct SensorArgs {
-    /// Serial port (or a mock's pty link), or tcp://HOST:PORT for a networked sensor
+    /// Serial port (or a mock's pty link), tcp://HOST:PORT for a networked sensor, or
+    /// gige://ADDRESS for a GigE Vision line-profile camera (a build with the gige feature)
     #[arg(long, value_name = "PATH")]
     device: PathBuf,
+    /// GigE Vision: set a GenICam feature before grabbing, NAME=VALUE (true/false, an integer, a
+    /// number or an enumeration entry); repeat for more, set in the order given
+    #[arg(long = "feature", value_name = "NAME=VALUE")]
+    features: Vec<String>,
+    /// GigE Vision: profiles a block (the camera's Height) [default: the camera's]
+    #[arg(long, value_name = "N")]
+    rows_per_frame: Option<u32>,
+    /// GigE Vision: fixed-point fraction bits of the profiles (the calibration's)
+    #[arg(long, value_name = "BITS", default_value_t = 4)]
+    fraction_bits: u8,
     /// Line speed
     #[arg(long, default_value_t = 921_600)]
     baud: u32,
@@ -45,21 +57,92 @@ pub fn run(a: SensorArgs) -> Result<()> {
         ..SensorConfig::default()
     };
     let device = a.device.to_string_lossy().into_owned();
+    if let Some(addr) = device.strip_prefix("gige://") {
+        return rt.block_on(grab_gige(&a, addr, count, wait));
+    }
+    if !a.features.is_empty() || a.rows_per_frame.is_some() {
+        bail!("--feature and --rows-per-frame are for a GigE Vision camera (--device gige://ADDRESS)");
+    }
     rt.block_on(async {
         if let Some(addr) = device.strip_prefix("tcp://") {
-            let sensor = ProfileSensor::connect_tcp(addr, cfg)
+            let mut sensor = ProfileSensor::connect_tcp(addr, cfg)
                 .await
                 .with_context(|| format!("cannot reach the sensor at {addr}"))?;
-            grab(sensor, count, wait).await
+            let got = grab(&mut sensor, count, wait).await?;
+            print_stats(&got, sensor.counts(), &sqpf_stats(&sensor));
         } else {
-            let sensor =
+            let mut sensor =
                 ProfileSensor::open(&a.device, cfg).with_context(|| format!("cannot open the sensor on {device}"))?;
-            grab(sensor, count, wait).await
+            let got = grab(&mut sensor, count, wait).await?;
+            print_stats(&got, sensor.counts(), &sqpf_stats(&sensor));
         }
+        Ok(())
     })
 }
 
-async fn grab<S: sqscan_drivers::Link>(mut sensor: ProfileSensor<S>, count: usize, wait: Duration) -> Result<()> {
+fn sqpf_stats<S: sqscan_drivers::Link>(sensor: &ProfileSensor<S>) -> String {
+    format!(
+        "  bad frames {}  skipped bytes {}",
+        sensor.frame_errors(),
+        sensor.decoder_stats().skipped_bytes
+    )
+}
+
+#[cfg(feature = "gige")]
+async fn grab_gige(a: &SensorArgs, addr: &str, count: usize, wait: Duration) -> Result<()> {
+    use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
+    let mut cfg = GigeConfig::new(addr);
+    for f in &a.features {
+        let Some((name, value)) = f.split_once('=') else {
+            bail!("--feature {f:?}: give NAME=VALUE");
+        };
+        let value = match value {
+            "true" => FeatureValue::Bool(true),
+            "false" => FeatureValue::Bool(false),
+            v => match (v.parse::<i64>(), v.parse::<f64>()) {
+                (Ok(i), _) => FeatureValue::Int(i),
+                (_, Ok(x)) if x.is_finite() => FeatureValue::Float(x),
+                _ => FeatureValue::Str(v.to_string()),
+            },
+        };
+        cfg.features.push((name.trim().to_string(), value));
+    }
+    cfg.rows_per_frame = a.rows_per_frame;
+    if a.fraction_bits > 15 {
+        bail!("--fraction-bits {}: give 0 to 15", a.fraction_bits);
+    }
+    cfg.fraction_bits = a.fraction_bits;
+    let mut camera = GigeSensor::open(cfg)
+        .await
+        .with_context(|| format!("cannot open the camera at {addr}"))?;
+    let i = camera.info().clone();
+    println!(
+        "camera: {} {} ({}) at {addr}: {} columns, {} profiles a block, {} at {} Hz, scale {} offset {} invalid {}",
+        i.vendor,
+        i.model,
+        i.serial,
+        i.width,
+        i.rows_per_frame,
+        i.pixel_format,
+        i.line_rate_hz,
+        i.encoding.scale,
+        i.encoding.offset,
+        i.encoding.invalid.map_or("none".to_string(), |v| v.to_string())
+    );
+    let got = grab(&mut camera, count, wait).await;
+    let counts = camera.counts();
+    // Released before exiting, for whoever opens the camera next.
+    camera.close();
+    print_stats(&got?, counts, "");
+    Ok(())
+}
+
+#[cfg(not(feature = "gige"))]
+async fn grab_gige(_: &SensorArgs, addr: &str, _: usize, _: Duration) -> Result<()> {
+    bail!("gige://{addr}: this sqscan was built without GigE Vision support (cargo feature gige)")
+}
+
+async fn grab<P: ProfileSource>(sensor: &mut P, count: usize, wait: Duration) -> Result<Vec<ReceivedProfile>> {
     sensor.start().await.context("cannot start acquisition")?;
     let mut got: Vec<ReceivedProfile> = Vec::with_capacity(count.min(100_000));
     while got.len() < count {
@@ -73,18 +156,16 @@ async fn grab<S: sqscan_drivers::Link>(mut sensor: ProfileSensor<S>, count: usiz
     if let Err(e) = sensor.stop().await {
         eprintln!("sqscan: warning: cannot stop acquisition: {e}");
     }
-    print_stats(&got, &sensor);
-    Ok(())
+    Ok(got)
 }
 
-fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &ProfileSensor<S>) {
+/// What the bring-up tool prints of a grab; `link` adds what the link knows (SQPF: bad frames).
+fn print_stats(got: &[ReceivedProfile], counts: SeqCounts, link: &str) {
     let (Some(first), Some(last)) = (got.first(), got.last()) else {
         return;
     };
-    let counts = sensor.counts();
-    let decoder = sensor.decoder_stats();
     println!(
-        "profiles: {}  seq {}..{}  dropped {}  duplicates {}  late {}  restarts {}  bad frames {}  skipped bytes {}",
+        "profiles: {}  seq {}..{}  dropped {}  duplicates {}  late {}  restarts {}{link}",
         got.len(),
         first.profile.seq,
         last.profile.seq,
@@ -92,8 +173,6 @@ fn print_stats<S: sqscan_drivers::Link>(got: &[ReceivedProfile], sensor: &Profil
         counts.duplicates,
         counts.late,
         counts.restarts,
-        sensor.frame_errors(),
-        decoder.skipped_bytes
     );
     let returns: Vec<usize> = got
         .iter()
