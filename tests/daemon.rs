@@ -455,6 +455,8 @@ fn mock_devices_on_ptys_find_the_cup() {
     let s = c.ask(json!({"cmd":"status"}));
     let devices = s["devices"].as_array().unwrap();
     assert!(devices.iter().all(|d| d["state"] == "ok"), "{s}");
+    let scan = c.ask(json!({"cmd":"scan","timeout_s":60}));
+    assert_eq!(scan["report"]["profile_times"], "profile", "{scan}");
 }
 
 #[test]
@@ -514,32 +516,39 @@ const FLIR_UNPLUG_AFTER: u64 = 100;
 /// The PTU of a running rig was unplugged mid-sweep and is plugged back in: the fault shows, the
 /// sweep is dropped, and a fresh sweep after the replug finds the cup.
 fn unplugged_ptu_comes_back(dir: &Path, socket: &Path) {
+    unplugged_device_comes_back(dir, socket, 0, "ptu", "PTU");
+}
+
+/// Device `k` of `status` (`name`) of a running rig was unplugged mid-sweep and is plugged back
+/// in: a dropped sweep, the device's failure and a fault naming it (`fault`) show, and a fresh
+/// sweep after the replug finds the cup.
+fn unplugged_device_comes_back(dir: &Path, socket: &Path, k: usize, name: &str, fault: &str) {
     let mut c = Client::connect(socket);
-    // The fault shows in status: the PTU down (or back up, with a failure counted) and a
-    // dropped sweep.
+    // The fault shows in status: the device down (or back up, with its failure counted) and a
+    // dropped sweep (the one under way: its profiles or its moves stopped).
     let t0 = Instant::now();
     let status = loop {
         let s = c.ask(json!({"cmd":"status"}));
-        if s["sweeps"]["dropped"].as_u64().unwrap() >= 1 {
+        let failures = s["devices"][k]["failures"].as_u64().unwrap();
+        if s["sweeps"]["dropped"].as_u64().unwrap() >= 1 && failures >= 1 {
             break s;
         }
         assert!(
             t0.elapsed() < Duration::from_secs(60),
-            "no dropped sweep: {s}\n{}",
+            "no dropped sweep and {name} failure: {s}\n{}",
             log(dir)
         );
         std::thread::sleep(Duration::from_millis(100));
     };
-    let ptu_status = &status["devices"][0];
-    assert_eq!(ptu_status["name"], "ptu");
-    assert!(ptu_status["failures"].as_u64().unwrap() >= 1, "{status}");
-    assert!(ptu_status["last_error"].is_string(), "{status}");
+    let device = &status["devices"][k];
+    assert_eq!(device["name"], name, "{status}");
+    assert!(device["last_error"].is_string(), "{status}");
     assert!(
         status["faults"]
             .as_array()
             .unwrap()
             .iter()
-            .any(|f| f["message"].as_str().unwrap().contains("PTU")),
+            .any(|f| f["message"].as_str().unwrap().contains(fault)),
         "{status}"
     );
     // Back: a fresh find answers from a sweep made after the replug.
@@ -547,8 +556,8 @@ fn unplugged_ptu_comes_back(dir: &Path, socket: &Path) {
     assert_eq!(r["class"], "detection", "{r}\n{}", log(dir));
     assert_eq!(r["found"], true, "{r}");
     let s = c.ask(json!({"cmd":"status"}));
-    assert_eq!(s["devices"][0]["state"], "ok", "{s}");
-    assert!(s["devices"][0]["opens"].as_u64().unwrap() >= 2, "{s}");
+    assert_eq!(s["devices"][k]["state"], "ok", "{s}");
+    assert!(s["devices"][k]["opens"].as_u64().unwrap() >= 2, "{s}");
 }
 
 #[test]
@@ -934,6 +943,30 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
 #[cfg(feature = "gige")]
 use sqscan_drivers::mock::gige::in_private_network;
 
+/// The daemon's configuration for the mock rig's PowerCube on `ptu` and its camera on
+/// 127.0.0.1; `sensor` adds to `[hardware.sensor]`.
+#[cfg(feature = "gige")]
+fn gige_config(ptu: &Path, sensor: &str) -> String {
+    format!(
+        r#"
+[hardware]
+calibration = "{}"
+ptu = {{ path = "{}", protocol = "powercube" }}
+[hardware.sensor]
+kind = "gige"
+address = "127.0.0.1"
+{sensor}
+[sweep]
+tilt_from_rad = 0.49
+tilt_to_rad = 0.84
+speed_rad_s = 0.12
+timeout_s = 5.0
+"#,
+        root().join("calibration/sim_rig.toml").display(),
+        ptu.display(),
+    )
+}
+
 #[cfg(feature = "gige")]
 #[test]
 fn a_gige_vision_rig_finds_the_cup() {
@@ -957,27 +990,9 @@ fn a_gige_vision_rig_finds_the_cup() {
         ],
     );
     // The camera powers up in its 2D mode: the configuration asks for profiles by feature name.
-    let config = format!(
-        r#"
-[hardware]
-calibration = "{}"
-ptu = {{ path = "{}", protocol = "powercube" }}
-[hardware.sensor]
-kind = "gige"
-address = "127.0.0.1"
-rows_per_frame = 10
-features = [
-  {{ name = "DeviceScanType", value = "Linescan3D" }},
-  {{ name = "PixelFormat", value = "Coord3D_C16" }},
-]
-[sweep]
-tilt_from_rad = 0.49
-tilt_to_rad = 0.84
-speed_rad_s = 0.12
-timeout_s = 5.0
-"#,
-        root().join("calibration/sim_rig.toml").display(),
-        ptu.display(),
+    let config = gige_config(
+        &ptu,
+        "rows_per_frame = 10\nfeatures = [\n  { name = \"DeviceScanType\", value = \"Linescan3D\" },\n  { name = \"PixelFormat\", value = \"Coord3D_C16\" },\n]",
     );
     wait_for("the camera", Duration::from_secs(10), || {
         std::fs::read_to_string(dir.join("rig.log")).is_ok()
@@ -994,6 +1009,7 @@ timeout_s = 5.0
     assert_eq!(s["devices"][1]["state"], "ok", "{s}");
     let scan = c.ask(json!({"cmd":"scan","timeout_s":60}));
     assert!(scan["profiles"].as_u64().unwrap() >= 100, "{scan}");
+    assert_eq!(scan["report"]["profile_times"], "block_and_line_rate", "{scan}");
 }
 
 #[cfg(feature = "gige")]
@@ -1015,51 +1031,10 @@ fn an_unplugged_gige_camera_drops_the_sweep_and_comes_back() {
             "3",
         ],
     );
-    let config = format!(
-        r#"
-[hardware]
-calibration = "{}"
-ptu = {{ path = "{}", protocol = "powercube" }}
-[hardware.sensor]
-kind = "gige"
-address = "127.0.0.1"
-features = [{{ name = "DeviceScanType", value = "Linescan3D" }}]
-[sweep]
-tilt_from_rad = 0.49
-tilt_to_rad = 0.84
-speed_rad_s = 0.12
-timeout_s = 5.0
-"#,
-        root().join("calibration/sim_rig.toml").display(),
-        ptu.display(),
+    let config = gige_config(
+        &ptu,
+        "features = [{ name = \"DeviceScanType\", value = \"Linescan3D\" }]",
     );
     let (_d, socket) = start_daemon(&dir, &config, &[]);
-    let mut c = Client::connect(&socket);
-    // The sweep under way loses its profiles (dropped: too few, or the camera's silence); the
-    // camera is found gone (its control channel times out) and reopened until it is back.
-    let t0 = Instant::now();
-    let status = loop {
-        let s = c.ask(json!({"cmd":"status"}));
-        let failures = s["devices"][1]["failures"].as_u64().unwrap();
-        if s["sweeps"]["dropped"].as_u64().unwrap() >= 1 && failures >= 1 {
-            break s;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(60),
-            "no dropped sweep and sensor failure: {s}\n{}",
-            log(&dir)
-        );
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    let sensor = &status["devices"][1];
-    assert_eq!(sensor["name"], "sensor", "{status}");
-    assert!(sensor["failures"].as_u64().unwrap() >= 1, "{status}");
-    assert!(sensor["last_error"].is_string(), "{status}");
-    // Back: a fresh find answers from a sweep made after the camera came back.
-    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":90}));
-    assert_eq!(r["class"], "detection", "{r}\n{}", log(&dir));
-    assert_eq!(r["found"], true, "{r}");
-    let s = c.ask(json!({"cmd":"status"}));
-    assert_eq!(s["devices"][1]["state"], "ok", "{s}");
-    assert!(s["devices"][1]["opens"].as_u64().unwrap() >= 2, "{s}");
+    unplugged_device_comes_back(&dir, &socket, 1, "sensor", "sensor");
 }

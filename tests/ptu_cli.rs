@@ -10,6 +10,25 @@ const SQSCAN: &str = env!("CARGO_BIN_EXE_sqscan");
 /// Kills the mock when the test ends, however it ends.
 struct Reaper(Child);
 
+/// `sqscan mock rig` on the Fig. 3 scene, a PowerCube at 100 profiles a second, with `extra`
+/// arguments; its stdout piped.
+fn mock_rig(ptu_link: &Path, sensor_link: &Path, extra: &[&str]) -> Reaper {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
+    Reaper(
+        Command::new(SQSCAN)
+            .args(["mock", "rig", "--protocol", "powercube", "--rate", "100", "--scene"])
+            .arg(&scene)
+            .arg("--ptu-link")
+            .arg(ptu_link)
+            .arg("--sensor-link")
+            .arg(sensor_link)
+            .args(extra)
+            .stdout(Stdio::piped())
+            .spawn()
+            .expect("sqscan mock runs"),
+    )
+}
+
 impl Drop for Reaper {
     fn drop(&mut self) {
         let _ = self.0.kill();
@@ -125,19 +144,7 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     let dir = std::env::temp_dir().join(format!("sqscan-cli-rig-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
-    let mut mock = Reaper(
-        Command::new(SQSCAN)
-            .args(["mock", "rig", "--protocol", "powercube", "--rate", "100", "--scene"])
-            .arg(&scene)
-            .arg("--ptu-link")
-            .arg(&ptu_link)
-            .arg("--sensor-link")
-            .arg(&sensor_link)
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("sqscan mock runs"),
-    );
+    let mut mock = mock_rig(&ptu_link, &sensor_link, &[]);
     // Two lines once both ptys and links exist (loading the scene's models takes a while).
     let mut lines = BufReader::new(mock.0.stdout.take().unwrap()).lines();
     let first = lines.next().unwrap().unwrap();
@@ -243,29 +250,7 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
     let dir = std::env::temp_dir().join(format!("sqscan-cli-gige-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (ptu_link, sensor_link) = (dir.join("ptu"), dir.join("sensor"));
-    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
-    let mut mock = Reaper(
-        Command::new(SQSCAN)
-            .args([
-                "mock",
-                "rig",
-                "--protocol",
-                "powercube",
-                "--rate",
-                "100",
-                "--sensor",
-                "gige",
-                "--scene",
-            ])
-            .arg(&scene)
-            .arg("--ptu-link")
-            .arg(&ptu_link)
-            .arg("--sensor-link")
-            .arg(&sensor_link)
-            .stdout(Stdio::piped())
-            .spawn()
-            .expect("sqscan mock runs"),
-    );
+    let mut mock = mock_rig(&ptu_link, &sensor_link, &["--sensor", "gige"]);
     let lines: Vec<String> = BufReader::new(mock.0.stdout.take().unwrap())
         .lines()
         .take(3)
@@ -304,6 +289,17 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
         .and_then(|n| n.parse().ok())
         .expect("a returns line");
     assert!(min_returns > 200, "{text}");
+    // Discovery (a broadcast, on loopback only here) finds it by its address.
+    let out = Command::new(SQSCAN)
+        .args(["sensor", "--device", "gige://any", "discover"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        text.contains("gige://127.0.0.1") && text.contains("SQ-LP-0001"),
+        "{text}"
+    );
     // Without the 3D mode the camera sends no range: a bring-up shows it.
     let out = Command::new(SQSCAN)
         .args([

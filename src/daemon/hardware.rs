@@ -312,7 +312,12 @@ impl Backend for HardwareBackend {
         };
         let result = sweep::acquire(ptu, sensor, &self.calib, &settings).await;
         match result {
-            Ok(sweep) => {
+            Ok(mut sweep) => {
+                sweep.report.profile_times = match self.cfg.sensor {
+                    SensorEndpoint::Gige(_) => "block_and_line_rate",
+                    _ => "profile",
+                }
+                .into();
                 // Assembled sweeps always carry their start; now is the fallback that cannot lie
                 // by much.
                 let started = sweep.start.unwrap_or_else(Instant::now);

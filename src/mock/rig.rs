@@ -157,6 +157,21 @@ async fn serve_ptu(
     port.serve(device, faults).await
 }
 
+/// The profile the sensor sees with the unit at device angles `(pan, tilt)`, its noise from
+/// `seed`.
+fn render_at(
+    scene: &Scene,
+    (pan, tilt): (f64, f64),
+    (pan_axis, tilt_axis): (AxisConfig, AxisConfig),
+    seed: u64,
+) -> sim::RawProfile {
+    let pose = scene
+        .rig
+        .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    sim::render_profile(scene, &pose, &mut rng)
+}
+
 /// The sensor's view: the scene rendered at the PTU's angles at `now`.
 fn scene_source(
     scene: Arc<Scene>,
@@ -167,12 +182,8 @@ fn scene_source(
     let mut index = 0u64;
     move |now| {
         let (pan, tilt) = ptu.lock().unwrap_or_else(|p| p.into_inner()).joint_angles(now);
-        let pose = scene
-            .rig
-            .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
-        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, index));
+        let raw = render_at(&scene, (pan, tilt), (pan_axis, tilt_axis), stream_seed(seed, index));
         index += 1;
-        let raw = sim::render_profile(&scene, &pose, &mut rng);
         Profile {
             seq: 0,
             timestamp_ns: 0,
@@ -250,13 +261,13 @@ pub fn gige_camera(
     let mut index = 0u64;
     let source = move |exposed: Instant, rows: &mut [f64]| {
         let _alive = &alive;
-        let (pan, tilt) = angles_at(exposed);
-        let pose = scene
-            .rig
-            .sensor_in_base(pan_axis.to_joint(pan), tilt_axis.to_joint(tilt));
-        let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, index));
+        let raw = render_at(
+            &scene,
+            angles_at(exposed),
+            (pan_axis, tilt_axis),
+            stream_seed(seed, index),
+        );
         index += 1;
-        let raw = sim::render_profile(&scene, &pose, &mut rng);
         for (out, r) in rows.iter_mut().zip(&raw.rows) {
             *out = if *r == 0 { f64::NAN } else { f64::from(*r) / unit };
         }

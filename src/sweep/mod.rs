@@ -81,6 +81,11 @@ pub struct SweepReport {
     /// Largest delay of a kept profile beyond the least-delayed one (s): how much the clock
     /// mapping corrected.
     pub max_extra_delay_s: f64,
+    /// Where each profile's exposure time came from: `"profile"` (the sensor stamps every
+    /// profile: SQPF), `"block_and_line_rate"` (a GigE Vision block's stamp plus the row's index
+    /// over the line rate; line timestamps in chunk data are not read), empty where no sensor
+    /// stamped it (simulated sweeps).
+    pub profile_times: String,
 }
 
 /// One sweep: an organized range image, rows = profiles in exposure order, columns = sensor

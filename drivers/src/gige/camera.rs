@@ -230,6 +230,36 @@ impl ProfileSource for GigeSensor {
     }
 }
 
+/// A GigE Vision device that answered discovery.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Discovered {
+    /// aravis's device id (vendor-model-serial).
+    pub id: String,
+    pub vendor: String,
+    pub model: String,
+    /// The address to open it by.
+    pub address: String,
+}
+
+/// The GigE Vision devices that answer a discovery broadcast on the host's interfaces. The
+/// broadcast goes to every interface's network: run it where that is meant (on a robot's
+/// camera network, or in a private network namespace). Other transports aravis knows (USB3
+/// Vision, its own in-process fake) are left out.
+pub fn discover() -> Vec<Discovered> {
+    // SAFETY: aravis's device list is global state; `get_device_list` updates and reads it in
+    // one call, and this crate makes no other use of it.
+    let all = unsafe { aravis::get_device_list() };
+    all.into_iter()
+        .filter(|d| d.protocol.to_string_lossy() == "GigEVision")
+        .map(|d| Discovered {
+            id: d.id.to_string_lossy().into_owned(),
+            vendor: d.vendor.to_string_lossy().into_owned(),
+            model: d.model.to_string_lossy().into_owned(),
+            address: d.address.to_string_lossy().into_owned(),
+        })
+        .collect()
+}
+
 /// Opens and sets up the camera; the `Result` says why not.
 fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
     let address = cfg.address.as_str();

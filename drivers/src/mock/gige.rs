@@ -179,6 +179,18 @@ fn write_f64(camera: &FakeCamera, address: u32, value: f64) {
     camera.write_register(address + 4, bits as u32);
 }
 
+/// A string register of `len` bytes (NUL-padded), four bytes a register write (each stored
+/// big-endian, so the bytes land in order).
+fn write_string(camera: &FakeCamera, address: u32, len: u32, text: &str) {
+    let mut bytes = text.as_bytes().to_vec();
+    bytes.resize(len as usize, 0);
+    for (k, word) in bytes.chunks(4).enumerate() {
+        let mut b = [0u8; 4];
+        b[..word.len()].copy_from_slice(word);
+        camera.write_register(address + 4 * k as u32, u32::from_be_bytes(b));
+    }
+}
+
 fn read_f64(camera: &FakeCamera, address: u32) -> f64 {
     let hi = camera.read_register(address).unwrap_or(0);
     let lo = camera.read_register(address + 4).unwrap_or(0);
@@ -213,6 +225,9 @@ impl FakeLineCamera {
         let Some(camera) = emulator.fake_camera() else {
             return bad("the emulator has no camera".into());
         };
+        // Our names where the emulator put its own (DeviceVendorName, DeviceModelName).
+        write_string(&camera, 0x48, 32, "sqscan");
+        write_string(&camera, 0x68, 32, "mock line-profile camera");
         camera.write_register(REG_WIDTH, cfg.width);
         camera.write_register(0x11c, cfg.width);
         camera.write_register(REG_HEIGHT, cfg.rows_per_frame);

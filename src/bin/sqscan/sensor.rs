@@ -37,14 +37,21 @@ pub struct SensorArgs {
 enum Action {
     /// Start acquisition, receive N profiles, stop, and print statistics
     Grab {
+        /// Profiles to receive
         #[arg(default_value_t = 100)]
         count: usize,
     },
+    /// List the GigE Vision cameras that answer a discovery broadcast on this host's networks
+    /// (give --device gige://ANY; a build with the gige feature)
+    Discover,
 }
 
 pub fn run(a: SensorArgs) -> Result<()> {
     let wait = Duration::try_from_secs_f64(a.timeout).context("--timeout: give a number of seconds >= 0")?;
-    let Action::Grab { count } = a.action;
+    let count = match a.action {
+        Action::Grab { count } => count,
+        Action::Discover => return discover(),
+    };
     if count == 0 {
         bail!("grab: give a count of at least 1");
     }
@@ -86,6 +93,23 @@ fn sqpf_stats<S: sqscan_drivers::Link>(sensor: &ProfileSensor<S>) -> String {
         sensor.frame_errors(),
         sensor.decoder_stats().skipped_bytes
     )
+}
+
+#[cfg(feature = "gige")]
+fn discover() -> Result<()> {
+    let found = sqscan_drivers::gige::camera::discover();
+    if found.is_empty() {
+        println!("no GigE Vision camera answered");
+    }
+    for d in found {
+        println!("gige://{}  {} {}  ({})", d.address, d.vendor, d.model, d.id);
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "gige"))]
+fn discover() -> Result<()> {
+    bail!("discover: this sqscan was built without GigE Vision support (cargo feature gige)")
 }
 
 #[cfg(feature = "gige")]
