@@ -10,6 +10,15 @@ const SQSCAN: &str = env!("CARGO_BIN_EXE_sqscan");
 /// Kills the mock when the test ends, however it ends.
 struct Reaper(Child);
 
+/// The fewest columns with a return in a profile, from `sqscan sensor grab`'s output.
+fn min_returns(text: &str) -> usize {
+    text.split("with a return: min ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("a returns line")
+}
+
 /// `sqscan mock rig` on the Fig. 3 scene, a PowerCube at 100 profiles a second, with `extra`
 /// arguments; its stdout piped.
 fn mock_rig(ptu_link: &Path, sensor_link: &Path, extra: &[&str]) -> Reaper {
@@ -164,13 +173,7 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");
     // At tilt 0.6 nearly the whole fan sees the table or the objects on it.
-    let min_returns: usize = text
-        .split("with a return: min ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("a returns line");
-    assert!(min_returns > 200, "{text}");
+    assert!(min_returns(&text) > 200, "{text}");
 
     drop(mock);
     let _ = std::fs::remove_dir_all(&dir);
@@ -282,13 +285,7 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
     );
     assert!(text.contains("profiles: 30  seq "), "{text}");
     assert!(text.contains("dropped 0"), "{text}");
-    let min_returns: usize = text
-        .split("with a return: min ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("a returns line");
-    assert!(min_returns > 200, "{text}");
+    assert!(min_returns(&text) > 200, "{text}");
     // Discovery (a broadcast, on loopback only here) finds it by its address.
     let out = Command::new(SQSCAN)
         .args(["sensor", "--device", "gige://any", "discover"])
