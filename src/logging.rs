@@ -1,15 +1,95 @@
 //! Diagnostics of both binaries: `tracing` to stderr (stdout stays the command's output), at the
 //! level `SQSCAN_LOG` names (`error`, `warn`, `info`, `debug`, `trace`) or the binary's default.
+//!
+//! Three forms, by where stderr goes:
+//! - a terminal: time, level and message, coloured;
+//! - the systemd journal (stderr is the stream `JOURNAL_STREAM` names): each line starts with its
+//!   syslog priority, `<3>` for an error to `<7>` for debug (sd-daemon(3); journald's
+//!   `SyslogLevelPrefix=`, on by default), and carries no time, which journald adds, so that
+//!   `journalctl -p err` shows the errors;
+//! - anything else (a file, a pipe): as on a terminal without colour codes.
+
+use std::fmt;
+
+use tracing::{Event, Level, Subscriber};
+use tracing_subscriber::fmt::format::{FormatEvent, FormatFields, Writer};
+use tracing_subscriber::fmt::{FmtContext, FormattedFields};
+use tracing_subscriber::registry::LookupSpan;
+
+/// The syslog priority of a level (sd-daemon(3): `<3>` error, `<4>` warning, `<6>` info,
+/// `<7>` debug).
+pub fn syslog_priority(level: &Level) -> u8 {
+    match *level {
+        Level::ERROR => 3,
+        Level::WARN => 4,
+        Level::INFO => 6,
+        _ => 7,
+    }
+}
+
+/// Lines for the journal: `<N>` and the message, with the fields of the spans around it.
+struct JournalLines;
+
+impl<S, N> FormatEvent<S, N> for JournalLines
+where
+    S: Subscriber + for<'a> LookupSpan<'a>,
+    N: for<'a> FormatFields<'a> + 'static,
+{
+    fn format_event(&self, ctx: &FmtContext<'_, S, N>, mut writer: Writer<'_>, event: &Event<'_>) -> fmt::Result {
+        write!(writer, "<{}>", syslog_priority(event.metadata().level()))?;
+        if let Some(scope) = ctx.event_scope() {
+            for span in scope.from_root() {
+                if let Some(fields) = span.extensions().get::<FormattedFields<N>>()
+                    && !fields.is_empty()
+                {
+                    write!(writer, "{}{{{fields}}}: ", span.name())?;
+                }
+            }
+        }
+        // One record a line: a message's own line breaks would start records without a
+        // priority, so they are written as spaces.
+        let mut message = String::new();
+        ctx.field_format().format_fields(Writer::new(&mut message), event)?;
+        writeln!(writer, "{}", message.replace(['\n', '\r'], " "))
+    }
+}
+
+/// Whether stderr is the journal stream systemd connected (`JOURNAL_STREAM` is its
+/// `DEVICE:INODE`): only then do the priority prefixes mean anything to the reader.
+pub fn stderr_is_journal() -> bool {
+    use std::os::fd::AsFd;
+    use std::os::unix::fs::MetadataExt;
+    let Some(stream) = std::env::var_os("JOURNAL_STREAM") else {
+        return false;
+    };
+    let Some((dev, ino)) = stream.to_str().and_then(|s| s.split_once(':')) else {
+        return false;
+    };
+    let (Ok(dev), Ok(ino)) = (dev.parse::<u64>(), ino.parse::<u64>()) else {
+        return false;
+    };
+    let Ok(fd) = std::io::stderr().as_fd().try_clone_to_owned() else {
+        return false;
+    };
+    std::fs::File::from(fd)
+        .metadata()
+        .is_ok_and(|m| m.dev() == dev && m.ino() == ino)
+}
 
 /// Installs the stderr subscriber; call once at start-up.
 pub fn init(default: tracing::Level) {
+    use std::io::IsTerminal;
     let level = std::env::var("SQSCAN_LOG")
         .ok()
         .and_then(|l| l.parse().ok())
         .unwrap_or(default);
-    tracing_subscriber::fmt()
+    let builder = tracing_subscriber::fmt()
         .with_writer(std::io::stderr)
         .with_max_level(level)
-        .with_target(false)
-        .init();
+        .with_target(false);
+    if stderr_is_journal() {
+        builder.with_ansi(false).event_format(JournalLines).init();
+    } else {
+        builder.with_ansi(std::io::stderr().is_terminal()).init();
+    }
 }

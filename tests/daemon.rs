@@ -1038,3 +1038,65 @@ fn an_unplugged_gige_camera_drops_the_sweep_and_comes_back() {
     let (_d, socket) = start_daemon(&dir, &config, &[]);
     unplugged_device_comes_back(&dir, &socket, 1, "sensor", "sensor");
 }
+
+/// A models directory with the shipped models and one broken file, which the daemon logs as an
+/// error and skips.
+fn models_with_a_broken_one(dir: &Path) -> PathBuf {
+    let models = dir.join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    for e in std::fs::read_dir(root().join("models")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") {
+            std::fs::copy(&p, models.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    std::fs::write(models.join("broken.toml"), "name = \"broken\"\n[[part]]\na = [\n").unwrap();
+    models
+}
+
+#[test]
+fn logs_carry_no_colour_codes_and_journal_lines_carry_their_priority() {
+    use std::os::unix::fs::MetadataExt;
+    // Stderr a file: plain lines, no escape byte.
+    let dir = tmpdir("log-plain");
+    let config = format!(
+        "{}\n[server]\nmodels_dir = \"{}\"\n",
+        sim_config(),
+        models_with_a_broken_one(&dir).display()
+    );
+    let (d, socket) = start_daemon(&dir, &config, &[]);
+    Client::connect(&socket).ask(json!({"cmd":"status"}));
+    drop(d);
+    let text = log(&dir);
+    assert!(text.contains("skipping a model"), "{text}");
+    assert!(!text.contains('\u{1b}'), "escape codes in a file: {text:?}");
+
+    // Stderr the journal's stream: each line starts with its syslog priority.
+    let dir = tmpdir("log-journal");
+    let config = format!(
+        "{}\n[server]\nmodels_dir = \"{}\"\n",
+        sim_config(),
+        models_with_a_broken_one(&dir).display()
+    );
+    // The file start_daemon makes stderr keeps this inode (it is truncated, not replaced).
+    let m = std::fs::File::create(dir.join("sqscand.log"))
+        .unwrap()
+        .metadata()
+        .unwrap();
+    let stream = format!("{}:{}", m.dev(), m.ino());
+    let (d, socket) = start_daemon(&dir, &config, &[("JOURNAL_STREAM", stream.as_str())]);
+    Client::connect(&socket).ask(json!({"cmd":"status"}));
+    drop(d);
+    let text = log(&dir);
+    assert!(!text.contains('\u{1b}'), "escape codes in the journal: {text:?}");
+    let line = |what: &str| {
+        text.lines()
+            .find(|l| l.contains(what))
+            .unwrap_or_else(|| panic!("no line with {what:?}: {text}"))
+            .to_string()
+    };
+    assert!(line("skipping a model").starts_with("<3>"), "{text}");
+    assert!(line("scanning with").starts_with("<6>"), "{text}");
+    // journald stamps the lines itself.
+    assert!(!line("scanning with").contains("Z "), "{text}");
+}
