@@ -615,6 +615,15 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     assert_eq!((cloud.width, cloud.height), (256, 150));
     assert!(cloud.viewpoint.is_some());
 
+    // The client over TCP.
+    let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .args(["status", "--json", "--socket", &format!("tcp://127.0.0.1:{port}")])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["class"], "status", "{v}");
+    assert_eq!(v["mode"], "on_demand", "{v}");
     // The same protocol over TCP.
     let tcp = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     tcp.set_read_timeout(Some(Duration::from_secs(30))).unwrap();

@@ -1,7 +1,8 @@
 //! The daemon's client: `sqscan find | status | watch | scan | models`. One connection, one
 //! request (with an id), the reply printed for people or, with `--json`, as the daemon sent it.
 
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
 use std::os::unix::net::UnixStream;
 use std::path::PathBuf;
 use std::time::Duration;
@@ -15,8 +16,9 @@ use sqscan::daemon::config::client_socket_candidates;
 /// Where and how to talk to the daemon.
 #[derive(Args, Clone)]
 pub struct ClientArgs {
-    /// The daemon's socket [default: $SQSCAN_SOCKET, else $XDG_RUNTIME_DIR/sqscand.sock or
-    /// ./sqscand.sock, else /run/sqscan/sqscand.sock: the first that exists]
+    /// The daemon's socket, or tcp://HOST:PORT for a daemon listening on TCP ([server] tcp)
+    /// [default: $SQSCAN_SOCKET, else $XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else
+    /// /run/sqscan/sqscand.sock: the first that exists]
     #[arg(long, value_name = "PATH")]
     socket: Option<PathBuf>,
     /// Print the daemon's JSON replies as they are, one a line
@@ -68,10 +70,58 @@ pub struct PlainArgs {
     client: ClientArgs,
 }
 
+/// A connection to the daemon: its Unix socket, or TCP.
+enum Stream {
+    Unix(UnixStream),
+    Tcp(TcpStream),
+}
+
+impl Stream {
+    fn try_clone(&self) -> std::io::Result<Stream> {
+        Ok(match self {
+            Stream::Unix(s) => Stream::Unix(s.try_clone()?),
+            Stream::Tcp(s) => Stream::Tcp(s.try_clone()?),
+        })
+    }
+
+    fn set_read_timeout(&self, t: Option<Duration>) -> std::io::Result<()> {
+        match self {
+            Stream::Unix(s) => s.set_read_timeout(t),
+            Stream::Tcp(s) => s.set_read_timeout(t),
+        }
+    }
+}
+
+impl Read for Stream {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self {
+            Stream::Unix(s) => s.read(buf),
+            Stream::Tcp(s) => s.read(buf),
+        }
+    }
+}
+
+impl Write for Stream {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        match self {
+            Stream::Unix(s) => s.write(buf),
+            Stream::Tcp(s) => s.write(buf),
+        }
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        match self {
+            Stream::Unix(s) => s.flush(),
+            Stream::Tcp(s) => s.flush(),
+        }
+    }
+}
+
 struct Connection {
-    reader: BufReader<UnixStream>,
-    writer: UnixStream,
-    path: PathBuf,
+    reader: BufReader<Stream>,
+    writer: Stream,
+    /// Where, as the user gave it.
+    path: String,
 }
 
 impl Connection {
@@ -83,21 +133,23 @@ impl Connection {
                 c.iter().find(|p| p.exists()).cloned().unwrap_or_else(|| c[0].clone())
             }
         };
-        let stream = UnixStream::connect(&path).with_context(|| {
-            format!(
-                "cannot connect to the daemon at {} (is sqscand running? --socket names another)",
-                path.display()
-            )
+        let shown = path.display().to_string();
+        let stream = match shown.strip_prefix("tcp://") {
+            Some(addr) => TcpStream::connect(addr).map(Stream::Tcp),
+            None => UnixStream::connect(&path).map(Stream::Unix),
+        }
+        .with_context(|| {
+            format!("cannot connect to the daemon at {shown} (is sqscand running? --socket names another)")
         })?;
         let writer = stream.try_clone().context("cloning the socket")?;
         let mut c = Connection {
             reader: BufReader::new(stream),
             writer,
-            path,
+            path: shown,
         };
         let hello = c.read()?;
         if hello["class"] != "version" {
-            bail!("{} did not greet like sqscand: {hello}", c.path.display());
+            bail!("{} did not greet like sqscand: {hello}", c.path);
         }
         Ok(c)
     }
@@ -112,7 +164,7 @@ impl Connection {
         let mut line = String::new();
         let n = self.reader.read_line(&mut line).context("reading from the daemon")?;
         if n == 0 {
-            bail!("the daemon at {} closed the connection", self.path.display());
+            bail!("the daemon at {} closed the connection", self.path);
         }
         serde_json::from_str(&line).with_context(|| format!("the daemon sent something that is not JSON: {line:?}"))
     }
