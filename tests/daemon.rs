@@ -569,7 +569,7 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
         .unwrap()
         .port();
     let config = format!(
-        "{}\n[acquisition]\nmode = \"on_demand\"\n[server]\ntcp = \"127.0.0.1:{port}\"\n[record]\ndir = \"rec\"\nkeep = 2\n",
+        "{}\n[acquisition]\nmode = \"on_demand\"\n[server]\ntcp = \"127.0.0.1:{port}\"\nframe_id = \"robot_base\"\n[record]\ndir = \"rec\"\nkeep = 2\n",
         sim_config()
     );
     let (_d, socket) = start_daemon(&dir, &config, &[]);
@@ -582,6 +582,7 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     // find asks for a sweep; so does scan; each is recorded.
     let r = c.ask(json!({"cmd":"find","object":"bowl","timeout_s":30}));
     assert_eq!(r["found"], true, "{r}");
+    assert_eq!(r["frame"], "robot_base", "{r}");
     for _ in 0..2 {
         assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
     }
@@ -612,6 +613,7 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
         serde_json::from_str(&std::fs::read_to_string(rec.join(format!("{newest}.json"))).unwrap()).unwrap();
     let cloud = sqscan::cloud::read_cloud(&rec.join(format!("{newest}.pcd"))).unwrap();
     assert_eq!(cloud.finite_count() as u64, meta["points"].as_u64().unwrap());
+    assert_eq!(meta["frame"], "robot_base");
     assert_eq!((cloud.width, cloud.height), (256, 150));
     assert!(cloud.viewpoint.is_some());
 

@@ -50,10 +50,11 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 warm_detections(&shared, &entry);
                 if let Some(dir) = shared.config.record_dir.clone() {
                     let keep = shared.config.record_keep;
+                    let frame = shared.config.frame_id.clone();
                     let e = entry.clone();
                     let s = shared.clone();
                     tokio::task::spawn_blocking(move || {
-                        if let Err(err) = record::write_sweep(&dir, &e, keep) {
+                        if let Err(err) = record::write_sweep(&dir, &e, keep, &frame) {
                             tracing::error!("recording sweep {}: {err:#}", e.id);
                             s.stats.record_fault(format!("recording sweep {}: {err:#}", e.id));
                         }

@@ -21,7 +21,7 @@ pub fn stem(id: u64) -> String {
 }
 
 /// Records one sweep and prunes the directory to the newest `keep` (0 keeps all).
-pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize) -> Result<()> {
+pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str) -> Result<()> {
     fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let stem = stem(entry.id);
     write_atomic(&dir.join(format!("{stem}.pcd")), |w| {
@@ -31,7 +31,7 @@ pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize) -> Result<()> {
     let meta = json!({
         "id": entry.id,
         "time": entry.time_s(),
-        "frame": "base_link",
+        "frame": frame,
         "profiles": entry.sweep.profiles,
         "columns": entry.sweep.columns,
         "points": entry.points,
@@ -117,7 +117,7 @@ mod tests {
                     recorded: None,
                 },
             );
-            write_sweep(&dir, &e, 2).unwrap();
+            write_sweep(&dir, &e, 2, "base_link").unwrap();
         }
         let mut names: Vec<String> = fs::read_dir(&dir)
             .unwrap()

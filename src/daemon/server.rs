@@ -427,7 +427,10 @@ async fn watch(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Optio
         for name in &objects {
             let Ok(model) = shared.model(name) else { continue };
             let det = entry.detection(&shared, model, false).await;
-            out.update(with_id(detection_reply(&entry, &det, false), id.as_ref()));
+            out.update(with_id(
+                detection_reply(&entry, &det, false, &shared.config.frame_id),
+                id.as_ref(),
+            ));
         }
         if !shared.config.continuous {
             shared.sweep_wanted.notify_one();
@@ -436,10 +439,10 @@ async fn watch(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Optio
 }
 
 /// The `detection` reply: the detector's JSON, the sweep it was made on and how old that is.
-pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool) -> Value {
+pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool, frame: &str) -> Value {
     let mut v = report_json(&det.report, all);
     v["class"] = json!("detection");
-    v["frame"] = json!("base_link");
+    v["frame"] = json!(frame);
     v["sweep"] = json!({
         "id": entry.id,
         "time": entry.time_s(),
@@ -475,7 +478,7 @@ async fn handle(shared: &Arc<Shared>, req: &Request) -> Value {
                 Err(msg) => return error_reply(None, &format!("find {object}: {msg}")),
             };
             let det = entry.detection(shared, model, *all).await;
-            detection_reply(&entry, &det, *all)
+            detection_reply(&entry, &det, *all, &shared.config.frame_id)
         }
         Command::Scan { timeout_s } => {
             let asked = Instant::now();

@@ -58,6 +58,8 @@ struct ServerFile {
     client_queue: Option<usize>,
     /// A client with nothing in flight and no watch is closed after this long (s).
     idle_timeout_s: Option<f64>,
+    /// The frame the sweeps' points and the poses are in (the calibration's base frame).
+    frame_id: Option<String>,
 }
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -364,6 +366,8 @@ pub struct Config {
     pub record_dir: Option<PathBuf>,
     pub record_keep: usize,
     pub watch: Vec<String>,
+    /// The frame the sweeps' points and the poses are in, as replies and recordings name it.
+    pub frame_id: String,
 }
 
 /// The socket path when neither the file nor `--socket` names one: under `$XDG_RUNTIME_DIR`
@@ -488,6 +492,7 @@ impl Config {
             record_dir: None,
             record_keep: 20,
             watch: Vec::new(),
+            frame_id: "base_link".into(),
         }
     }
 
@@ -545,6 +550,22 @@ impl Config {
         }
         if let Some(d) = &s.models_dir {
             c.models_dir = rel(d);
+        }
+        if let Some(f) = &s.frame_id {
+            // A ROS name: letters, digits, underscores and slashes, not starting with a digit.
+            let ok = f
+                .chars()
+                .next()
+                .is_some_and(|c| c.is_ascii_alphabetic() || c == '_' || c == '/')
+                && f.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '/');
+            if !ok {
+                return Err(SpecError::invalid(
+                    path,
+                    "server.frame_id",
+                    format!("{f:?}: give a frame name like \"base_link\" (letters, digits, _ and /)"),
+                ));
+            }
+            c.frame_id = f.clone();
         }
         if let Some(n) = count_within(path, "server.max_clients", s.max_clients, limits::MAX_CLIENTS)? {
             c.max_clients = n;

@@ -43,6 +43,11 @@ fn hardware_paths_are_relative_to_the_file() {
     assert_eq!(h.sensor, SensorEndpoint::Tcp("10.0.0.2:5000".into()));
     assert_eq!(c.tcp, Some("127.0.0.1:2948".parse().unwrap()));
     assert_eq!(c.watch, vec!["cup".to_string()]);
+    assert_eq!(c.frame_id, "base_link");
+    assert_eq!(
+        parse("[server]\nframe_id = \"robot/base_footprint\"").unwrap().frame_id,
+        "robot/base_footprint"
+    );
 }
 
 #[test]
@@ -122,6 +127,9 @@ fn absurd_numbers_are_refused_naming_the_field() {
         ("[server]\ntcp = \"[::]:29481\"\nallow_remote = false", "server.tcp"),
         ("[record]\ndir = \"r\"\nkeep = 4611686018427387904", "record.keep"),
         ("[replay]\ndir = \"r\"\nspeed = -1.0", "replay.speed"),
+        ("[server]\nframe_id = \"\"", "server.frame_id"),
+        ("[server]\nframe_id = \"base link\"", "server.frame_id"),
+        ("[server]\nframe_id = \"9base\"", "server.frame_id"),
         ("[replay]\ndir = \"r\"\nspeed = inf", "replay.speed"),
         ("[acquisition]\nbackend = \"replay\"", "replay"),
         ("[acquisition]\nbackend = \"tape\"", "acquisition.backend"),
