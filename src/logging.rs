@@ -36,21 +36,27 @@ where
     N: for<'a> FormatFields<'a> + 'static,
 {
     fn format_event(&self, ctx: &FmtContext<'_, S, N>, mut writer: Writer<'_>, event: &Event<'_>) -> fmt::Result {
-        write!(writer, "<{}>", syslog_priority(event.metadata().level()))?;
+        let mut line = String::new();
         if let Some(scope) = ctx.event_scope() {
             for span in scope.from_root() {
+                line.push_str(span.name());
                 if let Some(fields) = span.extensions().get::<FormattedFields<N>>()
                     && !fields.is_empty()
                 {
-                    write!(writer, "{}{{{fields}}}: ", span.name())?;
+                    line.push_str(&format!("{{{fields}}}"));
                 }
+                line.push_str(": ");
             }
         }
-        // One record a line: a message's own line breaks would start records without a
-        // priority, so they are written as spaces.
-        let mut message = String::new();
-        ctx.field_format().format_fields(Writer::new(&mut message), event)?;
-        writeln!(writer, "{}", message.replace(['\n', '\r'], " "))
+        ctx.field_format().format_fields(Writer::new(&mut line), event)?;
+        // One record a line: line breaks in a message or a span's fields would start records
+        // without a priority, so they are written as spaces.
+        writeln!(
+            writer,
+            "<{}>{}",
+            syslog_priority(event.metadata().level()),
+            line.replace(['\n', '\r'], " ")
+        )
     }
 }
 

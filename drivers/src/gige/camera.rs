@@ -362,24 +362,30 @@ fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
     Ok((cam, info))
 }
 
-/// Unwraps GigE Vision's 16-bit block ids (0 is never used) into a running block count.
+/// Unwraps block ids into a running block count: GigE Vision 1.x ids are 16 bits and skip 0
+/// (65535 is followed by 1); 2.x ids are 64 bits. A step back (a late block, a camera that
+/// restarted its count) moves the count back by as much, so the sequence numbers show it to the
+/// tracker as late or as a restart.
 #[derive(Default)]
 struct BlockCounter {
-    last: Option<u16>,
+    last: Option<u64>,
     count: u64,
 }
 
 impl BlockCounter {
-    fn next(&mut self, id: u16) -> u64 {
+    fn next(&mut self, id: u64) -> u64 {
         if let Some(last) = self.last {
-            let step = if id > last {
-                u64::from(id - last)
-            } else if id < last {
-                u64::from(id) + 65_535 - u64::from(last)
+            let forward = if id >= last {
+                id - last
+            } else if last <= 0xFFFF && last - id > 0x8000 {
+                // A 16-bit wrap: 65535 -> 1 is one step.
+                id + 0xFFFF - last
             } else {
-                0
+                self.count = self.count.wrapping_sub(last - id);
+                self.last = Some(id);
+                return self.count;
             };
-            self.count += step;
+            self.count = self.count.wrapping_add(forward);
         }
         self.last = Some(id);
         self.count
@@ -407,8 +413,21 @@ fn grab_thread(
             return;
         }
     };
+    // A block's payload holds its pixels, and perhaps padding or chunks; not gigabytes more.
+    let need = info
+        .encoding
+        .pixel
+        .bytes(info.width * info.rows_per_frame)
+        .unwrap_or(usize::MAX);
     let payload = match cam.payload() {
-        Ok(p) => p as usize,
+        Ok(p) if (p as usize) >= need && (p as usize) <= need.saturating_mul(2).saturating_add(1 << 16) => p as usize,
+        Ok(p) => {
+            let _ = ready.send(Err(feature_error(
+                "PayloadSize",
+                format!("{p} bytes for a block of {need}: the camera's size features disagree"),
+            )));
+            return;
+        }
         Err(e) => {
             let _ = ready.send(Err(feature_error("PayloadSize", e)));
             return;
@@ -424,6 +443,7 @@ fn grab_thread(
     }
     let mut acquiring = false;
     let mut counter = BlockCounter::default();
+    let mut failed_blocks = 0u64;
     let mut last_block = Instant::now();
     loop {
         let command = if acquiring {
@@ -440,7 +460,8 @@ fn grab_thread(
                 let r = cam
                     .start_acquisition()
                     .map_err(|e| camera_error(&address, "cannot start acquisition", e));
-                acquiring = r.is_ok();
+                acquiring |= r.is_ok();
+                counter = BlockCounter::default();
                 last_block = Instant::now();
                 let _ = reply.send(r);
             }
@@ -477,9 +498,29 @@ fn grab_thread(
             continue;
         };
         let received = Instant::now();
-        last_block = received;
-        if buffer.status() == BufferStatus::Success {
-            let block = counter.next(buffer.frame_id() as u16);
+        let status = buffer.status();
+        let shape = (buffer.image_width(), buffer.image_height(), buffer.image_pixel_format());
+        let expected = (width as i32, height as i32);
+        if status != BufferStatus::Success {
+            // Incomplete or lost blocks (a packet size over the path's MTU, a full link): said,
+            // and the camera is not alive for them.
+            failed_blocks += 1;
+            if failed_blocks.is_power_of_two() {
+                tracing::warn!("{address}: {failed_blocks} blocks failed, the last {status:?}");
+            }
+        } else if (shape.0, shape.1) != expected || RangePixel::from_pfnc(shape.2.raw()) != Some(enc.pixel) {
+            tracing::warn!(
+                "{address}: a block of {} x {} {:?} where {} x {} {:?} was set up: skipped",
+                shape.0,
+                shape.1,
+                shape.2,
+                width,
+                height,
+                enc.pixel
+            );
+        } else {
+            last_block = received;
+            let block = counter.next(buffer.frame_id());
             let (ptr, len) = buffer.data();
             let bytes: &[u8] = if ptr.is_null() || len == 0 {
                 &[]
@@ -526,5 +567,13 @@ mod tests {
         // A lost block shows as a step of two.
         assert_eq!(c.next(3), 4);
         assert_eq!(c.next(3), 4);
+        // A late block steps back, and the next one forward again.
+        assert_eq!(c.next(2), 3);
+        assert_eq!(c.next(4), 5);
+        // 64-bit ids count on past 16 bits.
+        let mut c = BlockCounter::default();
+        assert_eq!(c.next(65_535), 0);
+        assert_eq!(c.next(65_536), 1);
+        assert_eq!(c.next(70_000), 70_000 - 65_535);
     }
 }

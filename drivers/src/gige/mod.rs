@@ -95,8 +95,9 @@ impl RowTiming {
             StampedRow::First => i as f64,
             StampedRow::Last => i as f64 - (height.saturating_sub(1)) as f64,
         };
-        let t = self.block_ns as f64 + steps * self.line_period_ns;
-        t.max(0.0).round() as u64
+        // In integer nanoseconds: a PTP-synchronised stamp (~1.7e18 ns) is not exact in f64.
+        let shift = (steps * self.line_period_ns).round() as i64;
+        self.block_ns.saturating_add_signed(shift)
     }
 }
 

@@ -167,6 +167,7 @@ struct State {
 pub struct FakeLineCamera {
     emulator: Option<GvFakeCamera>,
     state: *mut State,
+    fake: *mut aravis_sys::ArvFakeCamera,
 }
 
 // SAFETY: `state` is only read through a shared reference (its fields are behind mutexes) by
@@ -209,6 +210,14 @@ impl FakeLineCamera {
         }
         if !(1..=4096).contains(&cfg.width) || !(1..=4096).contains(&cfg.rows_per_frame) {
             return bad(format!("{} x {}: give 1 to 4096 each", cfg.width, cfg.rows_per_frame));
+        }
+        // The emulator answers its control channel on the thread that fills the blocks: a block
+        // must not take longer than a control exchange may wait.
+        if f64::from(cfg.rows_per_frame) / cfg.line_rate_hz > MAX_BLOCK_S {
+            return bad(format!(
+                "{} profiles a block at {} Hz take over {MAX_BLOCK_S} s",
+                cfg.rows_per_frame, cfg.line_rate_hz
+            ));
         }
         // The emulator reads its description from a file.
         let xml = std::env::temp_dir().join(format!(
@@ -261,13 +270,18 @@ impl FakeLineCamera {
         Ok(FakeLineCamera {
             emulator: Some(emulator),
             state,
+            fake: fake_ptr,
         })
     }
 }
 
 impl Drop for FakeLineCamera {
     fn drop(&mut self) {
-        // The emulator's thread is joined when its last reference goes: no fill runs after.
+        // Taking the callback away waits for a fill under way (the emulator holds its fill
+        // mutex while filling); then no fill can reach `state`, whoever still holds the
+        // emulator.
+        // SAFETY: the emulator (alive until the next line) owns the camera `fake` points to.
+        unsafe { aravis_sys::arv_fake_camera_set_fill_pattern(self.fake, None, std::ptr::null_mut()) };
         drop(self.emulator.take());
         // SAFETY: made by `Box::into_raw` in `start`, and nothing uses it any more.
         unsafe { drop(Box::from_raw(self.state)) };
@@ -276,6 +290,9 @@ impl Drop for FakeLineCamera {
 
 /// How often the emulator asks for a frame (us): more often than any block is due.
 const FRAME_POLL_US: u32 = 1000;
+/// The longest a block may take (s): the fill waits that long at most, on the thread that also
+/// answers the control channel.
+const MAX_BLOCK_S: f64 = 0.5;
 
 /// `ArvFakeCameraFillPattern`: called by the emulator's thread for every frame, after it set
 /// the frame's size, format, timestamp and id (ours overrides the timestamp).
@@ -320,7 +337,14 @@ unsafe extern "C" fn fill(
         let invalid = read_f64(&camera, REG_INVALID_VALUE);
         let line_rate = read_f64(&camera, REG_LINE_RATE);
         drop(camera);
-        let period = Duration::from_secs_f64(1.0 / line_rate.clamp(1e-3, 1e6));
+        // A client may write any rate; one that makes a block take too long (or is no number)
+        // is served at the longest block the control channel tolerates.
+        let line_rate = if line_rate.is_finite() && line_rate > 0.0 {
+            line_rate.max(height as f64 / MAX_BLOCK_S)
+        } else {
+            height as f64 / MAX_BLOCK_S
+        };
+        let period = Duration::from_secs_f64(1.0 / line_rate.min(1e6));
         let max = if bits == 16 { 65_535.0 } else { 4_095.0 };
         // The line clock runs on from the last block; after a pause (acquisition stopped) it
         // starts again now.
