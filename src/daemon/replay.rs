@@ -61,7 +61,7 @@ impl ReplayBackend {
     /// Indexes `dir`. Errors name the file that is wrong; a directory with nothing to serve is an
     /// error. The clouds themselves are read when served (see [`Self::check_all`]).
     pub fn new(dir: &Path, speed: f64, looping: bool) -> Result<ReplayBackend> {
-        if !(speed.is_finite() && speed >= 0.0 && speed <= 1000.0) {
+        if !(speed.is_finite() && (0.0..=1000.0).contains(&speed)) {
             bail!("replay speed {speed}: give 0 (as fast as asked) or a factor up to 1000");
         }
         let items = index(dir)?;
