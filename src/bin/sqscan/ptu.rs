@@ -18,6 +18,7 @@ pub struct PtuArgs {
     /// Serial port (or a mock's pty link)
     #[arg(long, value_name = "PATH")]
     device: PathBuf,
+    /// The unit's protocol
     #[arg(long, value_parser = ptu_kind_parser())]
     protocol: PtuKind,
     /// Line speed [default: 38400 for powercube, 9600 for flir]
@@ -32,10 +33,14 @@ pub struct PtuArgs {
     /// Pan axis sign (+1 or -1): joint = sign * device + offset
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pan_sign: f64,
+    /// Pan axis offset (rad): the joint angle at device angle 0
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "RAD")]
     pan_offset: f64,
+    /// Tilt axis sign (+1 or -1): joint = sign * device + offset (-1 for a PTU-D46 tilting down
+    /// at negative positions)
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     tilt_sign: f64,
+    /// Tilt axis offset (rad): the joint angle at device angle 0
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "RAD")]
     tilt_offset: f64,
     /// Give up on a move after this many seconds
@@ -53,19 +58,25 @@ enum Action {
     Home,
     /// Move to an absolute pose (an axis not given stays where it is) and wait until reached
     Move {
+        /// Pan joint angle to reach (rad)
         #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
         pan: Option<f64>,
+        /// Tilt joint angle to reach (rad)
         #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
         tilt: Option<f64>,
+        /// Joint speed (rad/s)
         #[arg(long, default_value_t = 0.5, value_name = "RAD_S")]
         speed: f64,
     },
     /// Tilt from one angle to another at a constant speed, sampling the position on the way
     Sweep {
+        /// Tilt joint angle to start from (rad); the unit moves there first
         #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
         from: f64,
+        /// Tilt joint angle to end at (rad)
         #[arg(long, allow_negative_numbers = true, value_name = "RAD")]
         to: f64,
+        /// Tilt speed during the sweep (rad/s)
         #[arg(long, value_name = "RAD_S")]
         speed: f64,
     },
