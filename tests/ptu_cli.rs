@@ -172,6 +172,18 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");
+    let out = Command::new(SQSCAN)
+        .args(["sensor", "--json", "--device"])
+        .arg(&sensor_link)
+        .args(["grab", "5"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["profiles"], 5, "{v}");
+    assert_eq!(v["columns"], 256, "{v}");
+    assert_eq!(v["bad_frames"], 0, "{v}");
+    assert!(v["with_a_return"]["min"].as_u64().unwrap() > 200, "{v}");
     // At tilt 0.6 nearly the whole fan sees the table or the objects on it.
     assert!(min_returns(&text) > 200, "{text}");
 
