@@ -138,8 +138,8 @@ fn the_camera_clock_runs_with_its_offset_and_drift() {
     if !in_private_network("the_camera_clock_runs_with_its_offset_and_drift") {
         return;
     }
-    // 5000 s ahead and 2 % fast (far beyond a real camera's tens of ppm, so that a second and a
-    // half shows it above the millisecond jitter of the blocks' arrival).
+    // 5000 s ahead and 2 % fast (far beyond a real camera's tens of ppm, so that three seconds
+    // show it above the jitter of the blocks' arrival).
     let clock = CameraClock {
         offset_s: 5000.0,
         drift_ppm: 20_000.0,
@@ -150,7 +150,7 @@ fn the_camera_clock_runs_with_its_offset_and_drift() {
         sensor.start().await.unwrap();
         let first = sensor.next_profile(Duration::from_secs(5)).await.unwrap();
         let mut last = first.clone();
-        while last.received.duration_since(first.received) < Duration::from_millis(1500) {
+        while last.received.duration_since(first.received) < Duration::from_millis(3000) {
             last = sensor.next_profile(Duration::from_secs(5)).await.unwrap();
         }
         sensor.stop().await.unwrap();
@@ -161,10 +161,12 @@ fn the_camera_clock_runs_with_its_offset_and_drift() {
         );
         // The camera counts 1.02 s for every second of the host's: between the two profiles'
         // arrivals (each block arrives as its last row is exposed) and between their stamps.
+        // Within 1 % (30 ms of arrival jitter over 3 s on a busy host): no drift would be 2 %
+        // off.
         let camera_s = (last.profile.timestamp_ns - first.profile.timestamp_ns) as f64 * 1e-9;
         let host_s = last.received.duration_since(first.received).as_secs_f64();
         let rate = camera_s / host_s;
-        assert!((rate - 1.02).abs() < 0.007, "camera {camera_s} s in host {host_s} s");
+        assert!((rate - 1.02).abs() < 0.01, "camera {camera_s} s in host {host_s} s");
         // And the rows are one line period apart on the host's clock.
         let rows = f64::from(last.profile.seq - first.profile.seq);
         assert!(

@@ -346,13 +346,15 @@ unsafe extern "C" fn fill(
         };
         let period = Duration::from_secs_f64(1.0 / line_rate.min(1e6));
         let max = if bits == 16 { 65_535.0 } else { 4_095.0 };
-        // The line clock runs on from the last block; after a pause (acquisition stopped) it
-        // starts again now.
+        // The line clock runs on from the last block, whenever the emulator gets round to
+        // asking (a busy host asks late: the rows were exposed on time all the same); after a
+        // pause (acquisition stopped for a second or more) it starts again now.
         let first = {
             let mut next = state.next_row.lock().unwrap_or_else(|p| p.into_inner());
             let now = Instant::now();
+            let restart_after = (period * (2 * height as u32)).max(Duration::from_secs(1));
             let first = match *next {
-                Some(t) if now.saturating_duration_since(t) < period * (2 * height as u32) => t,
+                Some(t) if now.saturating_duration_since(t) < restart_after => t,
                 _ => now,
             };
             *next = Some(first + period * height as u32);
