@@ -19,6 +19,17 @@ fn min_returns(text: &str) -> usize {
         .expect("a returns line")
 }
 
+/// `sqscan sensor grab COUNT` from the mock camera on 127.0.0.1 in scan type `scan`.
+#[cfg(feature = "gige")]
+fn grab_from_camera(scan: &str, count: &str) -> std::process::Output {
+    Command::new(SQSCAN)
+        .args(["sensor", "--device", "gige://127.0.0.1", "--feature"])
+        .arg(format!("DeviceScanType={scan}"))
+        .args(["grab", count])
+        .output()
+        .unwrap()
+}
+
 /// `sqscan mock rig` on the Fig. 3 scene, a PowerCube at 100 profiles a second, with `extra`
 /// arguments; its stdout piped.
 fn mock_rig(ptu_link: &Path, sensor_link: &Path, extra: &[&str]) -> Reaper {
@@ -277,18 +288,7 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
     );
     let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
     assert!(ok, "{err}");
-    let out = Command::new(SQSCAN)
-        .args([
-            "sensor",
-            "--device",
-            "gige://127.0.0.1",
-            "--feature",
-            "DeviceScanType=Linescan3D",
-            "grab",
-            "30",
-        ])
-        .output()
-        .unwrap();
+    let out = grab_from_camera("Linescan3D", "30");
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(
@@ -310,18 +310,7 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
         "{text}"
     );
     // Without the 3D mode the camera sends no range: a bring-up shows it.
-    let out = Command::new(SQSCAN)
-        .args([
-            "sensor",
-            "--device",
-            "gige://127.0.0.1",
-            "--feature",
-            "DeviceScanType=Areascan",
-            "grab",
-            "10",
-        ])
-        .output()
-        .unwrap();
+    let out = grab_from_camera("Areascan", "10");
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("with a return: min 0  mean 0.0  max 0"), "{text}");
     drop(mock);

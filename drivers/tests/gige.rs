@@ -7,7 +7,8 @@
 use std::time::{Duration, Instant};
 
 use sqscan_drivers::Error;
-use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
+use sqscan_drivers::gige::FeatureValue;
+use sqscan_drivers::gige::camera::{GigeConfig, GigeSensor};
 use sqscan_drivers::mock::gige::{CameraClock, FakeCameraConfig, FakeLineCamera, in_private_network};
 use sqscan_drivers::sensor::ProfileSource;
 

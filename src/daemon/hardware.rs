@@ -171,23 +171,10 @@ impl HardwareBackend {
             }
             #[cfg(feature = "gige")]
             SensorEndpoint::Gige(g) => {
-                use super::config::FeatureSetting;
                 use sqscan_drivers::gige::StampedRow;
-                use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
+                use sqscan_drivers::gige::camera::{GigeConfig, GigeSensor};
                 let mut c = GigeConfig::new(g.address.clone());
-                c.features = g
-                    .features
-                    .iter()
-                    .map(|(name, v)| {
-                        let v = match v {
-                            FeatureSetting::Bool(b) => FeatureValue::Bool(*b),
-                            FeatureSetting::Int(i) => FeatureValue::Int(*i),
-                            FeatureSetting::Float(x) => FeatureValue::Float(*x),
-                            FeatureSetting::Str(s) => FeatureValue::Str(s.clone()),
-                        };
-                        (name.clone(), v)
-                    })
-                    .collect();
+                c.features = g.features.clone();
                 c.rows_per_frame = g.rows_per_frame;
                 c.fraction_bits = self.calib.fraction_bits;
                 c.stamped = if g.stamp_last_row {

@@ -21,31 +21,10 @@ use aravis::prelude::*;
 use aravis::{Buffer, BufferStatus, Camera};
 use tokio::sync::{mpsc, oneshot};
 
-use super::{BlockError, RangeEncoding, RangePixel, RowTiming, StampedRow, decode_block};
+use super::{BlockError, FeatureValue, RangeEncoding, RangePixel, RowTiming, StampedRow, decode_block};
 use crate::Error;
 use crate::profile::{SeqCounts, SequenceTracker};
 use crate::sensor::{ProfileSource, ReceivedProfile};
-
-/// A feature value to set, by its GenICam type.
-#[derive(Clone, Debug, PartialEq)]
-pub enum FeatureValue {
-    Bool(bool),
-    Int(i64),
-    Float(f64),
-    /// An enumeration entry or a string.
-    Str(String),
-}
-
-impl std::fmt::Display for FeatureValue {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            FeatureValue::Bool(b) => write!(f, "{b}"),
-            FeatureValue::Int(i) => write!(f, "{i}"),
-            FeatureValue::Float(x) => write!(f, "{x}"),
-            FeatureValue::Str(s) => write!(f, "{s:?}"),
-        }
-    }
-}
 
 /// How to open and set up the camera.
 #[derive(Clone, Debug, PartialEq)]

@@ -16,6 +16,27 @@ pub mod camera;
 
 use crate::profile::Profile;
 
+/// A feature value to set, by its GenICam type.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FeatureValue {
+    Bool(bool),
+    Int(i64),
+    Float(f64),
+    /// An enumeration entry or a string.
+    Str(String),
+}
+
+impl std::fmt::Display for FeatureValue {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FeatureValue::Bool(b) => write!(f, "{b}"),
+            FeatureValue::Int(i) => write!(f, "{i}"),
+            FeatureValue::Float(x) => write!(f, "{x}"),
+            FeatureValue::Str(s) => write!(f, "{s:?}"),
+        }
+    }
+}
+
 /// GenICam PFNC codes of the range formats a block may carry.
 pub const MONO16: u32 = 0x0110_0007;
 pub const COORD3D_C16: u32 = 0x0110_00B8;

@@ -237,7 +237,14 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
     let replug_after = secs("--camera-replug-after", a.camera_replug_after)?;
     // Kept until the rig stops, or unplugged and plugged back in when asked to.
     let _camera = if a.sensor == "gige" {
-        let camera = start_camera(&a, scene.clone(), &rig, &cfg, columns, fraction_bits)?;
+        let camera = start_camera_with(
+            &a.clone_camera_args(),
+            scene.clone(),
+            rig.ptu.clone(),
+            &cfg,
+            columns,
+            fraction_bits,
+        )?;
         match unplug_after {
             Some(after) => {
                 let (a2, ptu, cfg2) = (a.clone_camera_args(), rig.ptu.clone(), cfg.clone());
@@ -330,24 +337,6 @@ impl MockRigArgs {
 type Camera = sqscan_drivers::mock::gige::FakeLineCamera;
 #[cfg(not(feature = "gige"))]
 type Camera = ();
-
-fn start_camera(
-    a: &MockRigArgs,
-    scene: std::sync::Arc<sqscan::sim::Scene>,
-    rig: &sqscan::mock::rig::RigMock,
-    cfg: &sqscan::mock::rig::RigConfig,
-    columns: usize,
-    fraction_bits: u8,
-) -> Result<Camera> {
-    start_camera_with(
-        &a.clone_camera_args(),
-        scene,
-        rig.ptu.clone(),
-        cfg,
-        columns,
-        fraction_bits,
-    )
-}
 
 #[cfg(feature = "gige")]
 fn start_camera_with(

@@ -124,7 +124,8 @@ fn discover(_json: bool) -> Result<()> {
 
 #[cfg(feature = "gige")]
 async fn grab_gige(a: &SensorArgs, addr: &str, count: usize, wait: Duration) -> Result<()> {
-    use sqscan_drivers::gige::camera::{FeatureValue, GigeConfig, GigeSensor};
+    use sqscan_drivers::gige::FeatureValue;
+    use sqscan_drivers::gige::camera::{GigeConfig, GigeSensor};
     let mut cfg = GigeConfig::new(addr);
     for f in &a.features {
         let Some((name, value)) = f.split_once('=') else {

@@ -1,6 +1,9 @@
 //! The daemon's configuration file (`/etc/sqscan/sqscand.toml` by default), documented field by
 //! field in `docs/DAEMON.md`; `systemd/sqscand.toml` is a complete example.
 //!
+//! One job, validation, whatever the table: each error must name its field, so every setting
+//! is checked here as it is read (the sensor's table, the longest, in `sensor`).
+//!
 //! Relative paths in the file are taken relative to the directory the file is in, so a
 //! configuration and the calibration it names can move together. With no file at all the daemon
 //! runs [`Config::embedded_default`]: the simulated scanner on `scenes/fig3_table.toml`.
@@ -14,6 +17,10 @@ use sqscan_drivers::PtuKind;
 use sqscan_drivers::sensor::SensorConfig;
 
 use crate::spec::{SpecError, read_toml};
+
+mod sensor;
+use sensor::SensorFile;
+pub use sensor::{GigeEndpoint, MAX_ROWS_PER_FRAME, SensorEndpoint};
 
 /// Where the daemon looks for its configuration when `--config` is not given.
 pub const DEFAULT_CONFIG_PATH: &str = "/etc/sqscan/sqscand.toml";
@@ -111,33 +118,6 @@ struct PtuFile {
     tilt_module: Option<u8>,
 }
 
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SensorFile {
-    /// `"sqpf"` (default): SQPF frames on `path` or `tcp`; `"gige"`: a GigE Vision camera.
-    kind: Option<String>,
-    /// Serial device of the sensor, or:
-    path: Option<PathBuf>,
-    /// `host:port` of a sensor that streams over TCP.
-    tcp: Option<String>,
-    baud: Option<u32>,
-    /// The GigE Vision camera's IP address.
-    address: Option<String>,
-    /// GenICam features set in this order after opening.
-    features: Option<Vec<FeatureFile>>,
-    /// Profiles a block (the camera's `Height`).
-    rows_per_frame: Option<u32>,
-    /// `"first_row"` (default) or `"last_row"`: the row a block's timestamp belongs to.
-    stamp: Option<String>,
-}
-
-#[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct FeatureFile {
-    name: String,
-    value: toml::Value,
-}
-
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct SweepFile {
@@ -203,131 +183,6 @@ pub struct HardwareConfig {
     pub tilt_module: Option<u8>,
     pub sensor: SensorEndpoint,
     pub sensor_baud: u32,
-}
-
-#[derive(Debug, Clone, PartialEq)]
-pub enum SensorEndpoint {
-    Serial(PathBuf),
-    Tcp(String),
-    /// A GigE Vision line-profile camera.
-    Gige(GigeEndpoint),
-}
-
-/// A GigE Vision camera as configured (`[hardware.sensor] kind = "gige"`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct GigeEndpoint {
-    pub address: String,
-    pub features: Vec<(String, FeatureSetting)>,
-    pub rows_per_frame: Option<u32>,
-    /// The block's timestamp is its last row's (else its first's).
-    pub stamp_last_row: bool,
-}
-
-/// A feature value, by its TOML type.
-#[derive(Debug, Clone, PartialEq)]
-pub enum FeatureSetting {
-    Bool(bool),
-    Int(i64),
-    Float(f64),
-    Str(String),
-}
-
-impl std::fmt::Display for SensorEndpoint {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            SensorEndpoint::Serial(p) => write!(f, "{}", p.display()),
-            SensorEndpoint::Tcp(a) => write!(f, "tcp://{a}"),
-            SensorEndpoint::Gige(g) => write!(f, "gige://{}", g.address),
-        }
-    }
-}
-
-/// Profiles a GigE Vision block at most.
-pub const MAX_ROWS_PER_FRAME: u32 = 65_535;
-
-fn gige_endpoint(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecError> {
-    let field = |f: &str| format!("hardware.sensor.{f}");
-    for (name, given) in [
-        ("path", s.path.is_some()),
-        ("tcp", s.tcp.is_some()),
-        ("baud", s.baud.is_some()),
-    ] {
-        if given {
-            return Err(SpecError::invalid(
-                path,
-                field(name),
-                "not for a GigE Vision camera (kind = \"gige\"): give address",
-            ));
-        }
-    }
-    if !cfg!(feature = "gige") {
-        return Err(SpecError::invalid(
-            path,
-            "hardware.sensor.kind",
-            "\"gige\": this sqscand was built without GigE Vision support (cargo feature gige)",
-        ));
-    }
-    let address = match s.address.as_deref().map(str::trim) {
-        Some(a) if !a.is_empty() => a.to_string(),
-        _ => {
-            return Err(SpecError::invalid(
-                path,
-                field("address"),
-                "give the camera's IP address",
-            ));
-        }
-    };
-    let mut features = Vec::new();
-    for (i, f) in s.features.iter().flatten().enumerate() {
-        let at = format!("hardware.sensor.features[{i}]");
-        if f.name.trim().is_empty() || f.name.chars().any(|c| !(c.is_ascii_alphanumeric() || c == '_')) {
-            return Err(SpecError::invalid(
-                path,
-                &at,
-                format!("name {:?}: give a GenICam feature name", f.name),
-            ));
-        }
-        let value = match &f.value {
-            toml::Value::Boolean(b) => FeatureSetting::Bool(*b),
-            toml::Value::Integer(n) => FeatureSetting::Int(*n),
-            toml::Value::Float(x) if x.is_finite() => FeatureSetting::Float(*x),
-            toml::Value::String(t) => FeatureSetting::Str(t.clone()),
-            other => {
-                return Err(SpecError::invalid(
-                    path,
-                    &at,
-                    format!("{}: {other}: give a boolean, integer, finite number or string", f.name),
-                ));
-            }
-        };
-        features.push((f.name.clone(), value));
-    }
-    if let Some(n) = s.rows_per_frame
-        && !(1..=MAX_ROWS_PER_FRAME).contains(&n)
-    {
-        return Err(SpecError::invalid(
-            path,
-            field("rows_per_frame"),
-            format!("{n}: give 1 to {MAX_ROWS_PER_FRAME}"),
-        ));
-    }
-    let stamp_last_row = match s.stamp.as_deref() {
-        None | Some("first_row") => false,
-        Some("last_row") => true,
-        Some(other) => {
-            return Err(SpecError::invalid(
-                path,
-                field("stamp"),
-                format!("{other:?}: give \"first_row\" or \"last_row\""),
-            ));
-        }
-    };
-    Ok(SensorEndpoint::Gige(GigeEndpoint {
-        address,
-        features,
-        rows_per_frame: s.rows_per_frame,
-        stamp_last_row,
-    }))
 }
 
 /// The sweep the daemon drives; unset angles come from the scene's rig (simulator).
@@ -624,44 +479,7 @@ impl Config {
                         return Err(SpecError::invalid(path, field, "give a module id from 1 to 31"));
                     }
                 }
-                let s = &h.sensor;
-                let sensor = match s.kind.as_deref() {
-                    Some("gige") => gige_endpoint(path, s)?,
-                    None | Some("sqpf") => {
-                        for (name, given) in [
-                            ("address", s.address.is_some()),
-                            ("features", s.features.is_some()),
-                            ("rows_per_frame", s.rows_per_frame.is_some()),
-                            ("stamp", s.stamp.is_some()),
-                        ] {
-                            if given {
-                                return Err(SpecError::invalid(
-                                    path,
-                                    format!("hardware.sensor.{name}"),
-                                    "only for a GigE Vision camera (kind = \"gige\")",
-                                ));
-                            }
-                        }
-                        match (&s.path, &s.tcp) {
-                            (Some(p), None) => SensorEndpoint::Serial(rel(p)),
-                            (None, Some(a)) => SensorEndpoint::Tcp(a.clone()),
-                            _ => {
-                                return Err(SpecError::invalid(
-                                    path,
-                                    "hardware.sensor",
-                                    "give exactly one of path or tcp",
-                                ));
-                            }
-                        }
-                    }
-                    Some(other) => {
-                        return Err(SpecError::invalid(
-                            path,
-                            "hardware.sensor.kind",
-                            format!("{other:?}: give \"sqpf\" or \"gige\""),
-                        ));
-                    }
-                };
+                let sensor = sensor::endpoint(path, &h.sensor, rel)?;
                 for (field, b) in [
                     ("hardware.ptu.baud", h.ptu.baud),
                     ("hardware.sensor.baud", h.sensor.baud),

@@ -1,6 +1,7 @@
 //! The configuration file's parsing and the errors that name its fields.
 
 use super::*;
+use sqscan_drivers::gige::FeatureValue;
 
 fn parse(text: &str) -> Result<Config, SpecError> {
     Config::from_toml_str(text, Path::new("/etc/sqscan/sqscand.toml"))
@@ -212,10 +213,10 @@ fn a_gige_vision_camera_by_address_and_features_by_name() {
     assert_eq!(
         g.features,
         vec![
-            ("DeviceScanType".to_string(), FeatureSetting::Str("Linescan3D".into())),
-            ("ExposureTime".to_string(), FeatureSetting::Float(50.0)),
-            ("Scan3dInvalidDataFlag".to_string(), FeatureSetting::Bool(true)),
-            ("AcquisitionLineRate".to_string(), FeatureSetting::Int(1000)),
+            ("DeviceScanType".to_string(), FeatureValue::Str("Linescan3D".into())),
+            ("ExposureTime".to_string(), FeatureValue::Float(50.0)),
+            ("Scan3dInvalidDataFlag".to_string(), FeatureValue::Bool(true)),
+            ("AcquisitionLineRate".to_string(), FeatureValue::Int(1000)),
         ]
     );
 }
