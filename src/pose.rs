@@ -9,8 +9,9 @@ use nalgebra::{Isometry3, Quaternion, Translation3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
 /// The wire form of a pose.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 pub struct PoseJson {
+    /// Metres, in the reply's frame.
     pub position: [f64; 3],
     /// Unit quaternion `[x, y, z, w]`.
     pub orientation: [f64; 4],

@@ -17,6 +17,9 @@ use sqscan::eval::{Symmetry, truth_pose};
 use sqscan::model::Model;
 use sqscan::sim::Scene;
 
+mod common;
+use common::protocol::check_reply;
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -92,7 +95,7 @@ impl Client {
         };
         let hello = c.read();
         assert_eq!(hello["class"], "version", "{hello}");
-        assert_eq!(hello["proto_major"], 1);
+        assert_eq!(hello["proto_major"], sqscan::daemon::reply::PROTO_MAJOR);
         c
     }
     fn send_raw(&mut self, bytes: &[u8]) {
@@ -101,11 +104,14 @@ impl Client {
     fn send(&mut self, v: &Value) {
         self.send_raw(format!("{v}\n").as_bytes());
     }
+    /// The next message, checked against the protocol's schema and types.
     fn read(&mut self) -> Value {
         let mut line = String::new();
         let n = self.r.read_line(&mut line).unwrap();
         assert!(n > 0, "the daemon closed the connection");
-        serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
+        let v = serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"));
+        check_reply(&v);
+        v
     }
     fn ask(&mut self, v: Value) -> Value {
         self.send(&v);
@@ -184,14 +190,22 @@ fn simulated_backend_finds_the_cup_and_answers_every_request() {
 
     // Bad requests get errors naming what was wrong, and the connection keeps serving.
     let r = c.ask(json!({"cmd":"find","object":"teapot"}));
-    assert_eq!(r["class"], "error");
+    assert_eq!(
+        (&r["class"], &r["code"]),
+        (&json!("error"), &json!("unknown_object")),
+        "{r}"
+    );
     assert!(
         r["message"].as_str().unwrap().contains("unknown object \"teapot\""),
         "{r}"
     );
     c.send_raw(b"{\"cmd\": \"find\", \"object\n");
     let r = c.read();
-    assert_eq!(r["class"], "error");
+    assert_eq!(
+        (&r["class"], &r["code"]),
+        (&json!("error"), &json!("bad_request")),
+        "{r}"
+    );
     assert!(r["message"].as_str().unwrap().contains("malformed JSON"), "{r}");
     c.send_raw(b"\x00\xff garbage \x01\n");
     assert_eq!(c.read()["class"], "error");
@@ -199,6 +213,7 @@ fn simulated_backend_finds_the_cup_and_answers_every_request() {
     big.push(b'\n');
     c.send_raw(&big);
     let r = c.read();
+    assert_eq!(r["code"], "too_large", "{r}");
     assert!(r["message"].as_str().unwrap().contains("over the limit"), "{r}");
     let r = c.ask(json!({"cmd":"status"}));
     assert_eq!(r["class"], "status", "{r}");
@@ -210,12 +225,13 @@ fn simulated_backend_finds_the_cup_and_answers_every_request() {
         "{r}"
     );
 
-    // scan: a sweep begun after the request.
+    // scan: a sweep begun after the request. The request's id and the sweep's number are
+    // both there (protocol 1 let the one overwrite the other).
     let before = c.ask(json!({"cmd":"status"}))["last_sweep"]["id"].as_u64().unwrap_or(0);
-    let r = c.ask(json!({"cmd":"scan","timeout_s":30}));
-    assert_eq!(r["class"], "sweep", "{r}");
-    assert!(r["id"].as_u64().unwrap() > before, "{r}");
-    assert!(r["points"].as_u64().unwrap() > 30_000, "{r}");
+    let r = c.ask(json!({"cmd":"scan","timeout_s":30,"id":"q1"}));
+    assert_eq!((&r["class"], &r["id"]), (&json!("sweep"), &json!("q1")), "{r}");
+    assert!(r["sweep"]["id"].as_u64().unwrap() > before, "{r}");
+    assert!(r["sweep"]["points"].as_u64().unwrap() > 30_000, "{r}");
 
     // watch: one detection a sweep for each object, from successive sweeps.
     let r = c.ask(json!({"cmd":"watch","objects":["bowl","cup"]}));
@@ -289,7 +305,11 @@ fn idle_and_slowloris_clients_are_closed_after_the_idle_timeout() {
         slow
     });
     let bye = idle.read();
-    assert_eq!(bye["class"], "error", "{bye}");
+    assert_eq!(
+        (&bye["class"], &bye["code"]),
+        (&json!("error"), &json!("idle")),
+        "{bye}"
+    );
     assert!(bye["message"].as_str().unwrap().contains("idle"), "{bye}");
     let waited = t0.elapsed();
     assert!(
@@ -319,6 +339,7 @@ fn idle_clients_cannot_lock_out_a_new_one() {
     assert_eq!(new.ask(json!({"cmd":"status"}))["class"], "status");
     // The first to go idle made room.
     let bye = first.read();
+    assert_eq!(bye["code"], "idle", "{bye}");
     assert!(bye["message"].as_str().unwrap().contains("needs the slot"), "{bye}");
     drop(rest);
     // Eight watchers are not idle: a ninth client is refused with a reason.
@@ -335,6 +356,9 @@ fn idle_clients_cannot_lock_out_a_new_one() {
     s.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
     let mut line = String::new();
     BufReader::new(s).read_line(&mut line).unwrap();
+    let busy: Value = serde_json::from_str(&line).unwrap();
+    check_reply(&busy);
+    assert_eq!(busy["code"], "busy", "{busy}");
     assert!(line.contains("too many clients"), "{line}");
     drop(watchers);
 }
@@ -456,7 +480,7 @@ fn mock_devices_on_ptys_find_the_cup() {
     let devices = s["devices"].as_array().unwrap();
     assert!(devices.iter().all(|d| d["state"] == "ok"), "{s}");
     let scan = c.ask(json!({"cmd":"scan","timeout_s":60}));
-    assert_eq!(scan["report"]["profile_times"], "profile", "{scan}");
+    assert_eq!(scan["sweep"]["report"]["profile_times"], "profile", "{scan}");
 }
 
 #[test]
@@ -638,6 +662,7 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     line.clear();
     r.read_line(&mut line).unwrap();
     let v: Value = serde_json::from_str(&line).unwrap();
+    check_reply(&v);
     assert_eq!(
         (v["class"].as_str(), v["id"].as_u64()),
         (Some("models"), Some(5)),
@@ -657,7 +682,9 @@ fn stalled_clients_do_not_hold_up_acquisition_or_others() {
     half.write_all(b"{\"cmd\":\"fi").unwrap();
     let _silent = UnixStream::connect(&socket).unwrap();
     let mut c = Client::connect(&socket);
-    let first = c.ask(json!({"cmd":"scan","timeout_s":30}))["id"].as_u64().unwrap();
+    let first = c.ask(json!({"cmd":"scan","timeout_s":30}))["sweep"]["id"]
+        .as_u64()
+        .unwrap();
     // Sweeps go on and a fresh find is answered from one made after it was asked.
     let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":30}));
     assert_eq!(r["found"], true, "{r}");
@@ -674,6 +701,7 @@ fn stalled_clients_do_not_hold_up_acquisition_or_others() {
     line.clear();
     r.read_line(&mut line).unwrap();
     let v: Value = serde_json::from_str(&line).unwrap();
+    check_reply(&v);
     assert_eq!(
         (v["class"].as_str(), v["id"].as_u64()),
         (Some("detection"), Some(9)),
@@ -792,17 +820,19 @@ fn a_daemon_runs_on_an_injected_listener_and_backend() {
         }
         let mut line = String::new();
         assert!(r.read_line(&mut line).unwrap() > 0, "the daemon closed the connection");
-        serde_json::from_str(&line).unwrap()
+        let v = serde_json::from_str(&line).unwrap();
+        check_reply(&v);
+        v
     };
     assert_eq!(ask(Value::Null)["class"], "version");
     let sweep = ask(json!({"cmd": "scan", "timeout_s": 10}));
     assert_eq!(sweep["class"], "sweep", "{sweep}");
     assert_eq!(
-        (sweep["profiles"].as_u64(), sweep["columns"].as_u64()),
+        (sweep["sweep"]["profiles"].as_u64(), sweep["sweep"]["columns"].as_u64()),
         (Some(2), Some(3))
     );
-    assert_eq!(sweep["points"], 5, "{sweep}");
-    assert_eq!(sweep["report"]["kept"], 2, "{sweep}");
+    assert_eq!(sweep["sweep"]["points"], 5, "{sweep}");
+    assert_eq!(sweep["sweep"]["report"]["kept"], 2, "{sweep}");
     let status = ask(json!({"cmd": "status"}));
     assert_eq!(status["backend"], "test", "{status}");
     assert_eq!(status["devices"][0]["name"], "patch", "{status}");
@@ -839,6 +869,7 @@ fn a_panicking_acquisition_task_is_reported_not_hidden() {
     line.clear();
     r.read_line(&mut line).unwrap();
     let status: Value = serde_json::from_str(&line).unwrap();
+    check_reply(&status);
     assert_eq!(status["failure"], why.as_str(), "{status}");
     rt.block_on(daemon.stop());
 }
@@ -938,7 +969,7 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
 
     // Then the replay is over, and says so.
     let r = c.ask(json!({"cmd":"scan","timeout_s":1.0}));
-    assert_eq!(r["class"], "error", "{r}");
+    assert_eq!((&r["class"], &r["code"]), (&json!("error"), &json!("device")), "{r}");
     let s = c.ask(json!({"cmd":"status"}));
     assert!(
         s["devices"][0]["last_error"]
@@ -1019,8 +1050,11 @@ fn a_gige_vision_rig_finds_the_cup() {
     assert_eq!(s["devices"][1]["path"], "gige://127.0.0.1", "{s}");
     assert_eq!(s["devices"][1]["state"], "ok", "{s}");
     let scan = c.ask(json!({"cmd":"scan","timeout_s":60}));
-    assert!(scan["profiles"].as_u64().unwrap() >= 100, "{scan}");
-    assert_eq!(scan["report"]["profile_times"], "block_and_line_rate", "{scan}");
+    assert!(scan["sweep"]["profiles"].as_u64().unwrap() >= 100, "{scan}");
+    assert_eq!(
+        scan["sweep"]["report"]["profile_times"], "block_and_line_rate",
+        "{scan}"
+    );
 }
 
 #[cfg(feature = "gige")]

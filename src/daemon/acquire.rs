@@ -21,7 +21,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
         if shared.is_stopping() {
             break;
         }
-        if !shared.config.continuous {
+        if !shared.config().continuous {
             tokio::select! {
                 () = shared.sweep_wanted.notified() => {}
                 () = stopped(&mut shutdown) => break,
@@ -48,9 +48,9 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 );
                 shared.latest.send_replace(Some(entry.clone()));
                 warm_detections(&shared, &entry);
-                if let Some(dir) = shared.config.record_dir.clone() {
-                    let keep = shared.config.record_keep;
-                    let frame = shared.config.frame_id.clone();
+                if let Some(dir) = shared.config().record_dir.clone() {
+                    let keep = shared.config().record_keep;
+                    let frame = shared.config().frame_id.clone();
                     let e = entry.clone();
                     let s = shared.clone();
                     tokio::task::spawn_blocking(move || {
@@ -60,12 +60,12 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                         }
                     });
                 }
-                if shared.config.sweep.back_and_forth {
+                if shared.config().sweep.back_and_forth {
                     forward = !forward;
                 }
-                if !shared.config.sweep.pause.is_zero() {
+                if !shared.config().sweep.pause.is_zero() {
                     tokio::select! {
-                        () = tokio::time::sleep(shared.config.sweep.pause) => {}
+                        () = tokio::time::sleep(shared.config().sweep.pause) => {}
                         () = stopped(&mut shutdown) => break,
                     }
                 }
@@ -77,7 +77,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 // A failed sweep leaves the unit somewhere in the range: start the next one
                 // from the configured start.
                 forward = true;
-                if !shared.config.continuous {
+                if !shared.config().continuous {
                     // Whoever asked is still waiting: try again.
                     shared.sweep_wanted.notify_one();
                 }
@@ -90,7 +90,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
 /// Starts the detections that someone is bound to want on a new sweep: the configured watch
 /// list and the objects clients watch. They run once per sweep whoever asks first.
 fn warm_detections(shared: &Arc<Shared>, entry: &Arc<SweepEntry>) {
-    let mut objects: Vec<String> = shared.config.watch.clone();
+    let mut objects: Vec<String> = shared.config().watch.clone();
     objects.extend(lock(&shared.watched).keys().cloned());
     objects.sort();
     objects.dedup();

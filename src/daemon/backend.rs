@@ -10,7 +10,7 @@ use std::future::Future;
 use std::sync::Mutex;
 use std::time::{Instant, SystemTime};
 
-use serde_json::{Value, json};
+use super::reply::{DeviceJson, DeviceState};
 
 use crate::sweep::Sweep;
 
@@ -89,17 +89,26 @@ impl DeviceStatus {
     }
 
     /// As `status` shows it (docs/PROTOCOL.md).
-    pub fn json(&self) -> Value {
-        json!({
-            "name": self.name,
-            "path": self.path,
-            "kind": self.kind,
-            "state": if self.connected { "ok" } else if self.last_error.is_some() { "fault" } else { "closed" },
-            "last_error": self.last_error,
-            "last_error_time": self.last_error_at.and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok()).map(|d| d.as_secs_f64()),
-            "opens": self.opens,
-            "failures": self.failures,
-        })
+    pub fn json(&self) -> DeviceJson {
+        DeviceJson {
+            name: self.name.to_string(),
+            path: self.path.clone(),
+            kind: self.kind.clone(),
+            state: if self.connected {
+                DeviceState::Ok
+            } else if self.last_error.is_some() {
+                DeviceState::Fault
+            } else {
+                DeviceState::Closed
+            },
+            last_error: self.last_error.clone(),
+            last_error_time: self
+                .last_error_at
+                .and_then(|t| t.duration_since(SystemTime::UNIX_EPOCH).ok())
+                .map(|d| d.as_secs_f64()),
+            opens: self.opens,
+            failures: self.failures,
+        }
     }
 }
 

@@ -1,13 +1,10 @@
 //! The socket protocol (`docs/PROTOCOL.md`): one JSON object a line each way, every reply with a
-//! `class`. This module parses requests into [`Request`] with messages that name what was wrong,
-//! and builds the replies that do not need the daemon's state.
+//! `class`. This module parses requests into [`Request`] with messages that name what was wrong;
+//! the replies are the types of [`super::reply`].
 
-use serde_json::{Map, Value, json};
+use serde_json::{Map, Value};
 
-/// Protocol version, sent in the `version` greeting. Minor bumps add fields or commands; a major
-/// bump changes or removes them.
-pub const PROTO_MAJOR: u32 = 1;
-pub const PROTO_MINOR: u32 = 0;
+use super::reply::{ErrorCode, Reply};
 
 /// Defaults of `find`.
 pub const DEFAULT_MAX_AGE_S: f64 = 2.0;
@@ -206,36 +203,17 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
     Ok(Request { id, command })
 }
 
-/// The greeting sent on connect.
-pub fn version_reply() -> Value {
-    json!({
-        "class": "version",
-        "release": env!("CARGO_PKG_VERSION"),
-        "proto_major": PROTO_MAJOR,
-        "proto_minor": PROTO_MINOR,
-    })
-}
-
-/// An error reply.
-pub fn error_reply(id: Option<&Value>, message: &str) -> Value {
-    let mut v = json!({"class": "error", "message": message});
-    if let Some(id) = id {
-        v["id"] = id.clone();
+impl RequestError {
+    /// The error reply to the line.
+    pub fn reply(&self) -> Reply {
+        Reply::error(self.id.clone(), ErrorCode::BadRequest, &self.message)
     }
-    v
-}
-
-/// Puts the request's id into a reply.
-pub fn with_id(mut v: Value, id: Option<&Value>) -> Value {
-    if let Some(id) = id {
-        v["id"] = id.clone();
-    }
-    v
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     fn ok(s: &str) -> Request {
         parse_request(s.as_bytes()).unwrap_or_else(|e| panic!("{s}: {}", e.message))
@@ -289,6 +267,7 @@ mod tests {
         // The id survives an error once the JSON is readable.
         let e = parse_request(br#"{"cmd":"nope","id":"a"}"#).unwrap_err();
         assert_eq!(e.id, Some(json!("a")));
-        assert_eq!(error_reply(e.id.as_ref(), &e.message)["id"], json!("a"));
+        let v = serde_json::to_value(e.reply()).unwrap();
+        assert_eq!((&v["id"], &v["code"]), (&json!("a"), &json!("bad_request")));
     }
 }

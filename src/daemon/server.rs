@@ -17,7 +17,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use serde_json::{Value, json};
+use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncWrite, AsyncWriteExt, BufReader};
 use tokio::net::{TcpListener, UnixListener};
 use tokio::sync::{Notify, Semaphore, mpsc};
@@ -28,7 +28,8 @@ use crate::detect::output::report_json;
 use super::config::{Config, MAX_REQUEST_BYTES};
 use super::idle::Idle;
 use super::lines::LineReader;
-use super::protocol::{self, Command, Request, error_reply, with_id};
+use super::protocol::{self, Command, Request};
+use super::reply::{DetectionReply, ErrorCode, ModelJson, ModelPart, Models, Reply, SweepReply, Version, Watch};
 use super::socket::bind_unix;
 use super::state::{Shared, SweepEntry, lock, round3, stopped};
 
@@ -83,7 +84,8 @@ impl Listeners {
 
 /// Accepts clients until shutdown.
 pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
-    let slots = Arc::new(Semaphore::new(shared.config.max_clients));
+    // Fixed for the daemon's life: a reload does not resize the server.
+    let slots = Arc::new(Semaphore::new(shared.config().max_clients));
     let idle: Idle = Arc::default();
     let mut shutdown = shared.shutdown.subscribe();
     let (unix, socket_path) = match listeners.unix {
@@ -153,14 +155,12 @@ where
             Err(_) => Err(()),
         };
         let Ok(_permit) = permit else {
-            let msg = error_reply(
+            let msg = Reply::error(
                 None,
-                &format!(
-                    "too many clients (max {}), none of them idle",
-                    shared.config.max_clients
-                ),
+                ErrorCode::Busy,
+                format!("too many clients (max {}), none of them idle", slots_total(&shared)),
             );
-            let _ = tokio::time::timeout(Duration::from_secs(1), wr.write_all(line(&msg).as_bytes())).await;
+            let _ = tokio::time::timeout(Duration::from_secs(1), wr.write_all(msg.line().as_bytes())).await;
             return;
         };
         shared.stats.clients.fetch_add(1, Ordering::Relaxed);
@@ -183,10 +183,9 @@ fn give_back_memory() {
     }
 }
 
-fn line(v: &Value) -> String {
-    let mut s = v.to_string();
-    s.push('\n');
-    s
+/// The number of client slots the server was started with.
+fn slots_total(shared: &Shared) -> usize {
+    shared.config().max_clients
 }
 
 /// A client's outbound queue: lines, and the bytes they hold.
@@ -207,11 +206,11 @@ impl Outbox {
     }
 
     /// A reply: waits for room (only this client is held up by its own slowness).
-    async fn reply(&self, v: Value) {
-        if v["class"] == "error" {
+    async fn reply(&self, v: Reply) {
+        if v.is_error() {
             self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
         }
-        let l = line(&v);
+        let l = v.line();
         self.queued.fetch_add(l.len(), Ordering::Relaxed);
         if self.tx.send(l).await.is_err() {
             self.queued.store(0, Ordering::Relaxed);
@@ -220,8 +219,8 @@ impl Outbox {
 
     /// An unsolicited update: skipped when the client is behind (its queue full, or holding
     /// [`MAX_QUEUED_BYTES`]).
-    fn update(&self, v: Value) {
-        let l = line(&v);
+    fn update(&self, v: Reply) {
+        let l = v.line();
         let n = l.len();
         if self.queued.load(Ordering::Relaxed) + n > MAX_QUEUED_BYTES {
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
@@ -240,7 +239,7 @@ where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
-    let (tx, mut rx) = mpsc::channel::<String>(shared.config.client_queue);
+    let (tx, mut rx) = mpsc::channel::<String>(shared.config().client_queue);
     let out = Outbox::new(tx, shared.clone());
     // The writer holds only the byte count, not a sender: the queue closes when the last
     // sender (the connection's and its tasks') is gone, and the writer ends with it.
@@ -257,14 +256,14 @@ where
             }
         }
     });
-    out.reply(protocol::version_reply()).await;
+    out.reply(Reply::Version(Version::now())).await;
     let evict = Arc::new(Notify::new());
     let me = {
         let mut i = lock(&idle);
         i.next_id += 1;
         i.next_id
     };
-    let idle_timeout = shared.config.idle_timeout;
+    let idle_timeout = shared.config().idle_timeout;
     let mut active = Instant::now();
     let mut tasks: JoinSet<()> = JoinSet::new();
     let mut watch_task: Option<tokio::task::AbortHandle> = None;
@@ -295,11 +294,11 @@ where
             }
             () = tokio::time::sleep_until((active + idle_timeout).into()), if is_idle => {
                 let msg = format!("closing: idle for {} s", idle_timeout.as_secs_f64());
-                out.reply(error_reply(None, &msg)).await;
+                out.reply(Reply::error(None, ErrorCode::Idle, msg)).await;
                 break;
             }
             () = evict.notified(), if is_idle => {
-                out.reply(error_reply(None, "closing: idle, and a new client needs the slot")).await;
+                out.reply(Reply::error(None, ErrorCode::Idle, "closing: idle, and a new client needs the slot")).await;
                 break;
             }
         };
@@ -309,8 +308,12 @@ where
         // the slot: close, as the eviction said, and do not leave its signal for a later idle
         // spell.
         if is_idle && lock(&idle).idle.remove(&me).is_none() {
-            out.reply(error_reply(None, "closing: idle, and a new client needs the slot"))
-                .await;
+            out.reply(Reply::error(
+                None,
+                ErrorCode::Idle,
+                "closing: idle, and a new client needs the slot",
+            ))
+            .await;
             break;
         }
         // Stop reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading
@@ -325,9 +328,10 @@ where
         let req = match got {
             Ok(None) | Err(_) => break,
             Ok(Some(Err(len))) => {
-                out.reply(error_reply(
+                out.reply(Reply::error(
                     None,
-                    &format!("request of {len} bytes is over the limit of {MAX_REQUEST_BYTES} bytes; skipped"),
+                    ErrorCode::TooLarge,
+                    format!("request of {len} bytes is over the limit of {MAX_REQUEST_BYTES} bytes; skipped"),
                 ))
                 .await;
                 continue;
@@ -340,7 +344,7 @@ where
                 match protocol::parse_request(&buf) {
                     Ok(r) => r,
                     Err(e) => {
-                        out.reply(error_reply(e.id.as_ref(), &e.message)).await;
+                        out.reply(e.reply()).await;
                         continue;
                     }
                 }
@@ -349,7 +353,8 @@ where
         match req.command {
             Command::Watch { ref objects } => {
                 if let Some(missing) = objects.iter().find_map(|o| shared.model(o).err()) {
-                    out.reply(error_reply(req.id.as_ref(), &missing)).await;
+                    out.reply(Reply::error(req.id.clone(), ErrorCode::UnknownObject, missing))
+                        .await;
                     continue;
                 }
                 if let Some(t) = watch_task.take() {
@@ -357,10 +362,11 @@ where
                 }
                 set_watched(&shared, &watching, objects);
                 watching = objects.clone();
-                out.reply(with_id(
-                    json!({"class": "watch", "objects": objects, "enable": true}),
-                    req.id.as_ref(),
-                ))
+                out.reply(Reply::Watch(Watch {
+                    id: req.id.clone(),
+                    objects: objects.clone(),
+                    enable: true,
+                }))
                 .await;
                 watch_task = Some(tasks.spawn(watch(shared.clone(), out.clone(), objects.clone(), req.id.clone())));
             }
@@ -370,17 +376,18 @@ where
                 }
                 set_watched(&shared, &watching, &[]);
                 watching.clear();
-                out.reply(with_id(
-                    json!({"class": "watch", "objects": [], "enable": false}),
-                    req.id.as_ref(),
-                ))
+                out.reply(Reply::Watch(Watch {
+                    id: req.id.clone(),
+                    objects: Vec::new(),
+                    enable: false,
+                }))
                 .await;
             }
             _ => {
                 let (s, o) = (shared.clone(), out.clone());
                 tasks.spawn(async move {
                     let reply = handle(&s, &req).await;
-                    o.reply(with_id(reply, req.id.as_ref())).await;
+                    o.reply(reply.with_id(req.id.clone())).await;
                 });
             }
         }
@@ -414,7 +421,7 @@ async fn watch(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Optio
     let mut rx = shared.latest.subscribe();
     // The newest sweep so far is answered at once; then each new one.
     rx.mark_changed();
-    if !shared.config.continuous {
+    if !shared.config().continuous {
         shared.sweep_wanted.notify_one();
     }
     loop {
@@ -427,37 +434,29 @@ async fn watch(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Optio
         for name in &objects {
             let Ok(model) = shared.model(name) else { continue };
             let det = entry.detection(&shared, model, false).await;
-            out.update(with_id(
-                detection_reply(&entry, &det, false, &shared.config.frame_id),
-                id.as_ref(),
-            ));
+            out.update(detection_reply(&entry, &det, false, &shared.config().frame_id).with_id(id.clone()));
         }
-        if !shared.config.continuous {
+        if !shared.config().continuous {
             shared.sweep_wanted.notify_one();
         }
     }
 }
 
 /// The `detection` reply: the detector's JSON, the sweep it was made on and how old that is.
-pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool, frame: &str) -> Value {
-    let mut v = report_json(&det.report, all);
-    v["class"] = json!("detection");
-    v["frame"] = json!(frame);
-    v["sweep"] = json!({
-        "id": entry.id,
-        "time": entry.time_s(),
-        "age_s": round3(entry.age().as_secs_f64()),
-        "points": entry.points,
-        "recorded": entry.recorded_json(),
-    });
-    v["latency_ms"] = json!(round3(det.latency.as_secs_f64() * 1e3));
-    v
+pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool, frame: &str) -> Reply {
+    Reply::Detection(Box::new(DetectionReply {
+        id: None,
+        report: report_json(&det.report, all),
+        frame: frame.to_string(),
+        sweep: entry.reference(),
+        latency_ms: round3(det.latency.as_secs_f64() * 1e3),
+    }))
 }
 
 /// Answers one request (not watch/unwatch, which change the connection).
-async fn handle(shared: &Arc<Shared>, req: &Request) -> Value {
+async fn handle(shared: &Arc<Shared>, req: &Request) -> Reply {
     match &req.command {
-        Command::Status => shared.status_json(),
+        Command::Status => Reply::Status(Box::new(shared.status())),
         Command::Models => models_reply(shared),
         Command::Find {
             object,
@@ -467,7 +466,7 @@ async fn handle(shared: &Arc<Shared>, req: &Request) -> Value {
         } => {
             let model = match shared.model(object) {
                 Ok(m) => m,
-                Err(e) => return error_reply(None, &e),
+                Err(e) => return Reply::error(None, ErrorCode::UnknownObject, e),
             };
             let asked = Instant::now();
             let deadline = asked + Duration::from_secs_f64(*timeout_s);
@@ -475,25 +474,26 @@ async fn handle(shared: &Arc<Shared>, req: &Request) -> Value {
             let fresh = |e: &SweepEntry| e.age() <= max_age || e.completed >= asked;
             let entry = match wait_for_sweep(shared, deadline, fresh).await {
                 Ok(e) => e,
-                Err(msg) => return error_reply(None, &format!("find {object}: {msg}")),
+                Err((code, msg)) => return Reply::error(None, code, format!("find {object}: {msg}")),
             };
             let det = entry.detection(shared, model, *all).await;
-            detection_reply(&entry, &det, *all, &shared.config.frame_id)
+            detection_reply(&entry, &det, *all, &shared.config().frame_id)
         }
         Command::Scan { timeout_s } => {
             let asked = Instant::now();
             let deadline = asked + Duration::from_secs_f64(*timeout_s);
             // A sweep begun after the request: it shows the scene as it is now.
             match wait_for_sweep(shared, deadline, |e| e.started >= asked).await {
-                Ok(e) => {
-                    let mut v = e.summary();
-                    v["class"] = json!("sweep");
-                    v
-                }
-                Err(msg) => error_reply(None, &format!("scan: {msg}")),
+                Ok(e) => Reply::Sweep(Box::new(SweepReply {
+                    id: None,
+                    sweep: e.summary(),
+                })),
+                Err((code, msg)) => Reply::error(None, code, format!("scan: {msg}")),
             }
         }
-        Command::Watch { .. } | Command::Unwatch => error_reply(None, "internal: watch handled by the connection"),
+        Command::Watch { .. } | Command::Unwatch => {
+            Reply::error(None, ErrorCode::Internal, "watch is handled by the connection")
+        }
     }
 }
 
@@ -503,7 +503,7 @@ async fn wait_for_sweep(
     shared: &Arc<Shared>,
     deadline: Instant,
     ok: impl Fn(&SweepEntry) -> bool,
-) -> Result<Arc<SweepEntry>, String> {
+) -> Result<Arc<SweepEntry>, (ErrorCode, String)> {
     let mut rx = shared.latest.subscribe();
     loop {
         if let Some(e) = rx.borrow_and_update().clone()
@@ -511,12 +511,12 @@ async fn wait_for_sweep(
         {
             return Ok(e);
         }
-        if !shared.config.continuous {
+        if !shared.config().continuous {
             shared.sweep_wanted.notify_one();
         }
         match tokio::time::timeout_at(deadline.into(), rx.changed()).await {
             Ok(Ok(())) => {}
-            Ok(Err(_)) => return Err("the daemon is stopping".into()),
+            Ok(Err(_)) => return Err((ErrorCode::Stopping, "the daemon is stopping".into())),
             Err(_) => {
                 let trouble = shared.device_trouble();
                 let last = match shared.newest() {
@@ -524,33 +524,35 @@ async fn wait_for_sweep(
                     None => "no sweep has completed yet".into(),
                 };
                 return Err(if trouble.is_empty() {
-                    format!("no fresh sweep before the timeout; {last}")
+                    (ErrorCode::Timeout, format!("no fresh sweep before the timeout; {last}"))
                 } else {
-                    format!("device fault: {trouble}; {last}")
+                    (ErrorCode::Device, format!("device fault: {trouble}; {last}"))
                 });
             }
         }
     }
 }
 
-fn models_reply(shared: &Shared) -> Value {
-    let models: Vec<Value> = shared
-        .models
+fn models_reply(shared: &Shared) -> Reply {
+    let models = shared
+        .models()
         .values()
-        .map(|m| {
-            json!({
-                "name": m.name,
-                "parts": m.parts.iter().map(|p| json!({
-                    "name": p.name,
-                    "size_m": p.shape.a,
-                    "open": p.open,
-                    "shape": [p.shape.e1, p.shape.e2],
-                    "taper": [p.shape.kx, p.shape.ky],
-                })).collect::<Vec<_>>(),
-            })
+        .map(|m| ModelJson {
+            name: m.name.clone(),
+            parts: m
+                .parts
+                .iter()
+                .map(|p| ModelPart {
+                    name: p.name.clone(),
+                    size_m: p.shape.a,
+                    shape: [p.shape.e1, p.shape.e2],
+                    taper: [p.shape.kx, p.shape.ky],
+                    open: p.open,
+                })
+                .collect(),
         })
         .collect();
-    json!({"class": "models", "models": models})
+    Reply::Models(Models { id: None, models })
 }
 
 #[cfg(test)]
@@ -565,11 +567,11 @@ mod tests {
         let out = Outbox::new(tx, shared.clone());
         for k in 0..5 {
             // Returns at once even though nobody reads.
-            out.update(json!({"class": "detection", "k": k}));
+            out.update(Reply::error(None, ErrorCode::Internal, format!("k{k}")));
         }
         assert_eq!(shared.stats.watch_skipped.load(Ordering::Relaxed), 3);
-        assert!(rx.recv().await.unwrap().contains("\"k\":0"));
-        assert!(rx.recv().await.unwrap().contains("\"k\":1"));
+        assert!(rx.recv().await.unwrap().contains("\"k0\""));
+        assert!(rx.recv().await.unwrap().contains("\"k1\""));
     }
 
     /// A slow watch reader costs the daemon at most MAX_QUEUED_BYTES, however large its updates:
@@ -580,8 +582,8 @@ mod tests {
         let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
         let (tx, _rx) = mpsc::channel(10_000);
         let out = Outbox::new(tx, shared.clone());
-        let update = json!({"class": "detection", "pad": "x".repeat(10_000)});
-        let n = line(&update).len();
+        let update = Reply::error(None, ErrorCode::Internal, "x".repeat(10_000));
+        let n = update.line().len();
         for _ in 0..1000 {
             out.update(update.clone());
         }

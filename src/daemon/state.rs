@@ -8,11 +8,10 @@
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, RwLock};
 use std::time::{Duration, Instant, SystemTime};
 
 use nalgebra::Point3;
-use serde_json::{Value, json};
 use tokio::sync::{Notify, OnceCell, Semaphore, watch};
 
 use crate::detect::{self, Params, Report};
@@ -22,6 +21,9 @@ use crate::sweep::Sweep;
 
 use super::backend::{DeviceStatus, Devices, Recorded, Swept};
 use super::config::Config;
+use super::reply::{
+    ClientCounts, ConfigInfo, DetectionCounts, Fault, Mode, RecordedJson, Status, SweepCounts, SweepRef, SweepSummary,
+};
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
 /// counters and status texts, always consistent between statements.
@@ -97,10 +99,21 @@ impl SweepEntry {
     }
 
     /// Where a replayed sweep came from, as replies show it (`null` for a sweep made now).
-    pub fn recorded_json(&self) -> Value {
-        match &self.recorded {
-            Some(r) => json!({"id": r.id, "file": r.file.display().to_string()}),
-            None => Value::Null,
+    pub fn recorded_json(&self) -> Option<RecordedJson> {
+        self.recorded.as_ref().map(|r| RecordedJson {
+            id: r.id,
+            file: r.file.display().to_string(),
+        })
+    }
+
+    /// The sweep as a detection names it.
+    pub fn reference(&self) -> SweepRef {
+        SweepRef {
+            id: self.id,
+            time: self.time_s(),
+            age_s: round3(self.age().as_secs_f64()),
+            points: self.points,
+            recorded: self.recorded_json(),
         }
     }
 
@@ -120,10 +133,11 @@ impl SweepEntry {
             // The semaphore is never closed, so acquire cannot fail; a detection then runs anyway.
             let _permit = shared.detect_slots.acquire().await.ok();
             let entry = self.clone();
+            let config = shared.config();
             let params = Params {
-                seed: shared.config.detect_seed ^ entry.seed_id(),
+                seed: config.detect_seed ^ entry.seed_id(),
                 viewpoint: entry.viewpoint(),
-                max_range: shared.config.max_range_m,
+                max_range: config.max_range_m,
                 all,
                 ..Params::default()
             };
@@ -154,18 +168,18 @@ impl SweepEntry {
     }
 
     /// The sweep as the `scan` reply and `status` show it.
-    pub fn summary(&self) -> Value {
-        json!({
-            "id": self.id,
-            "time": self.time_s(),
-            "age_s": round3(self.age().as_secs_f64()),
-            "duration_s": round3(self.completed.duration_since(self.started).as_secs_f64()),
-            "profiles": self.sweep.profiles,
-            "columns": self.sweep.columns,
-            "points": self.points,
-            "report": self.sweep.report,
-            "recorded": self.recorded_json(),
-        })
+    pub fn summary(&self) -> SweepSummary {
+        SweepSummary {
+            id: self.id,
+            time: self.time_s(),
+            age_s: round3(self.age().as_secs_f64()),
+            duration_s: round3(self.completed.duration_since(self.started).as_secs_f64()),
+            profiles: self.sweep.profiles,
+            columns: self.sweep.columns,
+            points: self.points,
+            report: self.sweep.report.clone(),
+            recorded: self.recorded_json(),
+        }
     }
 }
 
@@ -232,10 +246,23 @@ impl Stats {
     }
 }
 
+/// The newest (re)load of the configuration and models.
+#[derive(Debug, Clone)]
+pub struct Reload {
+    pub loaded: SystemTime,
+    /// Reloads taken.
+    pub count: u64,
+    /// Why the newest reload was refused, if it was.
+    pub error: Option<String>,
+}
+
 /// Everything the tasks share.
 pub struct Shared {
-    pub config: Config,
-    pub models: BTreeMap<String, Arc<Model>>,
+    /// The configuration and the models in use: swapped whole by a reload (SIGHUP), so a task
+    /// that took one sees a consistent set until it asks again.
+    config: RwLock<Arc<Config>>,
+    models: RwLock<Arc<BTreeMap<String, Arc<Model>>>>,
+    pub reload: Mutex<Reload>,
     /// The newest completed sweep.
     pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
     /// Wakes an on-demand acquisition loop.
@@ -259,8 +286,13 @@ impl Shared {
     pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
         let workers = config.detect_workers;
         Shared {
-            config,
-            models,
+            config: RwLock::new(Arc::new(config)),
+            models: RwLock::new(Arc::new(models)),
+            reload: Mutex::new(Reload {
+                loaded: SystemTime::now(),
+                count: 0,
+                error: None,
+            }),
             latest: watch::channel(None).0,
             failure: watch::channel(None).0,
             sweep_wanted: Notify::new(),
@@ -274,14 +306,35 @@ impl Shared {
         }
     }
 
+    /// The configuration in use.
+    pub fn config(&self) -> Arc<Config> {
+        self.config.read().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// The models in use.
+    pub fn models(&self) -> Arc<BTreeMap<String, Arc<Model>>> {
+        self.models.read().unwrap_or_else(|p| p.into_inner()).clone()
+    }
+
+    /// Puts a reloaded configuration and its models in use.
+    pub fn replace(&self, config: Config, models: BTreeMap<String, Arc<Model>>) {
+        *self.models.write().unwrap_or_else(|p| p.into_inner()) = Arc::new(models);
+        *self.config.write().unwrap_or_else(|p| p.into_inner()) = Arc::new(config);
+        let mut r = lock(&self.reload);
+        r.loaded = SystemTime::now();
+        r.count += 1;
+        r.error = None;
+    }
+
     pub fn newest(&self) -> Option<Arc<SweepEntry>> {
         self.latest.borrow().clone()
     }
 
     /// A model by name, or an error naming the known ones.
     pub fn model(&self, name: &str) -> Result<Arc<Model>, String> {
-        self.models.get(name).cloned().ok_or_else(|| {
-            let known: Vec<&str> = self.models.keys().map(String::as_str).collect();
+        let models = self.models();
+        models.get(name).cloned().ok_or_else(|| {
+            let known: Vec<&str> = models.keys().map(String::as_str).collect();
             format!("unknown object {name:?}; known objects: {}", known.join(", "))
         })
     }
@@ -295,42 +348,69 @@ impl Shared {
         *self.shutdown.borrow()
     }
 
-    pub fn status_json(&self) -> Value {
+    pub fn status(&self) -> Status {
         let s = &self.stats;
         let det = lock(&s.detections);
         let periods = lock(&s.sweep_periods);
         let sweep_rate = median_of(&periods).filter(|p| *p > 0.0).map(|p| round3(60.0 / p));
-        json!({
-            "class": "status",
-            "release": env!("CARGO_PKG_VERSION"),
-            "failure": *self.failure.borrow(),
-            "uptime_s": round3(self.started.elapsed().as_secs_f64()),
-            "backend": self.backend,
-            "mode": if self.config.continuous { "continuous" } else { "on_demand" },
-            "devices": self.devices.snapshot().iter().map(DeviceStatus::json).collect::<Vec<_>>(),
-            "last_sweep": self.newest().map(|e| e.summary()),
-            "sweeps": {
-                "completed": s.sweeps_completed.load(Ordering::Relaxed),
-                "dropped": s.sweeps_dropped.load(Ordering::Relaxed),
-                "per_minute": sweep_rate,
+        let config = self.config();
+        let reload = lock(&self.reload).clone();
+        let unix = |t: SystemTime| {
+            t.duration_since(SystemTime::UNIX_EPOCH)
+                .map(|d| d.as_secs_f64())
+                .unwrap_or(0.0)
+        };
+        Status {
+            id: None,
+            release: env!("CARGO_PKG_VERSION").to_string(),
+            failure: self.failure.borrow().clone(),
+            uptime_s: round3(self.started.elapsed().as_secs_f64()),
+            backend: self.backend.to_string(),
+            mode: if config.continuous {
+                Mode::Continuous
+            } else {
+                Mode::OnDemand
             },
-            "detections": {
-                "count": det.count,
-                "median_run_ms": median_of(&det.run).map(|x| round3(x * 1e3)),
-                "median_latency_ms": median_of(&det.latency).map(|x| round3(x * 1e3)),
+            devices: self.devices.snapshot().iter().map(DeviceStatus::json).collect(),
+            last_sweep: self.newest().map(|e| e.summary()),
+            sweeps: SweepCounts {
+                completed: s.sweeps_completed.load(Ordering::Relaxed),
+                dropped: s.sweeps_dropped.load(Ordering::Relaxed),
+                per_minute: sweep_rate,
             },
-            "clients": {
-                "connected": s.clients.load(Ordering::Relaxed),
-                "total": s.clients_total.load(Ordering::Relaxed),
-                "requests": s.requests.load(Ordering::Relaxed),
-                "errors": s.errors_sent.load(Ordering::Relaxed),
-                "watch_updates_skipped": s.watch_skipped.load(Ordering::Relaxed),
+            detections: DetectionCounts {
+                count: det.count,
+                median_run_ms: median_of(&det.run).map(|x| round3(x * 1e3)),
+                median_latency_ms: median_of(&det.latency).map(|x| round3(x * 1e3)),
             },
-            "watched": lock(&self.watched).keys().cloned().chain(self.config.watch.iter().cloned()).collect::<std::collections::BTreeSet<_>>(),
-            "faults": lock(&s.faults).iter().map(|(t, m)| json!({
-                "time": t.duration_since(SystemTime::UNIX_EPOCH).map(|d| d.as_secs_f64()).unwrap_or(0.0),
-                "message": m,
-            })).collect::<Vec<_>>(),
-        })
+            clients: ClientCounts {
+                connected: s.clients.load(Ordering::Relaxed),
+                total: s.clients_total.load(Ordering::Relaxed),
+                requests: s.requests.load(Ordering::Relaxed),
+                errors: s.errors_sent.load(Ordering::Relaxed),
+                watch_updates_skipped: s.watch_skipped.load(Ordering::Relaxed),
+            },
+            watched: lock(&self.watched)
+                .keys()
+                .cloned()
+                .chain(config.watch.iter().cloned())
+                .collect::<std::collections::BTreeSet<_>>()
+                .into_iter()
+                .collect(),
+            faults: lock(&s.faults)
+                .iter()
+                .map(|(t, m)| Fault {
+                    time: unix(*t),
+                    message: m.clone(),
+                })
+                .collect(),
+            config: ConfigInfo {
+                file: config.source.as_ref().map(|p| p.display().to_string()),
+                models_dir: config.models_dir.display().to_string(),
+                loaded: unix(reload.loaded),
+                reloads: reload.count,
+                reload_error: reload.error,
+            },
+        }
     }
 }

@@ -53,7 +53,7 @@ use crate::cloud::{Field, FieldData, PointCloud};
 pub use acquire::acquire;
 
 /// What happened to the profiles of one sweep.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]
 #[serde(default)]
 pub struct SweepReport {
     /// Profiles handed to the assembler.

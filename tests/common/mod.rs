@@ -8,6 +8,8 @@
 // Each test binary compiles this module and uses only some of it.
 #![allow(dead_code)]
 
+pub mod protocol;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -12,6 +12,7 @@ use clap::Args;
 use nalgebra::{Quaternion, UnitQuaternion};
 use serde_json::{Value, json};
 use sqscan::daemon::config::client_socket_candidates;
+use sqscan::daemon::reply::{PROTO_MAJOR, PROTO_MINOR};
 
 /// Where and how to talk to the daemon.
 #[derive(Args, Clone)]
@@ -151,6 +152,15 @@ impl Connection {
         if hello["class"] != "version" {
             bail!("{} did not greet like sqscand: {hello}", c.path);
         }
+        if hello["proto_major"] != PROTO_MAJOR {
+            bail!(
+                "{} speaks protocol {}.{}, this client {PROTO_MAJOR}.{PROTO_MINOR}: use the sqscan of the daemon's release ({})",
+                c.path,
+                hello["proto_major"],
+                hello["proto_minor"],
+                hello["release"]
+            );
+        }
         Ok(c)
     }
 
@@ -188,7 +198,11 @@ impl Connection {
 
 fn fail_on_error(r: &Value) -> Result<()> {
     if r["class"] == "error" {
-        bail!("{}", r["message"].as_str().unwrap_or("the daemon refused the request"));
+        bail!(
+            "{} ({})",
+            r["message"].as_str().unwrap_or("the daemon refused the request"),
+            r["code"].as_str().unwrap_or("no code")
+        );
     }
     Ok(())
 }
@@ -280,13 +294,14 @@ pub fn scan(a: ScanArgs) -> Result<()> {
     )?;
     fail_on_error(&r)?;
     print(a.client.json, &r, |r| {
+        let s = &r["sweep"];
         format!(
             "sweep {}: {} points from {} profiles x {} columns in {:.2} s",
-            r["id"],
-            r["points"],
-            r["profiles"],
-            r["columns"],
-            r["duration_s"].as_f64().unwrap_or(f64::NAN)
+            s["id"],
+            s["points"],
+            s["profiles"],
+            s["columns"],
+            s["duration_s"].as_f64().unwrap_or(f64::NAN)
         )
     });
     Ok(())
@@ -368,6 +383,16 @@ pub fn status(a: PlainArgs) -> Result<()> {
             "\n  clients: {} connected, {} requests",
             cl["connected"], cl["requests"]
         );
+        let cf = &r["config"];
+        s += &format!(
+            "\n   config: {}, models from {}, {} reloads",
+            cf["file"].as_str().unwrap_or("built-in defaults"),
+            cf["models_dir"].as_str().unwrap_or("?"),
+            cf["reloads"]
+        );
+        if let Some(e) = cf["reload_error"].as_str() {
+            s += &format!("; the last reload was refused: {e}");
+        }
         for f in r["faults"].as_array().into_iter().flatten().rev().take(3) {
             s += &format!("\n    fault: {}", f["message"].as_str().unwrap_or("?"));
         }

@@ -104,7 +104,10 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     params.trials = a.trials;
     params.remove_plane = !a.keep_plane;
     let report = detect::detect(&cloud.points, &model, &params);
-    println!("{}", detect::output::report_json(&report, a.all));
+    println!(
+        "{}",
+        serde_json::to_string(&detect::output::report_json(&report, a.all))?
+    );
     if let Some(out) = &a.out {
         let shown: Vec<&detect::Detection> = if a.all {
             report.detections.iter().collect()
