@@ -361,17 +361,30 @@ pub fn resolve(name_or_path: &str, models_dir: &Path) -> PathBuf {
     }
 }
 
-/// The models directory: `$SQSCAN_MODELS_DIR`, else `./models` when it exists, else the one in
-/// the source tree this binary was built from.
+/// Where models are looked for when no directory is given, after `$SQSCAN_MODELS_DIR`: the
+/// working directory's `models` (a source checkout), the administrator's `/etc/sqscan/models`,
+/// the package's `/usr/share/sqscan/models`.
+pub const MODELS_SEARCH_PATH: [&str; 3] = ["models", "/etc/sqscan/models", "/usr/share/sqscan/models"];
+
+/// The models directory when none is given on the command line: `$SQSCAN_MODELS_DIR` if set,
+/// else the first directory of [`MODELS_SEARCH_PATH`] that exists, else the last of them (so
+/// that the error of loading from it names where models were expected).
 pub fn default_models_dir() -> PathBuf {
-    if let Some(d) = std::env::var_os("SQSCAN_MODELS_DIR") {
+    if let Some(d) = std::env::var_os("SQSCAN_MODELS_DIR").filter(|d| !d.is_empty()) {
         return PathBuf::from(d);
     }
-    let local = PathBuf::from("models");
-    if local.is_dir() {
-        return local;
-    }
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/models"))
+    let found = MODELS_SEARCH_PATH.iter().map(PathBuf::from).find(|p| p.is_dir());
+    found.unwrap_or_else(|| PathBuf::from(MODELS_SEARCH_PATH[MODELS_SEARCH_PATH.len() - 1]))
+}
+
+/// What to say when the models directory `dir` does not exist: where models are looked for.
+pub fn missing_models_dir(dir: &Path) -> String {
+    format!(
+        "no models directory at {}: name one with --models-dir (or models_dir in the daemon's configuration) \
+         or SQSCAN_MODELS_DIR, or install the models in one of {}",
+        dir.display(),
+        MODELS_SEARCH_PATH.join(", ")
+    )
 }
 
 /// Every model in a directory, sorted by name; files that fail to load are returned as errors

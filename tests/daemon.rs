@@ -64,7 +64,9 @@ fn start_daemon(dir: &Path, config: &str, env: &[(&str, &str)]) -> (Proc, PathBu
         .stdout(Stdio::null())
         .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
         .env_remove("NOTIFY_SOCKET")
-        .env_remove("WATCHDOG_USEC");
+        .env_remove("WATCHDOG_USEC")
+        // The models, unless the configuration names its own directory.
+        .env("SQSCAN_MODELS_DIR", root().join("models"));
     for (k, v) in env {
         cmd.env(k, v);
     }
@@ -406,6 +408,125 @@ fn systemd_hears_ready_watchdog_and_a_clean_stop() {
         stopping |= &buf[..n] == b"STOPPING=1";
     }
     assert!(stopping, "{got:?}");
+}
+
+/// SIGHUP re-reads the configuration and the models while clients stay connected (a watcher
+/// keeps its updates); a broken configuration, or one naming an unknown object, is refused and
+/// the old one stays in use; a setting that needs a restart keeps its old value; systemd hears
+/// RELOADING=1 then READY=1 each time.
+#[test]
+fn sighup_reloads_models_and_configuration_without_dropping_clients() {
+    let dir = tmpdir("reload");
+    let models = dir.join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    // Every model but the mouse (the scene names many of the rest).
+    for e in std::fs::read_dir(root().join("models")).unwrap() {
+        let p = e.unwrap().path();
+        if p.extension().is_some_and(|x| x == "toml") && !p.ends_with("mouse.toml") {
+            std::fs::copy(&p, models.join(p.file_name().unwrap())).unwrap();
+        }
+    }
+    let notify_path = dir.join("notify.sock");
+    let sock = UnixDatagram::bind(&notify_path).unwrap();
+    sock.set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    let config = |extra: &str| format!("{}\n[server]\nmodels_dir = \"models\"\n{extra}", sim_config());
+    let (d, socket) = start_daemon(&dir, &config(""), &[("NOTIFY_SOCKET", notify_path.to_str().unwrap())]);
+    let mut buf = [0u8; 4096];
+    let mut next_message = || {
+        let n = sock.recv(&mut buf).unwrap();
+        String::from_utf8_lossy(&buf[..n]).into_owned()
+    };
+    // Skip to READY=1; a reload's messages follow it.
+    while next_message() != "READY=1" {}
+    let awaited_reload = |next_message: &mut dyn FnMut() -> String| {
+        let mut seen = Vec::new();
+        loop {
+            let m = next_message();
+            if m.starts_with("STATUS=") {
+                continue;
+            }
+            seen.push(m.clone());
+            if m == "READY=1" {
+                break;
+            }
+        }
+        assert!(
+            seen.len() == 2 && seen[0].starts_with("RELOADING=1\nMONOTONIC_USEC="),
+            "{seen:?}"
+        );
+    };
+    let mut c = Client::connect(&socket);
+    let mut watcher = Client::connect(&socket);
+    assert_eq!(watcher.ask(json!({"cmd":"watch","object":"cup"}))["class"], "watch");
+    let names = |c: &mut Client| -> Vec<String> {
+        let r = c.ask(json!({"cmd":"models"}));
+        r["models"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["name"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let before = names(&mut c);
+    assert!(
+        before.contains(&"cup".to_string()) && !before.contains(&"mouse".to_string()),
+        "{before:?}"
+    );
+    let r = c.ask(json!({"cmd":"find","object":"mouse"}));
+    assert_eq!(r["code"], "unknown_object", "{r}");
+
+    // A new model, a new frame, and a change that needs a restart.
+    std::fs::copy(root().join("models/mouse.toml"), models.join("mouse.toml")).unwrap();
+    std::fs::write(
+        dir.join("sqscand.toml"),
+        config("frame_id = \"table\"\nmax_clients = 7\n"),
+    )
+    .unwrap();
+    unsafe_kill(d.0.id(), libc::SIGHUP);
+    awaited_reload(&mut next_message);
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["config"]["reloads"], 1, "{s}");
+    assert!(s["config"]["reload_error"].is_null(), "{s}");
+    assert_eq!(names(&mut c).len(), before.len() + 1);
+    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":30}));
+    assert_eq!((&r["found"], &r["frame"]), (&json!(true), &json!("table")), "{r}");
+    assert!(
+        log(&dir).contains("server.max_clients changed, which takes a restart"),
+        "{}",
+        log(&dir)
+    );
+    // The watcher was not dropped: its updates go on, in the new frame once the reload is in.
+    let t0 = Instant::now();
+    loop {
+        let u = watcher.read();
+        assert_eq!(u["class"], "detection", "{u}");
+        if u["frame"] == "table" {
+            break;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(60), "no update in the new frame");
+    }
+
+    // Broken files are refused, and the running configuration stays.
+    for (broken, says) in [
+        ("frame_id = \"table\"\nidle_timeout_s = \"soon\"\n", "idle_timeout_s"),
+        ("frame_id = \"floor\"\n[watch]\nobjects = [\"teapot\"]\n", "teapot"),
+    ] {
+        std::fs::write(dir.join("sqscand.toml"), config(broken)).unwrap();
+        unsafe_kill(d.0.id(), libc::SIGHUP);
+        awaited_reload(&mut next_message);
+        let s = c.ask(json!({"cmd":"status"}));
+        assert_eq!(s["config"]["reloads"], 1, "{s}");
+        assert!(s["config"]["reload_error"].as_str().unwrap().contains(says), "{s}");
+        let r = c.ask(json!({"cmd":"find","object":"mouse","timeout_s":30}));
+        assert_eq!(
+            (&r["class"], &r["frame"]),
+            (&json!("detection"), &json!("table")),
+            "{r}"
+        );
+    }
+    let u = watcher.read();
+    assert_eq!((&u["class"], &u["object"]), (&json!("detection"), &json!("cup")), "{u}");
+    assert_eq!(c.ask(json!({"cmd":"status"}))["clients"]["connected"], 2);
 }
 
 fn unsafe_kill(pid: u32, sig: i32) {

@@ -41,9 +41,9 @@ fn eval_real_scores_a_labelled_simulated_set() {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     let sim = dir.join("sim");
     let out = sqscan(&[
+        "simulate",
         "--models-dir",
         root.join("models").to_str().unwrap(),
-        "simulate",
         root.join("scenes/fig3_table.toml").to_str().unwrap(),
         "--seed",
         "1",

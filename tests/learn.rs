@@ -295,9 +295,9 @@ fn learn_from_several_sweeps_of_one_view() {
     let simulate = |seed: u64, columns: Option<u32>| {
         let out = dir.join(format!("s{seed}-{}", columns.unwrap_or(0)));
         let mut cmd = Command::new(bin);
-        cmd.arg("--models-dir")
+        cmd.arg("simulate")
+            .arg("--models-dir")
             .arg(root.join("models"))
-            .arg("simulate")
             .arg(root.join("scenes/learn/cup_alone.toml"))
             .arg("--out")
             .arg(&out)
@@ -358,9 +358,9 @@ fn a_carton_seen_at_its_corner_is_a_box() {
     .unwrap();
     let learn = |rpy: &str| {
         Command::new(bin)
+            .args(["learn", "--simulate", "carton", "--rpy", rpy])
             .arg("--models-dir")
             .arg(&dir)
-            .args(["learn", "--simulate", "carton", "--rpy", rpy])
             .output()
             .unwrap()
     };

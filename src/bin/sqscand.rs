@@ -18,8 +18,8 @@ use sqscan::daemon::{Daemon, notify::Notifier};
         Reads its configuration from --config, else /etc/sqscan/sqscand.toml when that exists, \
         else runs the embedded default: the simulated scanner on scenes/fig3_table.toml with the \
         socket at $XDG_RUNTIME_DIR/sqscand.sock (or ./sqscand.sock). Ask it with `sqscan find cup`, \
-        `sqscan status`, `sqscan watch cup`, `sqscan scan`. Logs go to stderr; SQSCAN_LOG=debug \
-        shows more."
+        `sqscan status`, `sqscan watch cup`, `sqscan scan`. SIGHUP re-reads the configuration and \
+        the models without dropping clients. Logs go to stderr; SQSCAN_LOG=debug shows more."
 )]
 struct Cli {
     /// Configuration file [default: /etc/sqscan/sqscand.toml if it exists, else the embedded
@@ -29,6 +29,11 @@ struct Cli {
     /// Unix socket to listen on (overrides the file's server.socket)
     #[arg(long, value_name = "PATH")]
     socket: Option<PathBuf>,
+    /// Directory of object models (overrides the file's server.models_dir) [default:
+    /// $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models,
+    /// /usr/share/sqscan/models that exists]
+    #[arg(long, value_name = "DIR")]
+    models_dir: Option<PathBuf>,
     /// Serve the recorded sweeps in DIR instead of scanning (overrides the file's backend): the
     /// daemon's recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint
     #[arg(long, value_name = "DIR")]
@@ -55,6 +60,9 @@ fn load_config(cli: &Cli) -> Result<Config> {
     };
     if let Some(s) = &cli.socket {
         config.socket = s.clone();
+    }
+    if let Some(d) = &cli.models_dir {
+        config.models_dir = d.clone();
     }
     if let Some(dir) = &cli.replay {
         let (lo, hi) = sqscan::daemon::config::limits::REPLAY_SPEED;
@@ -88,7 +96,7 @@ fn describe(config: &Config) -> String {
     format!("configuration from {source}; scanning with {backend}")
 }
 
-async fn run(config: Config) -> Result<()> {
+async fn run(cli: &Cli, config: Config) -> Result<()> {
     let notifier = Notifier::from_env();
     tracing::info!("{}", describe(&config));
     let tcp = config.tcp;
@@ -101,16 +109,25 @@ async fn run(config: Config) -> Result<()> {
         tcp.map(|a| format!(" and tcp {a}")).unwrap_or_default(),
         socket.display()
     );
-    let mut term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
-        .context("cannot install the SIGTERM handler")?;
-    let failure = tokio::select! {
-        r = tokio::signal::ctrl_c() => {
-            r.context("waiting for SIGINT")?;
-            None
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut term = signal(SignalKind::terminate()).context("cannot install the SIGTERM handler")?;
+    let mut hup = signal(SignalKind::hangup()).context("cannot install the SIGHUP handler")?;
+    let failure = loop {
+        tokio::select! {
+            r = tokio::signal::ctrl_c() => {
+                r.context("waiting for SIGINT")?;
+                break None;
+            }
+            _ = term.recv() => break None,
+            // Re-read the configuration and the models; a refused reload is logged and shown
+            // in `status`, and the daemon runs on as before.
+            _ = hup.recv() => {
+                tracing::info!("SIGHUP: reloading");
+                let _ = daemon.reload(|| load_config(cli));
+            }
+            // A dead acquisition or server task: exit with an error, which systemd restarts.
+            f = daemon.failed() => break Some(f),
         }
-        _ = term.recv() => None,
-        // A dead acquisition or server task: exit with an error, which systemd restarts.
-        f = daemon.failed() => Some(f),
     };
     tracing::info!("stopping");
     daemon.stop().await;
@@ -139,7 +156,7 @@ fn main() -> ExitCode {
             .thread_name("sqscand")
             .build()
             .context("cannot start the runtime")?;
-        let r = rt.block_on(run(config));
+        let r = rt.block_on(run(&cli, config));
         // Detections still on the blocking pool are abandoned: stopping must take < 2 s.
         rt.shutdown_timeout(Duration::from_millis(200));
         r

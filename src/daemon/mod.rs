@@ -53,6 +53,9 @@ use state::Shared;
 /// Loads every model of the directory; a broken file is reported and skipped, not fatal (one
 /// bad model must not take the scanner down), but an empty set is.
 pub fn load_models(dir: &std::path::Path) -> Result<BTreeMap<String, Arc<Model>>> {
+    if !dir.is_dir() {
+        bail!("{}", model::missing_models_dir(dir));
+    }
     let mut out = BTreeMap::new();
     for m in model::load_dir(dir).map_err(|e| anyhow::anyhow!(e.with_causes()))? {
         match m {
@@ -187,6 +190,47 @@ impl Daemon {
         }
     }
 
+    /// Reloads (SIGHUP, `systemctl reload`): reads the configuration with `load`, loads the
+    /// models it names, and puts both in use; requests under way finish with what they began
+    /// with, and no client is dropped. Settings fixed for the daemon's life (the sockets, the
+    /// client limits, the scanner, the sweep, the detection workers) keep their old values,
+    /// each change logged as needing a restart. A configuration or model set that does not load
+    /// is refused: the old one stays in use, and `status` says why (`config.reload_error`).
+    /// Tells systemd `RELOADING=1` before and `READY=1` after, either way.
+    pub fn reload(&self, load: impl FnOnce() -> Result<Config>) -> Result<()> {
+        if let Some(n) = &self.notifier
+            && let Err(e) = n.reloading()
+        {
+            tracing::warn!("sd_notify RELOADING to {}: {e}", n.socket_name());
+        }
+        let result = load().and_then(|new| {
+            let models = load_models(&new.models_dir)?;
+            check_watch(&new, &models)?;
+            Ok((new, models))
+        });
+        let outcome = match result {
+            Ok((new, models)) => {
+                let (config, kept) = keep_fixed(&self.shared.config(), new);
+                for k in kept {
+                    tracing::warn!("reload: {k} changed, which takes a restart; the old value stays in use");
+                }
+                tracing::info!("reloaded: {} models from {}", models.len(), config.models_dir.display());
+                self.shared.replace(config, models);
+                Ok(())
+            }
+            Err(e) => {
+                let why = format!("{e:#}");
+                tracing::error!("reload refused, the running configuration stays in use: {why}");
+                lock_reload_error(&self.shared, why);
+                Err(e)
+            }
+        };
+        if let Some(n) = &self.notifier {
+            let _ = n.ready();
+        }
+        outcome
+    }
+
     /// The Unix socket's path, if the daemon listens on one.
     pub fn socket(&self) -> Option<&Path> {
         self.socket.as_deref()
@@ -207,6 +251,38 @@ impl Daemon {
             let _ = std::fs::remove_file(s);
         }
     }
+}
+
+/// `new` with the settings that a running daemon cannot change taken from `old`, and the names
+/// of those that differed.
+fn keep_fixed(old: &Config, mut new: Config) -> (Config, Vec<&'static str>) {
+    let mut kept = Vec::new();
+    macro_rules! fixed {
+        ($($name:literal => $field:ident),* $(,)?) => {
+            $(
+                if new.$field != old.$field {
+                    kept.push($name);
+                    new.$field = old.$field.clone();
+                }
+            )*
+        };
+    }
+    fixed!(
+        "server.socket" => socket,
+        "server.socket_mode" => socket_mode,
+        "server.tcp" => tcp,
+        "server.max_clients" => max_clients,
+        "server.client_queue" => client_queue,
+        "the scanner ([acquisition] backend, [sim], [hardware] or [replay])" => backend,
+        "acquisition.mode" => continuous,
+        "[sweep]" => sweep,
+        "detect.workers" => detect_workers,
+    );
+    (new, kept)
+}
+
+fn lock_reload_error(shared: &Shared, why: String) {
+    state::lock(&shared.reload).error = Some(why);
 }
 
 async fn futures_join(tasks: Vec<tokio::task::JoinHandle<()>>) {

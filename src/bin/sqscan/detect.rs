@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct DetectArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Model name (looked up in the models directory) or model file
     #[arg(long)]
     model: String,

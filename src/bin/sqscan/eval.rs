@@ -15,6 +15,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct EvalArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Scene file (scenes/*.toml)
     #[arg(long)]
     scene: PathBuf,

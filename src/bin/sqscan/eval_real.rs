@@ -15,6 +15,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct EvalRealArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Labels file (JSON: one entry a scene, its objects with class, centroid, visible, upright)
     #[arg(long, value_name = "FILE.json")]
     labels: PathBuf,

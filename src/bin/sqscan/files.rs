@@ -12,6 +12,8 @@ use std::path::{Path, PathBuf};
 
 #[derive(Args)]
 pub struct SimulateArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Scene file (scenes/*.toml)
     scene: PathBuf,
     /// Output directory (created if missing)
@@ -104,6 +106,8 @@ pub fn simulate(a: SimulateArgs, models_dir: &Path) -> Result<()> {
 
 #[derive(Args)]
 pub struct ShowModelArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Model name (looked up in the models directory) or model file
     model: String,
     /// Output PLY file

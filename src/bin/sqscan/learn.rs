@@ -35,6 +35,8 @@ pub enum ShapeArg {
 
 #[derive(Args)]
 pub struct LearnArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Point cloud file (.pcd, .ply, or text with x y z per line); several files are sweeps of
     /// one view (organized clouds of the same size, the scene and the sensor still), learned from
     /// their per-pixel median, which cuts the noise by about the square root of their number

@@ -19,11 +19,28 @@ use std::process::ExitCode;
 #[derive(Parser)]
 #[command(name = "sqscan", version, about = "Find known objects in laser range scans", long_about = None)]
 struct Cli {
-    /// Directory of object models [default: $SQSCAN_MODELS_DIR, else ./models, else the source tree's]
-    #[arg(long, global = true, value_name = "DIR")]
-    models_dir: Option<PathBuf>,
     #[command(subcommand)]
     command: Command,
+}
+
+/// `--models-dir`, on the commands that read models.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ModelsDirArg {
+    /// Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models,
+    /// /etc/sqscan/models, /usr/share/sqscan/models that exists]
+    #[arg(long = "models-dir", value_name = "DIR")]
+    pub dir: Option<PathBuf>,
+}
+
+impl ModelsDirArg {
+    /// The directory given, or the one the search path finds.
+    pub fn dir(&self) -> PathBuf {
+        let d = self.dir.clone().unwrap_or_else(sqscan::model::default_models_dir);
+        if !d.is_dir() {
+            tracing::warn!("{}", sqscan::model::missing_models_dir(&d));
+        }
+        d
+    }
 }
 
 #[derive(Subcommand)]
@@ -71,16 +88,33 @@ fn main() -> ExitCode {
     // Diagnostics go to stderr, so stdout stays one JSON object where a command promises one.
     // SQSCAN_LOG=debug shows, for example, every hypothesis of the detector with its scores.
     sqscan::logging::init(tracing::Level::WARN);
-    let models_dir = cli.models_dir.clone().unwrap_or_else(sqscan::model::default_models_dir);
     let result: Result<()> = match cli.command {
-        Command::Simulate(a) => files::simulate(a, &models_dir),
-        Command::ShowModel(a) => files::show_model(a, &models_dir),
+        Command::Simulate(a) => {
+            let d = a.models.dir();
+            files::simulate(a, &d)
+        }
+        Command::ShowModel(a) => {
+            let d = a.models.dir();
+            files::show_model(a, &d)
+        }
         Command::Info(a) => files::info(a),
-        Command::Detect(a) => detect::detect(a, &models_dir),
-        Command::Eval(a) => eval::eval(a, &models_dir),
-        Command::EvalReal(a) => eval_real::run(a, &models_dir),
-        Command::Learn(a) => learn::run(a, &models_dir),
-        Command::Mock(a) => mock::run(a, &models_dir),
+        Command::Detect(a) => {
+            let d = a.models.dir();
+            detect::detect(a, &d)
+        }
+        Command::Eval(a) => {
+            let d = a.models.dir();
+            eval::eval(a, &d)
+        }
+        Command::EvalReal(a) => {
+            let d = a.models.dir();
+            eval_real::run(a, &d)
+        }
+        Command::Learn(a) => {
+            let d = a.models.dir();
+            learn::run(a, &d)
+        }
+        Command::Mock(a) => mock::run(a),
         Command::Ptu(a) => ptu::run(a),
         Command::Sensor(a) => sensor::run(a),
         Command::Find(a) => client::find(a),

@@ -28,6 +28,8 @@ enum MockDevice {
 
 #[derive(Args)]
 pub struct MockRigArgs {
+    #[command(flatten)]
+    pub models: crate::ModelsDirArg,
     /// Scene file whose table, objects and rig the sensor sees
     #[arg(long, value_name = "SCENE")]
     scene: PathBuf,
@@ -150,7 +152,7 @@ impl FaultArgs {
     }
 }
 
-pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
+pub fn run(a: MockArgs) -> Result<()> {
     // The rig's sensor renders the scene on its task: a second worker keeps the PTU answering
     // meanwhile.
     let workers = if matches!(a.device, MockDevice::Rig(_)) { 2 } else { 1 };
@@ -161,7 +163,10 @@ pub fn run(a: MockArgs, models_dir: &Path) -> Result<()> {
         .context("cannot start the async runtime")?;
     match a.device {
         MockDevice::Ptu(p) => rt.block_on(mock_ptu(p)),
-        MockDevice::Rig(r) => rt.block_on(mock_rig(r, models_dir)),
+        MockDevice::Rig(r) => {
+            let models_dir = r.models.dir();
+            rt.block_on(mock_rig(r, &models_dir))
+        }
     }
 }
 

@@ -247,14 +247,14 @@ pub fn client_socket_candidates() -> Vec<PathBuf> {
     v
 }
 
-/// The scenes directory: `./scenes` when it exists, else the one in the source tree this binary
-/// was built from (as [`crate::model::default_models_dir`] does for models).
+/// The scenes directory: `./scenes` when it exists (a source checkout), else the package's
+/// `/usr/share/sqscan/scenes`.
 pub fn default_scenes_dir() -> PathBuf {
     let local = PathBuf::from("scenes");
     if local.is_dir() {
         return local;
     }
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/scenes"))
+    PathBuf::from("/usr/share/sqscan/scenes")
 }
 
 /// The documented ranges of the numbers in the file: past them a setting is a mistake (a
