@@ -6,8 +6,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 # gige: aravis (its library, and its camera emulator the tests serve on loopback); libusb is a
-# build dependency of aravis-sys that libaravis-dev does not pull in.
-packages=(pkg-config libaravis-dev libusb-1.0-0-dev)
+# build dependency of aravis-sys that libaravis-dev does not pull in. lintian: the package test
+# (tests/package.rs) checks the Debian package with it.
+packages=(pkg-config libaravis-dev libusb-1.0-0-dev lintian)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
@@ -22,6 +23,14 @@ if [ ${#missing[@]} -gt 0 ]; then
     apt-get update -qq
     apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+# cargo-deb builds the Debian package (crates.io; it is not a Debian package).
+if ! cargo deb --version >/dev/null 2>&1; then
+    echo "test.sh: installing cargo-deb"
+    cargo install --locked cargo-deb@3.8.0
+fi
+# The package test fails, instead of skipping, where its tools are missing.
+export SQSCAN_REQUIRE_PACKAGE_TOOLS=1
 
 # The GigE Vision tests run inside a private network namespace with only loopback (unshare -n,
 # root): they say SKIPPED where none can be had.

@@ -6,48 +6,9 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use sqscan::daemon::cli::DaemonCli as Cli;
 use sqscan::daemon::config::{BackendConfig, Config, DEFAULT_CONFIG_PATH};
 use sqscan::daemon::{Daemon, notify::Notifier};
-
-#[derive(Parser)]
-#[command(
-    name = "sqscand",
-    version,
-    about = "Scan the table and answer \"where is the cup?\" over a local socket",
-    long_about = "Scan the table and answer \"where is the cup?\" over a local socket.\n\n\
-        Reads its configuration from --config, else /etc/sqscan/sqscand.toml when that exists, \
-        else runs the embedded default: the simulated scanner on scenes/fig3_table.toml with the \
-        socket at $XDG_RUNTIME_DIR/sqscand.sock (or ./sqscand.sock). Ask it with `sqscan find cup`, \
-        `sqscan status`, `sqscan watch cup`, `sqscan scan`. SIGHUP re-reads the configuration and \
-        the models without dropping clients. Logs go to stderr; SQSCAN_LOG=debug shows more."
-)]
-struct Cli {
-    /// Configuration file [default: /etc/sqscan/sqscand.toml if it exists, else the embedded
-    /// simulator configuration]
-    #[arg(long, value_name = "FILE")]
-    config: Option<PathBuf>,
-    /// Unix socket to listen on (overrides the file's server.socket)
-    #[arg(long, value_name = "PATH")]
-    socket: Option<PathBuf>,
-    /// Directory of object models (overrides the file's server.models_dir) [default:
-    /// $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models,
-    /// /usr/share/sqscan/models that exists]
-    #[arg(long, value_name = "DIR")]
-    models_dir: Option<PathBuf>,
-    /// Serve the recorded sweeps in DIR instead of scanning (overrides the file's backend): the
-    /// daemon's recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint
-    #[arg(long, value_name = "DIR")]
-    replay: Option<PathBuf>,
-    /// With --replay: 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked
-    #[arg(long, value_name = "FACTOR", default_value_t = 1.0, requires = "replay")]
-    replay_speed: f64,
-    /// With --replay: start again after the last sweep instead of stopping there
-    #[arg(long, requires = "replay")]
-    replay_loop: bool,
-    /// Run every start-up check (configuration, models, scene or calibration, serial devices) and exit
-    #[arg(long)]
-    check: bool,
-}
 
 fn load_config(cli: &Cli) -> Result<Config> {
     let path = match &cli.config {

@@ -19,6 +19,7 @@
 
 mod acquire;
 mod backend;
+pub mod cli;
 pub mod config;
 mod hardware;
 mod idle;

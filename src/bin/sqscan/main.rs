@@ -75,6 +75,53 @@ enum Command {
     Status(client::PlainArgs),
     /// The objects the daemon knows
     Models(client::PlainArgs),
+    /// Print a shell completion script for sqscan (or, with --daemon, sqscand)
+    Completions(CompletionsArgs),
+    /// Write the manual pages of sqscan (one a subcommand) and sqscand into a directory
+    #[command(hide = true)]
+    Man(ManArgs),
+}
+
+#[derive(clap::Args)]
+struct CompletionsArgs {
+    /// The shell: e.g. `sqscan completions bash > ~/.local/share/bash-completion/completions/sqscan`
+    shell: clap_complete::Shell,
+    /// The script for sqscand instead of sqscan
+    #[arg(long)]
+    daemon: bool,
+}
+
+#[derive(clap::Args)]
+struct ManArgs {
+    /// Directory to write sqscan.1, sqscan-*.1 and sqscand.8 into (created if missing)
+    #[arg(value_name = "DIR")]
+    out: PathBuf,
+}
+
+fn completions(a: CompletionsArgs) -> Result<()> {
+    use clap::CommandFactory;
+    let (mut cmd, name) = if a.daemon {
+        (sqscan::daemon::cli::DaemonCli::command(), "sqscand")
+    } else {
+        (Cli::command(), "sqscan")
+    };
+    clap_complete::generate(a.shell, &mut cmd, name, &mut std::io::stdout());
+    Ok(())
+}
+
+fn man(a: ManArgs) -> Result<()> {
+    use anyhow::Context;
+    use clap::CommandFactory;
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let write = |r: std::io::Result<()>| r.with_context(|| format!("writing manual pages into {}", a.out.display()));
+    write(clap_mangen::generate_to(Cli::command(), &a.out))?;
+    write(
+        clap_mangen::Man::new(sqscan::daemon::cli::DaemonCli::command())
+            .section("8")
+            .generate_to(&a.out)
+            .map(|_| ()),
+    )?;
+    Ok(())
 }
 
 fn main() -> ExitCode {
@@ -122,6 +169,8 @@ fn main() -> ExitCode {
         Command::Watch(a) => client::watch(a),
         Command::Status(a) => client::status(a),
         Command::Models(a) => client::models(a),
+        Command::Completions(a) => completions(a),
+        Command::Man(a) => man(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
