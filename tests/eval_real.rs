@@ -49,8 +49,19 @@ fn eval_real_scores_a_labelled_simulated_set() {
         "1",
         "--out",
         sim.to_str().unwrap(),
+        "--json",
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let said: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(said["profiles"], 150, "{said}");
+    assert!(
+        said["files"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|f| Path::new(f.as_str().unwrap()).is_file()),
+        "{said}"
+    );
     let truth: Value = serde_json::from_slice(&std::fs::read(sim.join("truth.json")).unwrap()).unwrap();
     let objects = |cup_upright: bool| -> Vec<Value> {
         truth["objects"]

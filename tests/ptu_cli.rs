@@ -150,6 +150,17 @@ fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
         ok && out.contains("sweep: ") && out.contains("tilt +0.0996 rad  111 steps"),
         "{out}{err}"
     );
+    // --json: one object with the joints, the limits and the sweep's samples.
+    let (ok, out, err) = ptu_with(
+        &link,
+        "flir",
+        &["--json", "sweep", "--from", "0.1", "--to", "-0.1", "--speed", "0.2"],
+    );
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(out.trim()).unwrap_or_else(|e| panic!("{e}: {out}"));
+    assert!((v["tilt"]["position_rad"].as_f64().unwrap() + 0.1).abs() < 0.001, "{v}");
+    assert!(v["sweep"]["samples"].as_u64().unwrap() > 5, "{v}");
+    assert!(v["limits"]["tilt_rad"][0].as_f64().unwrap() < -0.1, "{v}");
     let (ok, _, err) = ptu_with(&link, "flir", &["move", "--tilt", "0.6"]);
     assert!(!ok && err.contains("tilt (rad) = 0.6 outside"), "{err}");
     let (ok, out, err) = ptu_with(&link, "flir", &["home"]);

@@ -1145,7 +1145,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__ptu)
-            opts="-h --device --protocol --baud --pan-module --tilt-module --pan-sign --pan-offset --tilt-sign --tilt-offset --timeout --help status home move sweep help"
+            opts="-h --device --protocol --baud --pan-module --tilt-module --pan-sign --pan-offset --tilt-sign --tilt-offset --timeout --json --help status home move sweep help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -1507,7 +1507,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__show__subcmd__model)
-            opts="-h --models-dir --out --spacing --help"
+            opts="-h --models-dir --out --spacing --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -1533,7 +1533,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__simulate)
-            opts="-h --models-dir --out --seed --columns --help"
+            opts="-h --models-dir --out --seed --columns --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0

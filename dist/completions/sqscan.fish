@@ -48,10 +48,12 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -l models-dir -d
 complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -l out -d 'Output directory (created if missing)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -l seed -d 'Seed of the sensor noise and dropout' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -l columns -d 'Override the scene\'s sensor columns (e.g. 1536 for a full-resolution sensor)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -l json -d 'Print one JSON object (the sweep\'s size and the files written) instead of a line of text'
 complete -c sqscan -n "__fish_sqscan_using_subcommand simulate" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand show-model" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand show-model" -l out -d 'Output PLY file' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand show-model" -l spacing -d 'Distance between surface samples (m)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand show-model" -l json -d 'Print one JSON object (the model, its parts and the points written) instead of a line of text'
 complete -c sqscan -n "__fish_sqscan_using_subcommand show-model" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand info" -l json -d 'Print one JSON object'
 complete -c sqscan -n "__fish_sqscan_using_subcommand info" -s h -l help -d 'Print help'
@@ -115,7 +117,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -f -a "ptu" -d 'Run a mock pan-tilt unit on a pty until interrupted'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -f -a "rig" -d 'Run the mock scanning rig until interrupted: a mock PTU on one pty and a mock profile sensor on another that sees the scene from the PTU\'s current angles'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -f -a "help" -d 'Print this message or the help of the given subcommand(s)'
-complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from ptu" -l protocol -r -f -a "powercube\t'AMTEC/Schunk PowerCube modules over RS-232'
+complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from ptu" -l protocol -d 'The protocol the mock PTU speaks' -r -f -a "powercube\t'AMTEC/Schunk PowerCube modules over RS-232'
 flir\t'FLIR / Directed Perception PTU-D46 (ASCII)'"
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from ptu" -l link -d 'Keep a symlink to the pty here (replaced if it is a symlink)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from ptu" -l garbage-every -d 'Send 1-16 random bytes before every Nth reply' -r
@@ -128,7 +130,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subc
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from ptu" -s h -l help -d 'Print help (see more with \'--help\')'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l scene -d 'Scene file whose table, objects and rig the sensor sees' -r -F
-complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l protocol -r -f -a "powercube\t'AMTEC/Schunk PowerCube modules over RS-232'
+complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l protocol -d 'The protocol the mock PTU speaks' -r -f -a "powercube\t'AMTEC/Schunk PowerCube modules over RS-232'
 flir\t'FLIR / Directed Perception PTU-D46 (ASCII)'"
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l ptu-link -d 'Keep a symlink to the PTU\'s pty here' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and __fish_seen_subcommand_from rig" -l sensor-link -d 'Keep a symlink to the sensor\'s pty here' -r -F
@@ -169,6 +171,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_s
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -l tilt-sign -d 'Tilt axis sign (+1 or -1): joint = sign * device + offset (-1 for a PTU-D46 tilting down at negative positions)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -l tilt-offset -d 'Tilt axis offset (rad): the joint angle at device angle 0' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -l timeout -d 'Give up on a move after this many seconds' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -l json -d 'Print one JSON object (both joints\' angles, state words and limits, and a sweep\'s samples summary) instead of lines of text'
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -s h -l help -d 'Print help (see more with \'--help\')'
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -f -a "status" -d 'Print both joints\' angles, state words and limits'
 complete -c sqscan -n "__fish_sqscan_using_subcommand ptu; and not __fish_seen_subcommand_from status home move sweep help" -f -a "home" -d 'Reset and home (PowerCube: wait for HOME_OK; PTU-D46: its recalibrating reset)'

@@ -34,6 +34,7 @@ _arguments "${_arguments_options[@]}" : \
 '--out=[Output directory (created if missing)]:DIR:_files' \
 '--seed=[Seed of the sensor noise and dropout]:SEED:_default' \
 '--columns=[Override the scene'\''s sensor columns (e.g. 1536 for a full-resolution sensor)]:COLUMNS:_default' \
+'--json[Print one JSON object (the sweep'\''s size and the files written) instead of a line of text]' \
 '-h[Print help]' \
 '--help[Print help]' \
 ':scene -- Scene file (scenes/*.toml):_files' \
@@ -44,6 +45,7 @@ _arguments "${_arguments_options[@]}" : \
 '--models-dir=[Directory of object models \[default\: \$SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists\]]:DIR:_files' \
 '--out=[Output PLY file]:FILE.ply:_files' \
 '--spacing=[Distance between surface samples (m)]:SPACING:_default' \
+'--json[Print one JSON object (the model, its parts and the points written) instead of a line of text]' \
 '-h[Print help]' \
 '--help[Print help]' \
 ':model -- Model name (looked up in the models directory) or model file:_default' \
@@ -149,7 +151,7 @@ _arguments "${_arguments_options[@]}" : \
         case $line[1] in
             (ptu)
 _arguments "${_arguments_options[@]}" : \
-'--protocol=[]:PROTOCOL:((powercube\:"AMTEC/Schunk PowerCube modules over RS-232"
+'--protocol=[The protocol the mock PTU speaks]:PROTOCOL:((powercube\:"AMTEC/Schunk PowerCube modules over RS-232"
 flir\:"FLIR / Directed Perception PTU-D46 (ASCII)"))' \
 '--link=[Keep a symlink to the pty here (replaced if it is a symlink)]:PATH:_files' \
 '--garbage-every=[Send 1-16 random bytes before every Nth reply]:N:_default' \
@@ -167,7 +169,7 @@ flir\:"FLIR / Directed Perception PTU-D46 (ASCII)"))' \
 _arguments "${_arguments_options[@]}" : \
 '--models-dir=[Directory of object models \[default\: \$SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists\]]:DIR:_files' \
 '--scene=[Scene file whose table, objects and rig the sensor sees]:SCENE:_files' \
-'--protocol=[]:PROTOCOL:((powercube\:"AMTEC/Schunk PowerCube modules over RS-232"
+'--protocol=[The protocol the mock PTU speaks]:PROTOCOL:((powercube\:"AMTEC/Schunk PowerCube modules over RS-232"
 flir\:"FLIR / Directed Perception PTU-D46 (ASCII)"))' \
 '--ptu-link=[Keep a symlink to the PTU'\''s pty here]:PATH:_files' \
 '--sensor-link=[Keep a symlink to the sensor'\''s pty here]:PATH:_files' \
@@ -241,6 +243,7 @@ flir\:"FLIR / Directed Perception PTU-D46 (ASCII)"))' \
 '--tilt-sign=[Tilt axis sign (+1 or -1)\: joint = sign * device + offset (-1 for a PTU-D46 tilting down at negative positions)]:TILT_SIGN:_default' \
 '--tilt-offset=[Tilt axis offset (rad)\: the joint angle at device angle 0]:RAD:_default' \
 '--timeout=[Give up on a move after this many seconds]:S:_default' \
+'--json[Print one JSON object (both joints'\'' angles, state words and limits, and a sweep'\''s samples summary) instead of lines of text]' \
 '-h[Print help (see more with '\''--help'\'')]' \
 '--help[Print help (see more with '\''--help'\'')]' \
 ":: :_sqscan__subcmd__ptu_commands" \

@@ -25,6 +25,9 @@ pub struct SimulateArgs {
     /// Override the scene's sensor columns (e.g. 1536 for a full-resolution sensor)
     #[arg(long)]
     columns: Option<usize>,
+    /// Print one JSON object (the sweep's size and the files written) instead of a line of text
+    #[arg(long)]
+    json: bool,
 }
 
 pub fn simulate(a: SimulateArgs, models_dir: &Path) -> Result<()> {
@@ -92,6 +95,19 @@ pub fn simulate(a: SimulateArgs, models_dir: &Path) -> Result<()> {
         serde_json::to_writer_pretty(&mut *w, &truth)?;
         Ok(())
     })?;
+    if a.json {
+        let files: Vec<String> = ["cloud.ply", "cloud.pcd", "range.png", "truth.json"]
+            .iter()
+            .map(|f| a.out.join(f).display().to_string())
+            .collect();
+        println!(
+            "{}",
+            json!({"scene": a.scene.display().to_string(), "seed": a.seed, "profiles": sweep.profiles,
+                   "columns": sweep.columns, "points": sweep.finite_points(),
+                   "simulate_ms": elapsed.as_secs_f64() * 1e3, "files": files})
+        );
+        return Ok(());
+    }
     println!(
         "{}: {} profiles x {} columns, {} points, simulated in {:.1} ms; wrote cloud.ply, cloud.pcd, range.png, truth.json to {}",
         a.scene.display(),
@@ -116,6 +132,9 @@ pub struct ShowModelArgs {
     /// Distance between surface samples (m)
     #[arg(long, default_value_t = 0.002)]
     spacing: f64,
+    /// Print one JSON object (the model, its parts and the points written) instead of a line of text
+    #[arg(long)]
+    json: bool,
 }
 
 /// One colour a part: red, green, blue.
@@ -156,6 +175,14 @@ pub fn show_model(a: ShowModelArgs, models_dir: &Path) -> Result<()> {
     write_atomic(&a.out, |w| {
         Ok(cloud::write_ply(w, &cloud, PlyFormat::BinaryLittleEndian)?)
     })?;
+    if a.json {
+        println!(
+            "{}",
+            json!({"model": model.name, "parts": model.parts.iter().map(|p| p.name.clone()).collect::<Vec<_>>(),
+                   "points": n, "spacing_m": a.spacing, "out": a.out.display().to_string()})
+        );
+        return Ok(());
+    }
     println!(
         "{}: {} parts, {n} points at {} m spacing -> {}",
         model.name,

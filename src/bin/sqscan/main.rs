@@ -184,3 +184,72 @@ fn main() -> ExitCode {
 
 /// Files the tool writes (sweeps, models, detections) go through a temporary file and a rename.
 pub use sqscan::atomic::write_atomic;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    fn has_json(c: &clap::Command) -> bool {
+        c.get_arguments().any(|a| a.get_long() == Some("json"))
+    }
+
+    /// Every command with its full name (`ptu sweep`), and whether it or a command above it
+    /// takes --json (`ptu --json sweep`); clap's generated `help` commands left out.
+    fn commands(cmd: &clap::Command, prefix: &str, json_above: bool, out: &mut Vec<(String, clap::Command, bool)>) {
+        for sub in cmd.get_subcommands().filter(|s| s.get_name() != "help") {
+            let name = format!("{prefix}{}", sub.get_name());
+            let json = json_above || has_json(sub);
+            out.push((name.clone(), sub.clone(), json));
+            commands(sub, &format!("{name} "), json, out);
+        }
+    }
+
+    #[test]
+    fn the_command_line_is_consistent() {
+        Cli::command().debug_assert();
+        sqscan::daemon::cli::DaemonCli::command().debug_assert();
+    }
+
+    #[test]
+    fn every_option_has_help_and_every_command_that_prints_results_has_json() {
+        let mut cmd = Cli::command();
+        cmd.build();
+        let mut all = Vec::new();
+        commands(&cmd, "", false, &mut all);
+        let mut daemon = sqscan::daemon::cli::DaemonCli::command();
+        daemon.build();
+        all.push(("sqscand".into(), daemon, false));
+        // Commands whose output is JSON only, or not results: device mocks that serve until
+        // interrupted, the completion script, the manual pages.
+        let no_json_flag = [
+            "detect",
+            "learn",
+            "mock ptu",
+            "mock rig",
+            "completions",
+            "man",
+            "sqscand",
+        ];
+        let mut problems = Vec::new();
+        for (name, c, json) in &all {
+            for arg in c.get_arguments() {
+                let id = arg.get_id().as_str();
+                if id == "help" || id == "version" {
+                    continue;
+                }
+                if !arg.get_help().is_some_and(|h| !h.to_string().trim().is_empty()) {
+                    problems.push(format!("`{name}`: `{id}` has no help text"));
+                }
+            }
+            // A command with subcommands prints nothing itself.
+            if !c.has_subcommands() && *json == no_json_flag.contains(&name.as_str()) {
+                problems.push(format!(
+                    "`{name}`: --json {}",
+                    if *json { "where it is not expected" } else { "missing" }
+                ));
+            }
+        }
+        assert!(problems.is_empty(), "{}", problems.join("\n"));
+    }
+}

@@ -33,6 +33,7 @@ pub struct MockRigArgs {
     /// Scene file whose table, objects and rig the sensor sees
     #[arg(long, value_name = "SCENE")]
     scene: PathBuf,
+    /// The protocol the mock PTU speaks
     #[arg(long, value_parser = ptu_kind_parser())]
     protocol: PtuKind,
     /// Keep a symlink to the PTU's pty here
@@ -104,6 +105,7 @@ pub struct SensorFaultArgs {
 
 #[derive(Args)]
 pub struct MockPtuArgs {
+    /// The protocol the mock PTU speaks
     #[arg(long, value_parser = ptu_kind_parser())]
     protocol: PtuKind,
     /// Keep a symlink to the pty here (replaced if it is a symlink)

@@ -46,6 +46,10 @@ pub struct PtuArgs {
     /// Give up on a move after this many seconds
     #[arg(long, default_value_t = 60.0, value_name = "S")]
     timeout: f64,
+    /// Print one JSON object (both joints' angles, state words and limits, and a sweep's
+    /// samples summary) instead of lines of text
+    #[arg(long)]
+    json: bool,
     #[command(subcommand)]
     action: Action,
 }
@@ -108,11 +112,12 @@ pub fn run(a: PtuArgs) -> Result<()> {
             .open(&a.device, &settings)
             .await
             .with_context(|| format!("no {} unit on {}", a.protocol.model(), a.device.display()))?;
-        act(&mut ptu, &a.action, timeout).await
+        act(&mut ptu, &a.action, timeout, a.json).await
     })
 }
 
-async fn act(ptu: &mut impl PanTilt, action: &Action, timeout: Duration) -> Result<()> {
+async fn act(ptu: &mut impl PanTilt, action: &Action, timeout: Duration, json: bool) -> Result<()> {
+    let mut sweep = None;
     match *action {
         Action::Status => {}
         Action::Home => {
@@ -154,11 +159,27 @@ async fn act(ptu: &mut impl PanTilt, action: &Action, timeout: Duration) -> Resu
             while let Some(s) = rx.recv().await {
                 samples.push(s);
             }
-            print_sweep(&samples);
+            sweep = Some(sweep_summary(&samples));
         }
     }
     let state = ptu.state().await.context("cannot read the state")?;
     let limits = ptu.limits();
+    if json {
+        let axis = |s: &AxisState| serde_json::json!({"position_rad": s.position_rad, "detail": s.detail});
+        println!(
+            "{}",
+            serde_json::json!({
+                "pan": axis(&state.pan),
+                "tilt": axis(&state.tilt),
+                "limits": {"pan_rad": [limits.pan_rad.0, limits.pan_rad.1], "tilt_rad": [limits.tilt_rad.0, limits.tilt_rad.1]},
+                "sweep": sweep,
+            })
+        );
+        return Ok(());
+    }
+    if let Some(s) = &sweep {
+        print_sweep(s);
+    }
     println!(
         "pan  {}  limits [{:.4}, {:.4}]",
         axis_line(&state.pan),
@@ -178,23 +199,40 @@ fn axis_line(s: &AxisState) -> String {
     format!("{:+.4} rad  {}", s.position_rad, s.detail)
 }
 
-fn print_sweep(samples: &[PositionSample]) {
+/// What a sweep's position samples show: how many, over how long, from where to where, and the
+/// fastest tilt between two samples; `null` without samples.
+fn sweep_summary(samples: &[PositionSample]) -> serde_json::Value {
     let (Some(first), Some(last)) = (samples.first(), samples.last()) else {
-        println!("sweep: no position samples");
-        return;
+        return serde_json::Value::Null;
     };
     let secs = (last.t - first.t).as_secs_f64();
     let max_speed = samples
         .windows(2)
         .map(|w| (w[1].tilt_rad - w[0].tilt_rad).abs() / (w[1].t - w[0].t).as_secs_f64().max(1e-9))
         .fold(0.0, f64::max);
+    serde_json::json!({
+        "samples": samples.len(),
+        "duration_s": secs,
+        "rate_hz": (samples.len().saturating_sub(1)) as f64 / secs.max(1e-9),
+        "tilt_from_rad": first.tilt_rad,
+        "tilt_to_rad": last.tilt_rad,
+        "peak_speed_rad_s": max_speed,
+    })
+}
+
+fn print_sweep(s: &serde_json::Value) {
+    if s.is_null() {
+        println!("sweep: no position samples");
+        return;
+    }
+    let f = |k: &str| s[k].as_f64().unwrap_or(f64::NAN);
     println!(
         "sweep: {} samples over {:.3} s ({:.1} Hz), tilt {:+.4} -> {:+.4} rad, peak speed {:.3} rad/s",
-        samples.len(),
-        secs,
-        (samples.len().saturating_sub(1)) as f64 / secs.max(1e-9),
-        first.tilt_rad,
-        last.tilt_rad,
-        max_speed
+        s["samples"],
+        f("duration_s"),
+        f("rate_hz"),
+        f("tilt_from_rad"),
+        f("tilt_to_rad"),
+        f("peak_speed_rad_s")
     );
 }
