@@ -390,9 +390,16 @@ fn systemd_hears_ready_watchdog_and_a_clean_stop() {
         let n = sock.recv(&mut buf).unwrap();
         got.push(String::from_utf8_lossy(&buf[..n]).into_owned());
     }
-    // SIGTERM: gone within 2 s, STOPPING=1 sent, socket removed.
+    // SIGTERM: gone within 2 s, STOPPING=1 sent, socket removed, a client told why.
+    let mut c = Client::connect(&socket);
     let t = Instant::now();
     unsafe_kill(d.0.id(), 15);
+    let bye = c.read();
+    assert_eq!(
+        (&bye["class"], &bye["code"]),
+        (&json!("error"), &json!("stopping")),
+        "{bye}"
+    );
     let status = loop {
         if let Some(s) = d.0.try_wait().unwrap() {
             break s;
@@ -475,41 +482,42 @@ fn sighup_reloads_models_and_configuration_without_dropping_clients() {
     let r = c.ask(json!({"cmd":"find","object":"mouse"}));
     assert_eq!(r["code"], "unknown_object", "{r}");
 
-    // A new model, a new frame, and a change that needs a restart.
+    // A new model, a watch list, and two changes that need a restart.
     std::fs::copy(root().join("models/mouse.toml"), models.join("mouse.toml")).unwrap();
-    std::fs::write(
-        dir.join("sqscand.toml"),
-        config("frame_id = \"table\"\nmax_clients = 7\n"),
-    )
-    .unwrap();
+    let reloaded = "frame_id = \"table\"\nmax_clients = 7\n[watch]\nobjects = [\"bowl\"]\n";
+    std::fs::write(dir.join("sqscand.toml"), config(reloaded)).unwrap();
     unsafe_kill(d.0.id(), libc::SIGHUP);
     awaited_reload(&mut next_message);
     let s = c.ask(json!({"cmd":"status"}));
     assert_eq!(s["config"]["reloads"], 1, "{s}");
     assert!(s["config"]["reload_error"].is_null(), "{s}");
+    assert_eq!(s["watched"], json!(["bowl", "cup"]), "{s}");
     assert_eq!(names(&mut c).len(), before.len() + 1);
-    let r = c.ask(json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":30}));
-    assert_eq!((&r["found"], &r["frame"]), (&json!(true), &json!("table")), "{r}");
-    assert!(
-        log(&dir).contains("server.max_clients changed, which takes a restart"),
-        "{}",
-        log(&dir)
+    let r = c.ask(json!({"cmd":"find","object":"mouse","max_age_s":0.0,"timeout_s":30}));
+    assert_eq!(
+        (&r["class"], &r["frame"]),
+        (&json!("detection"), &json!("base_link")),
+        "{r}"
     );
-    // The watcher was not dropped: its updates go on, in the new frame once the reload is in.
-    let t0 = Instant::now();
-    loop {
+    for kept in [
+        "server.max_clients changed",
+        "server.frame_id (it names the calibration's base frame) changed",
+    ] {
+        assert!(log(&dir).contains(kept), "{kept}: {}", log(&dir));
+    }
+    // The watcher was not dropped: its updates go on.
+    for _ in 0..2 {
         let u = watcher.read();
-        assert_eq!(u["class"], "detection", "{u}");
-        if u["frame"] == "table" {
-            break;
-        }
-        assert!(t0.elapsed() < Duration::from_secs(60), "no update in the new frame");
+        assert_eq!((&u["class"], &u["object"]), (&json!("detection"), &json!("cup")), "{u}");
     }
 
-    // Broken files are refused, and the running configuration stays.
+    // Broken files are refused, and the running configuration stays: a syntax error, a watch
+    // list naming no model, and a models directory without the model a client watches.
+    std::fs::rename(models.join("cup.toml"), dir.join("cup.toml")).unwrap();
     for (broken, says) in [
-        ("frame_id = \"table\"\nidle_timeout_s = \"soon\"\n", "idle_timeout_s"),
-        ("frame_id = \"floor\"\n[watch]\nobjects = [\"teapot\"]\n", "teapot"),
+        ("idle_timeout_s = \"soon\"\n", "idle_timeout_s"),
+        ("[watch]\nobjects = [\"teapot\"]\n", "teapot"),
+        ("", "which a client watches"),
     ] {
         std::fs::write(dir.join("sqscand.toml"), config(broken)).unwrap();
         unsafe_kill(d.0.id(), libc::SIGHUP);
@@ -518,11 +526,8 @@ fn sighup_reloads_models_and_configuration_without_dropping_clients() {
         assert_eq!(s["config"]["reloads"], 1, "{s}");
         assert!(s["config"]["reload_error"].as_str().unwrap().contains(says), "{s}");
         let r = c.ask(json!({"cmd":"find","object":"mouse","timeout_s":30}));
-        assert_eq!(
-            (&r["class"], &r["frame"]),
-            (&json!("detection"), &json!("table")),
-            "{r}"
-        );
+        assert_eq!(r["class"], "detection", "{r}");
+        assert_eq!(c.ask(json!({"cmd":"status"}))["watched"], json!(["bowl", "cup"]));
     }
     let u = watcher.read();
     assert_eq!((&u["class"], &u["object"]), (&json!("detection"), &json!("cup")), "{u}");

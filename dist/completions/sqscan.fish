@@ -73,7 +73,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l models-dir -d 'D
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l cloud -d 'Point cloud file (.pcd, .ply, or text with x y z per line); several files are sweeps of one view (organized clouds of the same size, the scene and the sensor still), learned from their per-pixel median, which cuts the noise by about the square root of their number' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l name -d 'Name of the learned model' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l parts -d 'Superquadric parts (1, 2 or 3)' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l out -d 'Model file to write [default: MODELS_DIR/NAME.toml]' -r -F
+complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l out -d 'Model file to write [default: MODELS_DIR/NAME.toml, unless that is the package\'s /usr/share/sqscan/models]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l label -d 'Use the points labelled as object N (mOSD labels: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l viewpoint -d 'Sensor position "x,y,z" [default: the file\'s VIEWPOINT, else the origin]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l up -d 'Up direction "x,y,z" when there is no supporting plane in the cloud' -r

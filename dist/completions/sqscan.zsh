@@ -82,7 +82,7 @@ _arguments "${_arguments_options[@]}" : \
 '*--cloud=[Point cloud file (.pcd, .ply, or text with x y z per line); several files are sweeps of one view (organized clouds of the same size, the scene and the sensor still), learned from their per-pixel median, which cuts the noise by about the square root of their number]:CLOUD:_files' \
 '--name=[Name of the learned model]:NAME:_default' \
 '--parts=[Superquadric parts (1, 2 or 3)]:PARTS:_default' \
-'--out=[Model file to write \[default\: MODELS_DIR/NAME.toml\]]:FILE.toml:_files' \
+'--out=[Model file to write \[default\: MODELS_DIR/NAME.toml, unless that is the package'\''s /usr/share/sqscan/models\]]:FILE.toml:_files' \
 '--label=[Use the points labelled as object N (mOSD labels\: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9]:N:_default' \
 '--viewpoint=[Sensor position "x,y,z" \[default\: the file'\''s VIEWPOINT, else the origin\]]:X,Y,Z:_default' \
 '--up=[Up direction "x,y,z" when there is no supporting plane in the cloud]:X,Y,Z:_default' \

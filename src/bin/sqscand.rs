@@ -62,6 +62,12 @@ async fn run(cli: &Cli, config: Config) -> Result<()> {
     tracing::info!("{}", describe(&config));
     let tcp = config.tcp;
     let socket = config.socket.clone();
+    // The handlers before start-up: READY=1 goes out from inside it, and a reload (or a stop)
+    // asked for at once must not find the signals' default action, which ends the process.
+    use tokio::signal::unix::{SignalKind, signal};
+    let mut term = signal(SignalKind::terminate()).context("cannot install the SIGTERM handler")?;
+    let mut int = signal(SignalKind::interrupt()).context("cannot install the SIGINT handler")?;
+    let mut hup = signal(SignalKind::hangup()).context("cannot install the SIGHUP handler")?;
     let daemon = Daemon::start(config, notifier).await?;
     // Where to ask, on stderr (the journal under systemd), whatever the log level.
     eprintln!(
@@ -70,15 +76,9 @@ async fn run(cli: &Cli, config: Config) -> Result<()> {
         tcp.map(|a| format!(" and tcp {a}")).unwrap_or_default(),
         socket.display()
     );
-    use tokio::signal::unix::{SignalKind, signal};
-    let mut term = signal(SignalKind::terminate()).context("cannot install the SIGTERM handler")?;
-    let mut hup = signal(SignalKind::hangup()).context("cannot install the SIGHUP handler")?;
     let failure = loop {
         tokio::select! {
-            r = tokio::signal::ctrl_c() => {
-                r.context("waiting for SIGINT")?;
-                break None;
-            }
+            _ = int.recv() => break None,
             _ = term.recv() => break None,
             // Re-read the configuration and the models; a refused reload is logged and shown
             // in `status`, and the daemon runs on as before.

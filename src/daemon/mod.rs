@@ -207,6 +207,11 @@ impl Daemon {
         let result = load().and_then(|new| {
             let models = load_models(&new.models_dir)?;
             check_watch(&new, &models)?;
+            // A client's watch would go silent: refuse, as for the configuration's own list.
+            let watched: Vec<String> = state::lock(&self.shared.watched).keys().cloned().collect();
+            if let Some(w) = watched.iter().find(|w| !models.contains_key(*w)) {
+                bail!("{}: no model {w:?}, which a client watches", new.models_dir.display());
+            }
             Ok((new, models))
         });
         let outcome = match result {
@@ -272,6 +277,7 @@ fn keep_fixed(old: &Config, mut new: Config) -> (Config, Vec<&'static str>) {
         "server.socket" => socket,
         "server.socket_mode" => socket_mode,
         "server.tcp" => tcp,
+        "server.frame_id (it names the calibration's base frame)" => frame_id,
         "server.max_clients" => max_clients,
         "server.client_queue" => client_queue,
         "the scanner ([acquisition] backend, [sim], [hardware] or [replay])" => backend,

@@ -284,7 +284,11 @@ where
         }
         let got = tokio::select! {
             r = lines.next(&mut rd) => r,
-            () = stopped(&mut shutdown) => break,
+            () = stopped(&mut shutdown) => {
+                // Whatever is in flight will not be answered: say why before closing.
+                out.reply(Reply::error(None, ErrorCode::Stopping, "the daemon is stopping")).await;
+                break;
+            }
             // A dead writer means the client is gone.
             () = out.tx.closed() => break,
             // A finished request may leave the client idle.

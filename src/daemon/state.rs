@@ -50,11 +50,14 @@ pub struct SweepEntry {
     pub recorded: Option<Recorded>,
     /// Points with a return in the cloud.
     pub points: usize,
-    detections: Mutex<HashMap<(String, bool), DetectionCell>>,
+    detections: Mutex<HashMap<DetectionKey, DetectionCell>>,
 }
 
 /// One detection of a sweep, made by whoever asks first and awaited by the rest.
 type DetectionCell = Arc<OnceCell<Arc<Detected>>>;
+
+/// A detection's key: the object, `all`, and the load it was made under.
+type DetectionKey = (String, bool, u64);
 
 /// A detection made on a sweep, and when it was done.
 pub struct Detected {
@@ -125,15 +128,19 @@ impl SweepEntry {
     /// The detection of `model` on this sweep, made once however many ask; off the async
     /// worker threads, at most `detect_workers` at a time.
     pub async fn detection(self: &Arc<Self>, shared: &Shared, model: Arc<Model>, all: bool) -> Arc<Detected> {
+        // Keyed by the load too: after a reload (a changed model, seed or range) the sweep's
+        // detections are made anew.
+        let loaded = shared.loaded();
+        let model = loaded.models.get(&model.name).cloned().unwrap_or(model);
         let cell = lock(&self.detections)
-            .entry((model.name.clone(), all))
+            .entry((model.name.clone(), all, loaded.generation))
             .or_insert_with(|| Arc::new(OnceCell::new()))
             .clone();
         cell.get_or_init(|| async {
             // The semaphore is never closed, so acquire cannot fail; a detection then runs anyway.
             let _permit = shared.detect_slots.acquire().await.ok();
             let entry = self.clone();
-            let config = shared.config();
+            let config = &loaded.config;
             let params = Params {
                 seed: config.detect_seed ^ entry.seed_id(),
                 viewpoint: entry.viewpoint(),
@@ -256,12 +263,19 @@ pub struct Reload {
     pub error: Option<String>,
 }
 
+/// The configuration and the models in use, swapped together by a reload.
+pub struct Loaded {
+    pub config: Arc<Config>,
+    pub models: Arc<BTreeMap<String, Arc<Model>>>,
+    /// Counts the loads (0 at start): a detection made under one is not served under another.
+    pub generation: u64,
+}
+
 /// Everything the tasks share.
 pub struct Shared {
     /// The configuration and the models in use: swapped whole by a reload (SIGHUP), so a task
     /// that took one sees a consistent set until it asks again.
-    config: RwLock<Arc<Config>>,
-    models: RwLock<Arc<BTreeMap<String, Arc<Model>>>>,
+    loaded: RwLock<Arc<Loaded>>,
     pub reload: Mutex<Reload>,
     /// The newest completed sweep.
     pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
@@ -286,8 +300,11 @@ impl Shared {
     pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
         let workers = config.detect_workers;
         Shared {
-            config: RwLock::new(Arc::new(config)),
-            models: RwLock::new(Arc::new(models)),
+            loaded: RwLock::new(Arc::new(Loaded {
+                config: Arc::new(config),
+                models: Arc::new(models),
+                generation: 0,
+            })),
             reload: Mutex::new(Reload {
                 loaded: SystemTime::now(),
                 count: 0,
@@ -308,18 +325,29 @@ impl Shared {
 
     /// The configuration in use.
     pub fn config(&self) -> Arc<Config> {
-        self.config.read().unwrap_or_else(|p| p.into_inner()).clone()
+        self.loaded().config.clone()
     }
 
     /// The models in use.
     pub fn models(&self) -> Arc<BTreeMap<String, Arc<Model>>> {
-        self.models.read().unwrap_or_else(|p| p.into_inner()).clone()
+        self.loaded().models.clone()
+    }
+
+    /// The configuration and the models in use, as one consistent pair.
+    pub fn loaded(&self) -> Arc<Loaded> {
+        self.loaded.read().unwrap_or_else(|p| p.into_inner()).clone()
     }
 
     /// Puts a reloaded configuration and its models in use.
     pub fn replace(&self, config: Config, models: BTreeMap<String, Arc<Model>>) {
-        *self.models.write().unwrap_or_else(|p| p.into_inner()) = Arc::new(models);
-        *self.config.write().unwrap_or_else(|p| p.into_inner()) = Arc::new(config);
+        let mut slot = self.loaded.write().unwrap_or_else(|p| p.into_inner());
+        let generation = slot.generation + 1;
+        *slot = Arc::new(Loaded {
+            config: Arc::new(config),
+            models: Arc::new(models),
+            generation,
+        });
+        drop(slot);
         let mut r = lock(&self.reload);
         r.loaded = SystemTime::now();
         r.count += 1;
@@ -412,5 +440,57 @@ impl Shared {
                 reload_error: reload.error,
             },
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 2 x 3 sweep of a flat patch.
+    fn entry(id: u64) -> Arc<SweepEntry> {
+        let points = vec![[0.5f32, 0.0, 0.7]; 6];
+        let sweep = Sweep {
+            profiles: 2,
+            columns: 3,
+            start: None,
+            stamp_s: vec![0.0, 0.02],
+            seq: vec![0, 1],
+            pan_rad: vec![0.0; 2],
+            tilt_rad: vec![0.5, 0.51],
+            range_m: vec![0.86; 6],
+            cloud: crate::cloud::PointCloud::organized(3, 2, points),
+            report: Default::default(),
+        };
+        let now = Instant::now();
+        Arc::new(SweepEntry::new(
+            id,
+            Swept {
+                sweep,
+                started: now,
+                last_profile: now,
+                recorded: None,
+            },
+        ))
+    }
+
+    /// A sweep's detection is made once per load: asked again it is the same answer, asked after
+    /// a reload (which may have changed the model, the seed or the range) it is made anew.
+    #[tokio::test]
+    async fn a_detection_made_before_a_reload_is_not_served_after_it() {
+        let models =
+            crate::daemon::load_models(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap();
+        let config = Config::embedded_default();
+        let shared = Shared::new(config.clone(), models.clone(), "test");
+        let e = entry(1);
+        let cup = shared.model("cup").unwrap();
+        let first = e.detection(&shared, cup.clone(), false).await;
+        let again = e.detection(&shared, cup.clone(), false).await;
+        assert!(Arc::ptr_eq(&first, &again));
+        shared.replace(config, models);
+        let after = e.detection(&shared, cup, false).await;
+        assert!(!Arc::ptr_eq(&first, &after));
+        assert_eq!(shared.loaded().generation, 1);
+        assert_eq!(lock(&shared.reload).count, 1);
     }
 }

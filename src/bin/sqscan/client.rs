@@ -149,6 +149,8 @@ impl Connection {
             path: shown,
         };
         let hello = c.read()?;
+        // A daemon with every slot busy answers an error instead of the greeting.
+        fail_on_error(&hello).with_context(|| format!("the daemon at {} refused the connection", c.path))?;
         if hello["class"] != "version" {
             bail!("{} did not greet like sqscand: {hello}", c.path);
         }

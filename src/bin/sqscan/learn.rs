@@ -48,7 +48,7 @@ pub struct LearnArgs {
     /// Superquadric parts (1, 2 or 3)
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=3))]
     parts: u8,
-    /// Model file to write [default: MODELS_DIR/NAME.toml]
+    /// Model file to write [default: MODELS_DIR/NAME.toml, unless that is the package's /usr/share/sqscan/models]
     #[arg(long, value_name = "FILE.toml")]
     out: Option<PathBuf>,
     /// Replace an existing model file
@@ -133,7 +133,16 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     if name.is_empty() || name.chars().any(|c| c.is_whitespace()) {
         bail!("--name {name:?}: give one word");
     }
-    let out = a.out.clone().unwrap_or_else(|| models_dir.join(format!("{name}.toml")));
+    let out = match &a.out {
+        Some(o) => o.clone(),
+        // The package's directory belongs to dpkg: an upgrade would remove a model written there.
+        None if models_dir.starts_with("/usr") => bail!(
+            "the models directory {} belongs to the package: give --out FILE, or --models-dir DIR \
+             (e.g. /etc/sqscan/models, which the daemon then reads instead)",
+            models_dir.display()
+        ),
+        None => models_dir.join(format!("{name}.toml")),
+    };
     if out.exists() && !a.force {
         bail!("{} exists; give --force to replace it", out.display());
     }
