@@ -549,6 +549,7 @@ fn start_rig_with(dir: &Path, protocol: &str, extra: &[&str]) -> (Proc, PathBuf,
     let ptu = dir.join("ptu");
     let sensor = dir.join("sensor");
     let child = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
         .args(["mock", "rig", "--protocol", protocol, "--scene"])
         .arg(root().join("scenes/fig3_table.toml"))
         .arg("--ptu-link")
@@ -769,6 +770,7 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
 
     // The client over TCP.
     let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
         .args(["status", "--json", "--socket", &format!("tcp://127.0.0.1:{port}")])
         .output()
         .unwrap();
@@ -1050,6 +1052,7 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
     // Beside the recording, a cloud from elsewhere: an organized PCD with a viewpoint.
     let sim = dir.join("sim");
     let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
         .args(["simulate"])
         .arg(root().join("scenes/fig4_tools.toml"))
         .arg("--out")

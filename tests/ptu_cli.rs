@@ -6,6 +6,9 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 
 const SQSCAN: &str = env!("CARGO_BIN_EXE_sqscan");
+/// The models the mock rig's scene names, given by name rather than found from the working
+/// directory.
+const MODELS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/models");
 
 /// Kills the mock when the test ends, however it ends.
 struct Reaper(Child);
@@ -23,6 +26,7 @@ fn min_returns(text: &str) -> usize {
 #[cfg(feature = "gige")]
 fn grab_from_camera(scan: &str, count: &str) -> std::process::Output {
     Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["sensor", "--device", "gige://127.0.0.1", "--feature"])
         .arg(format!("DeviceScanType={scan}"))
         .args(["grab", count])
@@ -36,6 +40,7 @@ fn mock_rig(ptu_link: &Path, sensor_link: &Path, extra: &[&str]) -> Reaper {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
     Reaper(
         Command::new(SQSCAN)
+            .env("SQSCAN_MODELS_DIR", MODELS)
             .args(["mock", "rig", "--protocol", "powercube", "--rate", "100", "--scene"])
             .arg(&scene)
             .arg("--ptu-link")
@@ -62,6 +67,7 @@ fn ptu(link: &Path, args: &[&str]) -> (bool, String, String) {
 
 fn ptu_with(link: &Path, protocol: &str, args: &[&str]) -> (bool, String, String) {
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["ptu", "--device"])
         .arg(link)
         .args(["--protocol", protocol])
@@ -82,6 +88,7 @@ fn mock_ptu_binary_moves_to_the_requested_tilt() {
     let link = dir.join("ptu");
     let mut mock = Reaper(
         Command::new(SQSCAN)
+            .env("SQSCAN_MODELS_DIR", MODELS)
             .args(["mock", "ptu", "--protocol", "powercube", "--link"])
             .arg(&link)
             .stdout(Stdio::piped())
@@ -126,6 +133,7 @@ fn mock_flir_binary_moves_sweeps_and_refuses_out_of_range() {
     let link = dir.join("ptu");
     let mut mock = Reaper(
         Command::new(SQSCAN)
+            .env("SQSCAN_MODELS_DIR", MODELS)
             .args(["mock", "ptu", "--protocol", "flir", "--link"])
             .arg(&link)
             .stdout(Stdio::piped())
@@ -186,6 +194,7 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     let (ok, _, err) = ptu(&ptu_link, &["move", "--tilt", "0.6"]);
     assert!(ok, "{err}");
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["sensor", "--device"])
         .arg(&sensor_link)
         .args(["grab", "20"])
@@ -195,6 +204,7 @@ fn mock_rig_binary_serves_a_ptu_and_a_sensor_that_sees_the_table() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(text.starts_with("profiles: 20  seq 0..19  dropped 0"), "{text}");
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["sensor", "--json", "--device"])
         .arg(&sensor_link)
         .args(["grab", "5"])
@@ -221,6 +231,7 @@ fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml");
     let mut mock = Reaper(
         Command::new(SQSCAN)
+            .env("SQSCAN_MODELS_DIR", MODELS)
             .args(["mock", "rig", "--protocol", "powercube", "--scene"])
             .arg(&scene)
             .arg("--ptu-link")
@@ -255,6 +266,7 @@ fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
         assert!(ok && out.contains(&format!("tilt +{tilt}000 rad")), "{out}{err}");
     }
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["sensor", "--device"])
         .arg(&sensor_link)
         .args(["grab", "5"])
@@ -264,6 +276,7 @@ fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
 
     // Without --disconnect-after there is nothing to replug.
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["mock", "rig", "--protocol", "powercube", "--scene"])
         .arg(&scene)
         .args(["--ptu-replug-after", "1"])
@@ -311,6 +324,7 @@ fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
     assert!(min_returns(&text) > 200, "{text}");
     // Discovery (a broadcast, on loopback only here) finds it by its address.
     let out = Command::new(SQSCAN)
+        .env("SQSCAN_MODELS_DIR", MODELS)
         .args(["sensor", "--device", "gige://any", "discover"])
         .output()
         .unwrap();
