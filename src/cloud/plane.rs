@@ -172,8 +172,10 @@ const LEADERS: usize = 8;
 /// Points the plane and its band are refined on at most.
 const REFINE_POINTS: usize = 10_000;
 
-/// Points the plane is found on at most.
-const FIT_POINTS: usize = 40_000;
+/// Points the plane is found on at most: as many as a candidate is counted on, the consensus
+/// set (a table's plane is as well found from them as from ten times more, and each step of
+/// the search passes over them).
+const FIT_POINTS: usize = CONSENSUS_POINTS;
 
 /// Triangulating sensors (laser profilers, structured light) get noisier with the square of
 /// the range, so distances to the plane are measured in units of the noise at each point's
@@ -214,7 +216,8 @@ impl RangeScale {
     #[inline]
     pub fn at(&self, p: &Point3<f64>) -> f64 {
         match self.viewpoint {
-            Some(v) => ((p - v).norm() / self.r_ref).powi(2).max(0.05),
+            // (r / r_ref)^2 without the square root.
+            Some(v) => ((p - v).norm_squared() / (self.r_ref * self.r_ref)).max(0.05),
             None => 1.0,
         }
     }

@@ -6,8 +6,9 @@
 //!
 //! Beyond the paper, every start is placed where the superquadric would touch the sampled patch
 //! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
-//! centroid, so a fit needs a few iterations instead of twenty; all starts get a short fit and
-//! only the best continues.
+//! centroid, so a fit needs a few iterations instead of twenty; the starts are screened by
+//! successive halving and only the best continues. Hypotheses that meet in the coarse rounds of
+//! the refinement are refined, scored and voted on once.
 //!
 //! [`search_part`] runs the m hypotheses of one part in parallel, each over its own compact region
 //! of the scene and from its own random stream, and keeps the distinct refined ones that are
@@ -176,16 +177,28 @@ pub fn fit_from_starts(
     let five = shape.is_revolution();
     let half: Vec<Point3<f64>> = sample.iter().step_by(2).copied().collect();
     let screen_points = if half.len() >= MIN_SAMPLE { &half[..] } else { sample };
-    let screened = starts
+    // Successive halving: every start gets half the screening iterations, the better half of
+    // them the rest. A start in the wrong basin (the axis along the wrong moment direction) is
+    // plain after two steps.
+    let first = (SCREEN_ITERATIONS / 2).min(iterations);
+    let mut screened: Vec<Fit> = starts
         .iter()
-        .map(|s| {
-            fit_pose_tol(
-                &PlacedSuperquadric::new(*shape, *s),
-                screen_points,
-                SCREEN_ITERATIONS.min(iterations),
-                five,
-                1e-3,
-            )
+        .map(|s| fit_pose_tol(&PlacedSuperquadric::new(*shape, *s), screen_points, first, five, 1e-3))
+        .collect();
+    screened.sort_by(|a, b| a.m.total_cmp(&b.m));
+    screened.truncate(screened.len().div_ceil(2));
+    let more = SCREEN_ITERATIONS.min(iterations) - first;
+    let screened = screened
+        .iter()
+        .map(|f| {
+            if more == 0 {
+                return *f;
+            }
+            let g = fit_pose_tol(&f.placed, screen_points, more, five, 1e-3);
+            Fit {
+                iterations: f.iterations + g.iterations,
+                ..g
+            }
         })
         .min_by(|a, b| a.m.total_cmp(&b.m))?;
     let rest = iterations.saturating_sub(screened.iterations);
@@ -223,10 +236,36 @@ pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
         .max(0.002)
 }
 
-/// Refine a pose on the points near it (`mid`) until M stops improving. With a
-/// `rest_axis` (an open container on the support plane) the part's axis is turned onto it first
-/// and keeps that direction: only the position and the spin are fitted.
-pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: Option<Vector3<f64>>) -> Hypothesis {
+/// A pose after the coarse rounds of a refinement ([`refine_coarse`]), and what the fine rounds
+/// ([`refine_fine`]) need. A refinement fits a pose on the points near it (`mid`) until M stops
+/// improving. With a `rest_axis` (an open container on the support plane) the part's axis is
+/// turned onto it first and keeps that direction: only the position and the spin are fitted.
+pub struct Coarse {
+    fit: Fit,
+    placed: PlacedSuperquadric,
+    freedom: Freedom,
+    band: f64,
+    final_band: f64,
+    rounds: usize,
+    iterations: usize,
+}
+
+impl Coarse {
+    pub fn placed(&self) -> &PlacedSuperquadric {
+        &self.placed
+    }
+}
+
+/// The coarse rounds of a refinement: a pose fitted to a small patch can be off by a good part of
+/// the object's size, so the first round gathers points in a wide band and each round halves
+/// it, down to the final band. `Err` is the answer when too few points are near the pose to go
+/// on.
+pub fn refine_coarse(
+    space: &SearchSpace<'_>,
+    fit: &Fit,
+    iterations: usize,
+    rest_axis: Option<Vector3<f64>>,
+) -> Result<Coarse, Hypothesis> {
     let shape = fit.placed.shape;
     let mut fit = *fit;
     let freedom = match rest_axis {
@@ -241,55 +280,74 @@ pub fn refine(space: &SearchSpace<'_>, fit: &Fit, iterations: usize, rest_axis: 
         None if shape.is_revolution() => Freedom::FiveDof,
         None => Freedom::Free,
     };
-    let fit = &fit;
     let final_band = refine_band(
         &shape,
         space.noise.at(&Point3::from(fit.placed.pose.translation.vector)),
     );
-    // Coarse to fine: a pose fitted to a small patch can be off by a good part of the object's
-    // size, so the first round gathers points in a wide band and each round halves it.
     let mut band = (0.3 * sample_radius(&shape)).max(final_band);
-    let mut best = Hypothesis {
-        placed: fit.placed,
-        m: f64::INFINITY,
-    };
     let mut placed = fit.placed;
-    for _ in 0..REFINE_ROUNDS {
-        let coarse = band > final_band;
+    let mut rounds = 0;
+    while rounds < REFINE_ROUNDS && band > final_band {
+        rounds += 1;
         // Coarse rounds run on the subsampled points: the pose moves a lot and a fraction of
         // the points steers it as well.
-        let inliers = if coarse {
-            inliers_in(space.sub, space.sub_grid, &placed, band)
-        } else {
-            inliers_in(space.mid, space.mid_grid, &placed, band)
-        };
+        let inliers = inliers_in(space.sub, space.sub_grid, &placed, band);
+        if inliers.len() < MIN_SAMPLE {
+            return Err(Hypothesis {
+                placed: fit.placed,
+                m: fit.m,
+            });
+        }
+        let inliers = thin(inliers, REFINE_POINTS);
+        band = (0.5 * band).max(final_band);
+        // M over a wider band is not comparable with M over the final one: just fit. Nor does
+        // the next round need this pose to better than the trials' 0.1 %: it gathers the points
+        // anew in a band half as wide and fits again. (Converging each coarse round to 1e-6
+        // took up to the full 20 iterations over 600 points, a third of the search's time.)
+        placed = fit_pose_with(&placed, &inliers, iterations, freedom, 1e-3).placed;
+    }
+    Ok(Coarse {
+        fit,
+        placed,
+        freedom,
+        band,
+        final_band,
+        rounds,
+        iterations,
+    })
+}
+
+/// The fine rounds of a refinement, at the final band on the `mid` points, until M stops
+/// improving.
+pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
+    let mut best = Hypothesis {
+        placed: c.placed,
+        m: f64::INFINITY,
+    };
+    let mut placed = c.placed;
+    debug_assert!(c.band <= c.final_band || c.rounds == REFINE_ROUNDS);
+    for _ in c.rounds..REFINE_ROUNDS {
+        let inliers = inliers_in(space.mid, space.mid_grid, &placed, c.band);
         if inliers.len() < MIN_SAMPLE {
             break;
         }
         let inliers = thin(inliers, REFINE_POINTS);
         let before = measure_of_fit(&placed, &inliers);
-        band = (0.5 * band).max(final_band);
-        if coarse {
-            // M over a wider band is not comparable with M over the final one: just fit.
-            // Nor does the next round need this pose to better than the trials' 0.1 %: it gathers
-            // the points anew in a band half as wide and fits again. (Converging each coarse
-            // round to 1e-6 took up to the full 20 iterations over 600 points, a third of the
-            // search's time.)
-            placed = fit_pose_with(&placed, &inliers, iterations, freedom, 1e-3).placed;
-            continue;
-        }
         if before >= best.m {
             break;
         }
         best = Hypothesis { placed, m: before };
-        let f = fit_pose_with(&placed, &inliers, iterations.min(FINE_ITERATIONS), freedom, 1e-6);
+        let f = fit_pose_with(&placed, &inliers, c.iterations.min(FINE_ITERATIONS), c.freedom, 1e-6);
         if f.m >= before * 0.99 {
             break;
         }
         placed = f.placed;
     }
     if best.m.is_infinite() {
-        best.m = fit.m;
+        best = Hypothesis {
+            placed: c.fit.placed,
+            m: c.fit.m,
+        };
     }
     best
 }
@@ -401,10 +459,32 @@ pub fn search_part(
             ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
         })
         .collect();
-    distinct(fits, known)
+    let rest_axis = check.rest_axis(space);
+    let coarse: Vec<Result<Coarse, Hypothesis>> = distinct(fits, known)
         .par_iter()
-        .filter_map(|f| {
-            let mut h = refine(space, f, settings.fit_iterations, check.rest_axis(space));
+        .map(|f| refine_coarse(space, f, settings.fit_iterations, rest_axis))
+        .collect();
+    // Copies of one object that the trials left apart (a few centimetres, a turned axis) meet
+    // in the coarse rounds: the fine rounds, the scores and the vote need only the first (the
+    // trials' best consensus).
+    let mut seen: Vec<PlacedSuperquadric> = known.to_vec();
+    let kept: Vec<Result<Coarse, Hypothesis>> = coarse
+        .into_iter()
+        .filter(|c| {
+            let Ok(c) = c else { return true };
+            if seen.iter().any(|k| same_pose(k, c.placed())) {
+                return false;
+            }
+            seen.push(*c.placed());
+            true
+        })
+        .collect();
+    kept.into_par_iter()
+        .filter_map(|c| {
+            let mut h = match c {
+                Ok(c) => refine_fine(space, &c),
+                Err(h) => h,
+            };
             if open {
                 orient_opening(space, &mut h.placed);
             }
