@@ -299,7 +299,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__eval)
-            opts="-h --models-dir --scene --model --trials --seed --absent --truth-object --model-in-object --json --help"
+            opts="-h --models-dir --scene --model --trials --seed --absent --truth-object --model-in-object --ransac-trials --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -330,6 +330,10 @@ _sqscan() {
                     return 0
                     ;;
                 --model-in-object)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --ransac-trials)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;

@@ -115,6 +115,7 @@ _arguments "${_arguments_options[@]}" : \
 '--seed=[First seed (trial k uses seed + k for both the noise and the search)]:SEED:_default' \
 '--truth-object=[The scene object the model is (its pose is the truth) \[default\: the object of the same model, else the one with the model'\''s first part'\''s shape\]; for a learned model]:NAME:_default' \
 '--model-in-object=[The model'\''s frame in the truth object'\''s frame, "x,y,z,qx,qy,qz,qw" (m, quaternion)\: the truth is the object'\''s pose composed with it. A learned model'\''s frame is where the learner put it on the object (its \`model_pose\` in the learning cloud, composed with the inverse of the object'\''s pose there), not the shipped model'\''s \[default\: the identity\]]:X,Y,Z,QX,QY,QZ,QW:_default' \
+'--ransac-trials=[RANSAC trials per hypothesis of the detector (\`detect --trials\`) \[default\: the detector'\''s\]]:N:_default' \
 '--absent[Remove the object from the scene and count false "found" answers]' \
 '--json[Print one JSON object instead of a table]' \
 '-h[Print help]' \

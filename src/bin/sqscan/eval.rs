@@ -42,14 +42,18 @@ pub struct EvalArgs {
     /// of the object's pose there), not the shipped model's [default: the identity]
     #[arg(long, value_name = "X,Y,Z,QX,QY,QZ,QW", value_parser = parse_pose, allow_hyphen_values = true)]
     model_in_object: Option<Isometry3<f64>>,
+    /// RANSAC trials per hypothesis of the detector (`detect --trials`) [default: the
+    /// detector's]
+    #[arg(long, value_name = "N")]
+    ransac_trials: Option<usize>,
     /// Print one JSON object instead of a table
     #[arg(long)]
     json: bool,
 }
 
 pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
-    if a.trials == 0 {
-        bail!("--trials must be at least 1");
+    if a.trials == 0 || a.ransac_trials == Some(0) {
+        bail!("--trials and --ransac-trials must be at least 1");
     }
     let scene = Scene::from_file(&a.scene, models_dir)?;
     let model = Model::load(&a.model, models_dir)?;
@@ -82,9 +86,11 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
     let mut trials = Vec::with_capacity(a.trials);
     for k in 0..a.trials {
         let seed = a.seed.wrapping_add(k as u64);
+        let defaults = Params::default();
         let params = Params {
             seed,
-            ..Params::default()
+            trials: a.ransac_trials.unwrap_or(defaults.trials),
+            ..defaults
         };
         let truth = if a.absent { None } else { Some(&truth) };
         trials.push(eval::trial(&scene, &model, truth, &symmetry, seed, &params));
