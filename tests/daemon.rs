@@ -328,6 +328,36 @@ fn idle_and_slowloris_clients_are_closed_after_the_idle_timeout() {
     }
 }
 
+/// Clients that ask for sweeps' points and never read them hold at most four clouds in the
+/// daemon's memory: a fifth request waits, and one with a short timeout is told the daemon is
+/// busy; other requests are answered meanwhile, and the slots come back once the writers give up
+/// on the clients that do not read.
+#[test]
+fn clients_that_ask_for_clouds_and_never_read_hold_at_most_four() {
+    let dir = tmpdir("clouds");
+    let (_d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    let mut c = Client::connect(&socket);
+    assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
+    let silent: Vec<UnixStream> = (0..5)
+        .map(|_| {
+            let mut s = UnixStream::connect(&socket).unwrap();
+            s.write_all(b"{\"cmd\":\"cloud\",\"max_age_s\":3600}\n").unwrap();
+            s
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(500));
+    let r = c.ask(json!({"cmd":"cloud","max_age_s":3600,"timeout_s":1.0}));
+    assert_eq!((&r["class"], &r["code"]), (&json!("error"), &json!("busy")), "{r}");
+    assert_eq!(c.ask(json!({"cmd":"status"}))["class"], "status");
+    // The writers give up on the silent clients after 10 s; then a cloud is handed out again.
+    let r = c.ask(json!({"cmd":"cloud","max_age_s":3600,"timeout_s":30}));
+    assert_eq!(r["class"], "cloud", "{r}");
+    let mut payload = vec![0u8; r["bytes"].as_u64().unwrap() as usize];
+    std::io::Read::read_exact(&mut c.r, &mut payload).unwrap();
+    assert!(payload.starts_with(b"# .PCD"), "{:?}", &payload[..16]);
+    drop(silent);
+}
+
 /// With every slot taken by idle clients, a new client is answered: the longest-idle one is
 /// closed to make room. With every slot taken by busy clients (watching), it is told so.
 #[test]
@@ -768,6 +798,38 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     assert_eq!((cloud.width, cloud.height), (256, 150));
     assert!(cloud.viewpoint.is_some());
 
+    // cloud: the newest sweep's points, in the bytes after the reply's line, as recorded.
+    let newest_id: u64 = newest.trim_start_matches("sweep-").parse().unwrap();
+    let header = c.ask(json!({"cmd":"cloud","max_age_s":3600,"id":"pts"}));
+    assert_eq!(
+        (&header["class"], &header["id"]),
+        (&json!("cloud"), &json!("pts")),
+        "{header}"
+    );
+    assert_eq!(header["sweep"]["id"], newest_id, "{header}");
+    assert_eq!(
+        (header["width"].as_u64(), header["height"].as_u64(), &header["frame"]),
+        (Some(256), Some(150), &json!("robot_base")),
+        "{header}"
+    );
+    let mut payload = vec![0u8; header["bytes"].as_u64().unwrap() as usize];
+    std::io::Read::read_exact(&mut c.r, &mut payload).unwrap();
+    let sent = sqscan::cloud::read_pcd(&payload[..]).unwrap();
+    assert_eq!(
+        (sent.width, sent.height, sent.viewpoint),
+        (cloud.width, cloud.height, cloud.viewpoint)
+    );
+    let same_bits = |a: &[f32; 3], b: &[f32; 3]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+    assert!(sent.points.iter().zip(&cloud.points).all(|(a, b)| same_bits(a, b)));
+    let names: Vec<String> = ["x", "y", "z"]
+        .iter()
+        .map(|s| s.to_string())
+        .chain(sent.fields.iter().map(|f| f.name.clone()))
+        .collect();
+    assert_eq!(json!(names), header["fields"]);
+    // The protocol's lines go on after the payload.
+    assert_eq!(c.ask(json!({"cmd":"status"}))["class"], "status");
+
     // The client over TCP.
     let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
         .env("SQSCAN_MODELS_DIR", root().join("models"))
@@ -778,6 +840,23 @@ fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["class"], "status", "{v}");
     assert_eq!(v["mode"], "on_demand", "{v}");
+    // sqscan cloud writes the same bytes.
+    let file = dir.join("fetched.pcd");
+    let out = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .args(["cloud", "--max-age", "3600", "--out"])
+        .arg(&file)
+        .args(["--socket", &format!("tcp://127.0.0.1:{port}")])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        String::from_utf8_lossy(&out.stdout).contains("256 x 150 points"),
+        "{out:?}"
+    );
+    assert!(
+        std::fs::read(&file).unwrap() == payload,
+        "sqscan cloud wrote other bytes"
+    );
     // The same protocol over TCP.
     let tcp = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
     tcp.set_read_timeout(Some(Duration::from_secs(30))).unwrap();

@@ -65,7 +65,16 @@ fn every_example_in_protocol_md_is_a_valid_reply_of_this_version() {
         }
     }
     // Every class the daemon sends has an example.
-    for class in ["version", "detection", "sweep", "status", "models", "watch", "error"] {
+    for class in [
+        "version",
+        "detection",
+        "sweep",
+        "cloud",
+        "status",
+        "models",
+        "watch",
+        "error",
+    ] {
         assert!(classes.contains(class), "no example of {class:?} in PROTOCOL.md");
     }
     assert!(md.contains(&format!(

@@ -16,6 +16,9 @@ _sqscan() {
             ",$1")
                 cmd="sqscan"
                 ;;
+            sqscan,cloud)
+                cmd="sqscan__subcmd__cloud"
+                ;;
             sqscan,completions)
                 cmd="sqscan__subcmd__completions"
                 ;;
@@ -69,6 +72,9 @@ _sqscan() {
                 ;;
             sqscan,watch)
                 cmd="sqscan__subcmd__watch"
+                ;;
+            sqscan__subcmd__help,cloud)
+                cmd="sqscan__subcmd__help__subcmd__cloud"
                 ;;
             sqscan__subcmd__help,completions)
                 cmd="sqscan__subcmd__help__subcmd__completions"
@@ -221,12 +227,42 @@ _sqscan() {
 
     case "${cmd}" in
         sqscan)
-            opts="-h -V --help --version simulate show-model info detect learn eval eval-real mock ptu sensor find scan watch status models completions man help"
+            opts="-h -V --help --version simulate show-model info detect learn eval eval-real mock ptu sensor find scan cloud watch status models completions man help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 1 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
             fi
             case "${prev}" in
+                *)
+                    COMPREPLY=()
+                    ;;
+            esac
+            COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
+            return 0
+            ;;
+        sqscan__subcmd__cloud)
+            opts="-h --out --max-age --timeout --socket --json --help"
+            if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
+                COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
+                return 0
+            fi
+            case "${prev}" in
+                --out)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --max-age)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --timeout)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --socket)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
                 *)
                     COMPREPLY=()
                     ;;
@@ -413,8 +449,22 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__help)
-            opts="simulate show-model info detect learn eval eval-real mock ptu sensor find scan watch status models completions man help"
+            opts="simulate show-model info detect learn eval eval-real mock ptu sensor find scan cloud watch status models completions man help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
+                COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
+                return 0
+            fi
+            case "${prev}" in
+                *)
+                    COMPREPLY=()
+                    ;;
+            esac
+            COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
+            return 0
+            ;;
+        sqscan__subcmd__help__subcmd__cloud)
+            opts=""
+            if [[ ${cur} == -* || ${COMP_CWORD} -eq 3 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
             fi

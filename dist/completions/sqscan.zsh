@@ -414,6 +414,17 @@ _arguments "${_arguments_options[@]}" : \
 '--help[Print help]' \
 && ret=0
 ;;
+(cloud)
+_arguments "${_arguments_options[@]}" : \
+'--out=[Write the sweep'\''s points here (a binary PCD file, organized, with the sensor'\''s viewpoint)]:FILE.pcd:_files' \
+'--max-age=[Accept a sweep up to this old (s); else wait for the next one]:S:_default' \
+'--timeout=[Give up after this long (s)]:S:_default' \
+'--socket=[The daemon'\''s socket, or tcp\://HOST\:PORT for a daemon listening on TCP (\[server\] tcp) \[default\: \$SQSCAN_SOCKET, else \$XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else /run/sqscan/sqscand.sock\: the first that exists\]]:PATH:_files' \
+'--json[Print the daemon'\''s JSON replies as they are, one a line]' \
+'-h[Print help]' \
+'--help[Print help]' \
+&& ret=0
+;;
 (watch)
 _arguments "${_arguments_options[@]}" : \
 '--count=[Stop after this many detection messages (default\: until interrupted)]:N:_default' \
@@ -583,6 +594,10 @@ _arguments "${_arguments_options[@]}" : \
 _arguments "${_arguments_options[@]}" : \
 && ret=0
 ;;
+(cloud)
+_arguments "${_arguments_options[@]}" : \
+&& ret=0
+;;
 (watch)
 _arguments "${_arguments_options[@]}" : \
 && ret=0
@@ -631,6 +646,7 @@ _sqscan_commands() {
 'sensor:Bring-up tool for a profile sensor\: grab profiles and print their statistics' \
 'find:Ask the daemon where an object is (from a recent sweep, or the next one)' \
 'scan:Ask the daemon for a sweep now; prints it when complete' \
+'cloud:Fetch a recent sweep'\''s points from the daemon into a PCD file' \
 'watch:Print every sweep'\''s detections of the given objects until interrupted' \
 'status:The daemon'\''s devices, last sweep, rates and faults' \
 'models:The objects the daemon knows' \
@@ -639,6 +655,11 @@ _sqscan_commands() {
 'help:Print this message or the help of the given subcommand(s)' \
     )
     _describe -t commands 'sqscan commands' commands "$@"
+}
+(( $+functions[_sqscan__subcmd__cloud_commands] )) ||
+_sqscan__subcmd__cloud_commands() {
+    local commands; commands=()
+    _describe -t commands 'sqscan cloud commands' commands "$@"
 }
 (( $+functions[_sqscan__subcmd__completions_commands] )) ||
 _sqscan__subcmd__completions_commands() {
@@ -680,6 +701,7 @@ _sqscan__subcmd__help_commands() {
 'sensor:Bring-up tool for a profile sensor\: grab profiles and print their statistics' \
 'find:Ask the daemon where an object is (from a recent sweep, or the next one)' \
 'scan:Ask the daemon for a sweep now; prints it when complete' \
+'cloud:Fetch a recent sweep'\''s points from the daemon into a PCD file' \
 'watch:Print every sweep'\''s detections of the given objects until interrupted' \
 'status:The daemon'\''s devices, last sweep, rates and faults' \
 'models:The objects the daemon knows' \
@@ -688,6 +710,11 @@ _sqscan__subcmd__help_commands() {
 'help:Print this message or the help of the given subcommand(s)' \
     )
     _describe -t commands 'sqscan help commands' commands "$@"
+}
+(( $+functions[_sqscan__subcmd__help__subcmd__cloud_commands] )) ||
+_sqscan__subcmd__help__subcmd__cloud_commands() {
+    local commands; commands=()
+    _describe -t commands 'sqscan help cloud commands' commands "$@"
 }
 (( $+functions[_sqscan__subcmd__help__subcmd__completions_commands] )) ||
 _sqscan__subcmd__help__subcmd__completions_commands() {

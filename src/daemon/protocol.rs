@@ -25,6 +25,12 @@ pub enum Command {
     Scan {
         timeout_s: f64,
     },
+    /// The points of a sweep no older than `max_age_s` (or the next), as a binary PCD payload
+    /// after the reply line.
+    Cloud {
+        max_age_s: f64,
+        timeout_s: f64,
+    },
     Status,
     Models,
     /// Detections of these objects on every sweep until the client leaves or unwatches.
@@ -125,7 +131,7 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
         None => {
             return Err(err(
                 &id,
-                "missing \"cmd\"; give one of find, scan, status, models, watch, unwatch",
+                "missing \"cmd\"; give one of find, scan, cloud, status, models, watch, unwatch",
             ));
         }
     };
@@ -157,6 +163,13 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
             check_keys(&obj, &["timeout_s"], cmd, &id)?;
             Command::Scan {
                 timeout_s: number(&obj, "timeout_s", DEFAULT_TIMEOUT_S * 3.0, &id)?,
+            }
+        }
+        "cloud" => {
+            check_keys(&obj, &["max_age_s", "timeout_s"], cmd, &id)?;
+            Command::Cloud {
+                max_age_s: number(&obj, "max_age_s", DEFAULT_MAX_AGE_S, &id)?,
+                timeout_s: number(&obj, "timeout_s", DEFAULT_TIMEOUT_S, &id)?,
             }
         }
         "status" => {
@@ -196,7 +209,7 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
         other => {
             return Err(err(
                 &id,
-                format!("unknown command {other:?}; give one of find, scan, status, models, watch, unwatch"),
+                format!("unknown command {other:?}; give one of find, scan, cloud, status, models, watch, unwatch"),
             ));
         }
     };
@@ -245,6 +258,13 @@ mod tests {
             }
         );
         assert!(matches!(ok(r#"{"cmd":"scan"}"#).command, Command::Scan { .. }));
+        assert_eq!(
+            ok(r#"{"cmd":"cloud","max_age_s":0}"#).command,
+            Command::Cloud {
+                max_age_s: 0.0,
+                timeout_s: DEFAULT_TIMEOUT_S
+            }
+        );
     }
 
     #[test]

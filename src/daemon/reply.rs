@@ -12,7 +12,7 @@ use crate::sweep::SweepReport;
 /// Protocol version, sent in the `version` greeting. Minor bumps add fields or commands; a major
 /// bump changes or removes them.
 pub const PROTO_MAJOR: u32 = 2;
-pub const PROTO_MINOR: u32 = 0;
+pub const PROTO_MINOR: u32 = 1;
 
 /// One message from the daemon: an object with a `class`, and the `id` of the request it answers
 /// (absent for the greeting, for errors to lines that could not be read, and for requests sent
@@ -23,6 +23,7 @@ pub enum Reply {
     Version(Version),
     Detection(Box<DetectionReply>),
     Sweep(Box<SweepReply>),
+    Cloud(Box<CloudHeader>),
     Status(Box<Status>),
     Models(Models),
     Watch(Watch),
@@ -115,6 +116,29 @@ pub struct SweepReply {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub id: Id,
     pub sweep: SweepSummary,
+}
+
+/// The answer to `cloud`: this line, then exactly `bytes` bytes of payload (the sweep as a PCD
+/// file), then the protocol's lines go on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct CloudHeader {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Id,
+    pub sweep: SweepRef,
+    /// The frame the points are in.
+    pub frame: String,
+    /// Columns of the organized cloud (sensor columns).
+    pub width: usize,
+    /// Rows (profiles).
+    pub height: usize,
+    /// The PCD fields, in order: x, y, z (m, f32; NaN where there was no return), then the
+    /// sweep's others (intensity u8 for a sensor that sends it; label u32 in simulation).
+    pub fields: Vec<String>,
+    /// How the payload is encoded: `pcd_binary`, a PCD file (header, VIEWPOINT the sensor's
+    /// pose at mid-sweep, DATA binary, point-major, little-endian).
+    pub format: String,
+    /// Length of the payload that follows the line's newline.
+    pub bytes: usize,
 }
 
 /// A device's health.
@@ -339,6 +363,7 @@ impl Reply {
             Reply::Version(_) => {}
             Reply::Detection(r) => r.id = new,
             Reply::Sweep(r) => r.id = new,
+            Reply::Cloud(r) => r.id = new,
             Reply::Status(r) => r.id = new,
             Reply::Models(r) => r.id = new,
             Reply::Watch(r) => r.id = new,

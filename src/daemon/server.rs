@@ -29,7 +29,9 @@ use super::config::{Config, MAX_REQUEST_BYTES};
 use super::idle::Idle;
 use super::lines::LineReader;
 use super::protocol::{self, Command, Request};
-use super::reply::{DetectionReply, ErrorCode, ModelJson, ModelPart, Models, Reply, SweepReply, Version, Watch};
+use super::reply::{
+    CloudHeader, DetectionReply, ErrorCode, ModelJson, ModelPart, Models, Reply, SweepReply, Version, Watch,
+};
 use super::socket::bind_unix;
 use super::state::{Shared, SweepEntry, lock, round3, stopped};
 
@@ -42,6 +44,23 @@ pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 /// Bytes queued for one client at most before its `watch` updates are skipped: a slow reader
 /// costs the daemon this much, whatever its ids and however many objects it watches.
 pub const MAX_QUEUED_BYTES: usize = 256 * 1024;
+
+/// `cloud` payloads in memory at once, over all clients: each is held from its encoding until
+/// the client's writer has written it (or given up on a client that does not read, after
+/// [`WRITE_TIMEOUT`]), so clients that ask for clouds and never read cannot pile them up.
+pub const CLOUD_SLOTS: usize = 4;
+
+/// A payload after a reply's line, and the `cloud` slot it holds.
+struct Payload {
+    bytes: Vec<u8>,
+    slot: tokio::sync::OwnedSemaphorePermit,
+}
+
+/// A queued message: its bytes, and the `cloud` slot it holds until written.
+struct Outgoing {
+    bytes: Vec<u8>,
+    _slot: Option<tokio::sync::OwnedSemaphorePermit>,
+}
 
 /// How long a new client waits for the slot of an idle client closed to make room for it.
 const EVICT_WAIT: Duration = Duration::from_secs(2);
@@ -191,13 +210,13 @@ fn slots_total(shared: &Shared) -> usize {
 /// A client's outbound queue: lines, and the bytes they hold.
 #[derive(Clone)]
 struct Outbox {
-    tx: mpsc::Sender<String>,
+    tx: mpsc::Sender<Outgoing>,
     queued: Arc<std::sync::atomic::AtomicUsize>,
     shared: Arc<Shared>,
 }
 
 impl Outbox {
-    fn new(tx: mpsc::Sender<String>, shared: Arc<Shared>) -> Outbox {
+    fn new(tx: mpsc::Sender<Outgoing>, shared: Arc<Shared>) -> Outbox {
         Outbox {
             tx,
             queued: Arc::default(),
@@ -207,11 +226,23 @@ impl Outbox {
 
     /// A reply: waits for room (only this client is held up by its own slowness).
     async fn reply(&self, v: Reply) {
+        self.reply_with(v, None).await;
+    }
+
+    /// A reply and the payload that follows its line (with the `cloud` slot it holds), queued
+    /// as one message so that nothing (a watch update) comes between them.
+    async fn reply_with(&self, v: Reply, payload: Option<Payload>) {
         if v.is_error() {
             self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
         }
-        let l = v.line();
-        self.queued.fetch_add(l.len(), Ordering::Relaxed);
+        let mut l = v.line().into_bytes();
+        let mut slot = None;
+        if let Some(p) = payload {
+            l.extend_from_slice(&p.bytes);
+            slot = Some(p.slot);
+        }
+        let l = Outgoing { bytes: l, _slot: slot };
+        self.queued.fetch_add(l.bytes.len(), Ordering::Relaxed);
         if self.tx.send(l).await.is_err() {
             self.queued.store(0, Ordering::Relaxed);
         }
@@ -220,14 +251,14 @@ impl Outbox {
     /// An unsolicited update: skipped when the client is behind (its queue full, or holding
     /// [`MAX_QUEUED_BYTES`]).
     fn update(&self, v: Reply) {
-        let l = v.line();
+        let l = v.line().into_bytes();
         let n = l.len();
         if self.queued.load(Ordering::Relaxed) + n > MAX_QUEUED_BYTES {
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
             return;
         }
         self.queued.fetch_add(n, Ordering::Relaxed);
-        if self.tx.try_send(l).is_err() {
+        if self.tx.try_send(Outgoing { bytes: l, _slot: None }).is_err() {
             self.queued.fetch_sub(n, Ordering::Relaxed);
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
         }
@@ -239,15 +270,15 @@ where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
-    let (tx, mut rx) = mpsc::channel::<String>(shared.config().client_queue);
+    let (tx, mut rx) = mpsc::channel::<Outgoing>(shared.config().client_queue);
     let out = Outbox::new(tx, shared.clone());
     // The writer holds only the byte count, not a sender: the queue closes when the last
     // sender (the connection's and its tasks') is gone, and the writer ends with it.
     let queued = out.queued.clone();
     let writer = tokio::spawn(async move {
         while let Some(l) = rx.recv().await {
-            let n = l.len();
-            let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(l.as_bytes())).await;
+            let n = l.bytes.len();
+            let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(&l.bytes)).await;
             drop(l);
             queued.fetch_sub(n, Ordering::Relaxed);
             if !matches!(r, Ok(Ok(()))) {
@@ -390,8 +421,8 @@ where
             _ => {
                 let (s, o) = (shared.clone(), out.clone());
                 tasks.spawn(async move {
-                    let reply = handle(&s, &req).await;
-                    o.reply(reply.with_id(req.id.clone())).await;
+                    let (reply, payload) = handle(&s, &req).await;
+                    o.reply_with(reply.with_id(req.id.clone()), payload).await;
                 });
             }
         }
@@ -457,8 +488,17 @@ pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bo
     }))
 }
 
-/// Answers one request (not watch/unwatch, which change the connection).
-async fn handle(shared: &Arc<Shared>, req: &Request) -> Reply {
+/// Answers one request (not watch/unwatch, which change the connection): the reply, and the
+/// payload that follows its line (`cloud`'s points).
+async fn handle(shared: &Arc<Shared>, req: &Request) -> (Reply, Option<Payload>) {
+    match &req.command {
+        Command::Cloud { max_age_s, timeout_s } => cloud(shared, *max_age_s, *timeout_s).await,
+        _ => (answer(shared, req).await, None),
+    }
+}
+
+/// The reply to a request without a payload.
+async fn answer(shared: &Arc<Shared>, req: &Request) -> Reply {
     match &req.command {
         Command::Status => Reply::Status(Box::new(shared.status())),
         Command::Models => models_reply(shared),
@@ -495,10 +535,57 @@ async fn handle(shared: &Arc<Shared>, req: &Request) -> Reply {
                 Err((code, msg)) => Reply::error(None, code, format!("scan: {msg}")),
             }
         }
-        Command::Watch { .. } | Command::Unwatch => {
-            Reply::error(None, ErrorCode::Internal, "watch is handled by the connection")
+        Command::Watch { .. } | Command::Unwatch | Command::Cloud { .. } => {
+            Reply::error(None, ErrorCode::Internal, "handled elsewhere")
         }
     }
+}
+
+/// `cloud`: the newest sweep no older than `max_age_s` (or the next one, as `find` takes it),
+/// as a binary PCD file after the header line.
+async fn cloud(shared: &Arc<Shared>, max_age_s: f64, timeout_s: f64) -> (Reply, Option<Payload>) {
+    let asked = Instant::now();
+    let deadline = asked + Duration::from_secs_f64(timeout_s);
+    let slot = match tokio::time::timeout_at(deadline.into(), shared.cloud_slots.clone().acquire_owned()).await {
+        Ok(Ok(p)) => p,
+        _ => {
+            let msg = format!("cloud: {CLOUD_SLOTS} clouds are on their way to clients; ask again");
+            return (Reply::error(None, ErrorCode::Busy, msg), None);
+        }
+    };
+    let max_age = Duration::from_secs_f64(max_age_s);
+    let entry = match wait_for_sweep(shared, deadline, |e| e.age() <= max_age || e.completed >= asked).await {
+        Ok(e) => e,
+        Err((code, msg)) => return (Reply::error(None, code, format!("cloud: {msg}")), None),
+    };
+    let e = entry.clone();
+    let encoded = tokio::task::spawn_blocking(move || {
+        let mut bytes = Vec::new();
+        crate::cloud::write_pcd(&mut bytes, &e.sweep.cloud, crate::cloud::PcdData::Binary).map(|()| bytes)
+    })
+    .await;
+    let bytes = match encoded {
+        Ok(Ok(b)) => b,
+        Ok(Err(err)) => return (Reply::error(None, ErrorCode::Internal, format!("cloud: {err}")), None),
+        Err(err) => return (Reply::error(None, ErrorCode::Internal, format!("cloud: {err}")), None),
+    };
+    let c = &entry.sweep.cloud;
+    let fields = ["x", "y", "z"]
+        .into_iter()
+        .map(String::from)
+        .chain(c.fields.iter().map(|f| f.name.clone()))
+        .collect();
+    let header = CloudHeader {
+        id: None,
+        sweep: entry.reference(),
+        frame: shared.config().frame_id.clone(),
+        width: c.width,
+        height: c.height,
+        fields,
+        format: "pcd_binary".into(),
+        bytes: bytes.len(),
+    };
+    (Reply::Cloud(Box::new(header)), Some(Payload { bytes, slot }))
 }
 
 /// The newest sweep that satisfies `ok`, waiting (and asking an on-demand loop for one) until
@@ -574,8 +661,9 @@ mod tests {
             out.update(Reply::error(None, ErrorCode::Internal, format!("k{k}")));
         }
         assert_eq!(shared.stats.watch_skipped.load(Ordering::Relaxed), 3);
-        assert!(rx.recv().await.unwrap().contains("\"k0\""));
-        assert!(rx.recv().await.unwrap().contains("\"k1\""));
+        let text = |o: Outgoing| String::from_utf8_lossy(&o.bytes).into_owned();
+        assert!(text(rx.recv().await.unwrap()).contains("\"k0\""));
+        assert!(text(rx.recv().await.unwrap()).contains("\"k1\""));
     }
 
     /// A slow watch reader costs the daemon at most MAX_QUEUED_BYTES, however large its updates:

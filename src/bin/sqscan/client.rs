@@ -66,6 +66,21 @@ pub struct ScanArgs {
 }
 
 #[derive(Args)]
+pub struct CloudArgs {
+    /// Write the sweep's points here (a binary PCD file, organized, with the sensor's viewpoint)
+    #[arg(long, value_name = "FILE.pcd")]
+    out: PathBuf,
+    /// Accept a sweep up to this old (s); else wait for the next one
+    #[arg(long, value_name = "S", default_value_t = 2.0)]
+    max_age: f64,
+    /// Give up after this long (s)
+    #[arg(long, value_name = "S", default_value_t = 10.0)]
+    timeout: f64,
+    #[command(flatten)]
+    client: ClientArgs,
+}
+
+#[derive(Args)]
 pub struct PlainArgs {
     #[command(flatten)]
     client: ClientArgs,
@@ -181,6 +196,15 @@ impl Connection {
         serde_json::from_str(&line).with_context(|| format!("the daemon sent something that is not JSON: {line:?}"))
     }
 
+    /// The `n` bytes of payload that follow a reply's line.
+    fn read_payload(&mut self, n: usize) -> Result<Vec<u8>> {
+        let mut buf = vec![0u8; n];
+        self.reader
+            .read_exact(&mut buf)
+            .with_context(|| format!("reading the {n} bytes of payload from {}", self.path))?;
+        Ok(buf)
+    }
+
     /// Sends a request and returns its reply (by id), passing over anything else.
     fn request(&mut self, mut v: Value, wait: Duration) -> Result<Value> {
         v["id"] = json!(1);
@@ -285,6 +309,35 @@ pub fn find(a: FindArgs) -> Result<()> {
     let r = c.request(req, Duration::from_secs_f64(a.timeout + 30.0))?;
     fail_on_error(&r)?;
     print(a.client.json, &r, detection_line);
+    Ok(())
+}
+
+pub fn cloud(a: CloudArgs) -> Result<()> {
+    let mut c = Connection::open(&a.client)?;
+    let r = c.request(
+        json!({"cmd": "cloud", "max_age_s": a.max_age, "timeout_s": a.timeout}),
+        Duration::from_secs_f64(a.timeout + 30.0),
+    )?;
+    fail_on_error(&r)?;
+    let n = r["bytes"]
+        .as_u64()
+        .with_context(|| format!("the daemon's cloud reply names no payload length: {r}"))?;
+    let payload = c.read_payload(n as usize)?;
+    std::fs::write(&a.out, &payload).with_context(|| format!("cannot write {}", a.out.display()))?;
+    print(a.client.json, &r, |r| {
+        format!(
+            "sweep {}: {} x {} points ({}) in {} -> {}",
+            r["sweep"]["id"],
+            r["width"],
+            r["height"],
+            r["fields"]
+                .as_array()
+                .map(|f| f.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(" "))
+                .unwrap_or_default(),
+            r["frame"].as_str().unwrap_or("?"),
+            a.out.display()
+        )
+    });
     Ok(())
 }
 

@@ -69,6 +69,8 @@ enum Command {
     Find(client::FindArgs),
     /// Ask the daemon for a sweep now; prints it when complete
     Scan(client::ScanArgs),
+    /// Fetch a recent sweep's points from the daemon into a PCD file
+    Cloud(client::CloudArgs),
     /// Print every sweep's detections of the given objects until interrupted
     Watch(client::WatchArgs),
     /// The daemon's devices, last sweep, rates and faults
@@ -166,6 +168,7 @@ fn main() -> ExitCode {
         Command::Sensor(a) => sensor::run(a),
         Command::Find(a) => client::find(a),
         Command::Scan(a) => client::scan(a),
+        Command::Cloud(a) => client::cloud(a),
         Command::Watch(a) => client::watch(a),
         Command::Status(a) => client::status(a),
         Command::Models(a) => client::models(a),
