@@ -241,7 +241,7 @@ mod tests {
                 if id == "help" || id == "version" {
                     continue;
                 }
-                if !arg.get_help().is_some_and(|h| !h.to_string().trim().is_empty()) {
+                if arg.get_help().is_none_or(|h| h.to_string().trim().is_empty()) {
                     problems.push(format!("`{name}`: `{id}` has no help text"));
                 }
             }
