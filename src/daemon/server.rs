@@ -50,17 +50,24 @@ pub const MAX_QUEUED_BYTES: usize = 256 * 1024;
 /// [`WRITE_TIMEOUT`]), so clients that ask for clouds and never read cannot pile them up.
 pub const CLOUD_SLOTS: usize = 4;
 
-/// A payload after a reply's line, and the `cloud` slot it holds.
+/// A payload after a reply's line, and the `cloud` slots it holds (the daemon's and the
+/// connection's).
 struct Payload {
     bytes: Vec<u8>,
-    slot: tokio::sync::OwnedSemaphorePermit,
+    slots: Vec<tokio::sync::OwnedSemaphorePermit>,
 }
 
-/// A queued message: its bytes, and the `cloud` slot it holds until written.
+/// A queued message: its bytes, the share of them counted against [`MAX_QUEUED_BYTES`] (a
+/// cloud's payload is bounded by its slots instead), and the `cloud` slots it holds until
+/// written.
 struct Outgoing {
     bytes: Vec<u8>,
-    _slot: Option<tokio::sync::OwnedSemaphorePermit>,
+    counted: usize,
+    _slots: Vec<tokio::sync::OwnedSemaphorePermit>,
 }
+
+/// Bytes written at a time, each within [`WRITE_TIMEOUT`].
+const WRITE_CHUNK: usize = 64 * 1024;
 
 /// How long a new client waits for the slot of an idle client closed to make room for it.
 const EVICT_WAIT: Duration = Duration::from_secs(2);
@@ -236,13 +243,18 @@ impl Outbox {
             self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
         }
         let mut l = v.line().into_bytes();
-        let mut slot = None;
+        let counted = l.len();
+        let mut slots = Vec::new();
         if let Some(p) = payload {
             l.extend_from_slice(&p.bytes);
-            slot = Some(p.slot);
+            slots = p.slots;
         }
-        let l = Outgoing { bytes: l, _slot: slot };
-        self.queued.fetch_add(l.bytes.len(), Ordering::Relaxed);
+        let l = Outgoing {
+            bytes: l,
+            counted,
+            _slots: slots,
+        };
+        self.queued.fetch_add(counted, Ordering::Relaxed);
         if self.tx.send(l).await.is_err() {
             self.queued.store(0, Ordering::Relaxed);
         }
@@ -258,7 +270,12 @@ impl Outbox {
             return;
         }
         self.queued.fetch_add(n, Ordering::Relaxed);
-        if self.tx.try_send(Outgoing { bytes: l, _slot: None }).is_err() {
+        let message = Outgoing {
+            bytes: l,
+            counted: n,
+            _slots: Vec::new(),
+        };
+        if self.tx.try_send(message).is_err() {
             self.queued.fetch_sub(n, Ordering::Relaxed);
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
         }
@@ -276,15 +293,18 @@ where
     // sender (the connection's and its tasks') is gone, and the writer ends with it.
     let queued = out.queued.clone();
     let writer = tokio::spawn(async move {
-        while let Some(l) = rx.recv().await {
-            let n = l.bytes.len();
-            let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(&l.bytes)).await;
-            drop(l);
-            queued.fetch_sub(n, Ordering::Relaxed);
-            if !matches!(r, Ok(Ok(()))) {
-                // Gone, or not reading: either way this client is done.
-                break;
+        'messages: while let Some(l) = rx.recv().await {
+            // In chunks, each with the timeout: a client that reads a large cloud slowly but
+            // steadily is not cut off; one that stops reading is.
+            for chunk in l.bytes.chunks(WRITE_CHUNK) {
+                let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(chunk)).await;
+                if !matches!(r, Ok(Ok(()))) {
+                    // Gone, or not reading: either way this client is done.
+                    queued.fetch_sub(l.counted, Ordering::Relaxed);
+                    break 'messages;
+                }
             }
+            queued.fetch_sub(l.counted, Ordering::Relaxed);
         }
     });
     out.reply(Reply::Version(Version::now())).await;
@@ -299,6 +319,8 @@ where
     let mut tasks: JoinSet<()> = JoinSet::new();
     let mut watch_task: Option<tokio::task::AbortHandle> = None;
     let mut watching: Vec<String> = Vec::new();
+    // One cloud of this connection in memory at a time: a client cannot take every slot.
+    let cloud_gate = Arc::new(Semaphore::new(1));
     let mut shutdown = shared.shutdown.subscribe();
     let mut lines = LineReader::default();
     loop {
@@ -419,9 +441,9 @@ where
                 .await;
             }
             _ => {
-                let (s, o) = (shared.clone(), out.clone());
+                let (s, o, gate) = (shared.clone(), out.clone(), cloud_gate.clone());
                 tasks.spawn(async move {
-                    let (reply, payload) = handle(&s, &req).await;
+                    let (reply, payload) = handle(&s, &req, gate).await;
                     o.reply_with(reply.with_id(req.id.clone()), payload).await;
                 });
             }
@@ -490,9 +512,9 @@ pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bo
 
 /// Answers one request (not watch/unwatch, which change the connection): the reply, and the
 /// payload that follows its line (`cloud`'s points).
-async fn handle(shared: &Arc<Shared>, req: &Request) -> (Reply, Option<Payload>) {
+async fn handle(shared: &Arc<Shared>, req: &Request, gate: Arc<Semaphore>) -> (Reply, Option<Payload>) {
     match &req.command {
-        Command::Cloud { max_age_s, timeout_s } => cloud(shared, *max_age_s, *timeout_s).await,
+        Command::Cloud { max_age_s, timeout_s } => cloud(shared, *max_age_s, *timeout_s, gate).await,
         _ => (answer(shared, req).await, None),
     }
 }
@@ -542,34 +564,50 @@ async fn answer(shared: &Arc<Shared>, req: &Request) -> Reply {
 }
 
 /// `cloud`: the newest sweep no older than `max_age_s` (or the next one, as `find` takes it),
-/// as a binary PCD file after the header line.
-async fn cloud(shared: &Arc<Shared>, max_age_s: f64, timeout_s: f64) -> (Reply, Option<Payload>) {
+/// as a binary PCD file after the header line. The sweep is found first; then a slot of the
+/// connection's and one of the daemon's ([`CLOUD_SLOTS`]) are taken, held by the encoding and
+/// then by the queued message until it is written.
+async fn cloud(shared: &Arc<Shared>, max_age_s: f64, timeout_s: f64, gate: Arc<Semaphore>) -> (Reply, Option<Payload>) {
     let asked = Instant::now();
     let deadline = asked + Duration::from_secs_f64(timeout_s);
-    let slot = match tokio::time::timeout_at(deadline.into(), shared.cloud_slots.clone().acquire_owned()).await {
-        Ok(Ok(p)) => p,
-        _ => {
-            let msg = format!("cloud: {CLOUD_SLOTS} clouds are on their way to clients; ask again");
-            return (Reply::error(None, ErrorCode::Busy, msg), None);
-        }
-    };
     let max_age = Duration::from_secs_f64(max_age_s);
     let entry = match wait_for_sweep(shared, deadline, |e| e.age() <= max_age || e.completed >= asked).await {
         Ok(e) => e,
         Err((code, msg)) => return (Reply::error(None, code, format!("cloud: {msg}")), None),
     };
+    let slots = async {
+        let mine = gate.acquire_owned().await.ok()?;
+        let daemon = shared.cloud_slots.clone().acquire_owned().await.ok()?;
+        Some(vec![mine, daemon])
+    };
+    let Ok(Some(slots)) = tokio::time::timeout_at(deadline.into(), slots).await else {
+        let msg = format!(
+            "cloud: no room before the timeout: this connection's earlier cloud, or the daemon's {CLOUD_SLOTS}, \
+             are still on their way to clients"
+        );
+        return (Reply::error(None, ErrorCode::Busy, msg), None);
+    };
     let e = entry.clone();
+    // The slots go with the encoding, so a request abandoned meanwhile still holds them until
+    // the encoding is done.
     let encoded = tokio::task::spawn_blocking(move || {
         let mut bytes = Vec::new();
-        crate::cloud::write_pcd(&mut bytes, &e.sweep.cloud, crate::cloud::PcdData::Binary).map(|()| bytes)
+        let r = crate::cloud::write_pcd(&mut bytes, &e.sweep.cloud, crate::cloud::PcdData::Binary);
+        r.map(|()| (bytes, slots))
     })
     .await;
-    let bytes = match encoded {
+    let (bytes, slots) = match encoded {
         Ok(Ok(b)) => b,
         Ok(Err(err)) => return (Reply::error(None, ErrorCode::Internal, format!("cloud: {err}")), None),
         Err(err) => return (Reply::error(None, ErrorCode::Internal, format!("cloud: {err}")), None),
     };
     let c = &entry.sweep.cloud;
+    // As the PCD header gives them: an unorganized cloud is one row.
+    let (width, height) = if c.is_organized() {
+        (c.width, c.height)
+    } else {
+        (c.points.len(), 1)
+    };
     let fields = ["x", "y", "z"]
         .into_iter()
         .map(String::from)
@@ -579,13 +617,13 @@ async fn cloud(shared: &Arc<Shared>, max_age_s: f64, timeout_s: f64) -> (Reply, 
         id: None,
         sweep: entry.reference(),
         frame: shared.config().frame_id.clone(),
-        width: c.width,
-        height: c.height,
+        width,
+        height,
         fields,
         format: "pcd_binary".into(),
         bytes: bytes.len(),
     };
-    (Reply::Cloud(Box::new(header)), Some(Payload { bytes, slot }))
+    (Reply::Cloud(Box::new(header)), Some(Payload { bytes, slots }))
 }
 
 /// The newest sweep that satisfies `ok`, waiting (and asking an on-demand loop for one) until
