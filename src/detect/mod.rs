@@ -40,6 +40,7 @@ mod verify;
 
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
+pub use prepare::Scene;
 pub use report::{Detection, PartResult, Report, Timing};
 
 use crate::geometry::Superquadric;
@@ -70,11 +71,27 @@ fn box_volume(s: &Superquadric) -> f64 {
 
 /// Detect `model` in `cloud` (finite and non-finite points; non-finite are skipped).
 pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
-    let start = Instant::now();
-    let mut timing = Timing::default();
     let t = Instant::now();
-    let scene = prepare::scene(cloud, params);
-    timing.plane_ms = ms(t);
+    let scene = std::sync::Arc::new(scene(cloud, params));
+    detect_in(&scene, model, params, ms(t))
+}
+
+/// The cloud filtered and its support plane removed, as [`detect_in`] takes it: made once, it
+/// serves the detections of any number of objects with the same viewpoint, range cut and plane
+/// setting (`params.viewpoint`, `max_range`, `remove_plane`; the rest is not looked at).
+pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
+    prepare::scene(cloud, params)
+}
+
+/// [`detect`] on a prepared [`scene`]; `plane_ms` is what the scene cost this detection (0 for
+/// one made before), reported as the plane's time.
+pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, plane_ms: f64) -> Report {
+    let start = Instant::now();
+    let mut timing = Timing {
+        plane_ms,
+        ..Timing::default()
+    };
+    let scene = scene.clone();
     let mut report = Report {
         object: model.name.clone(),
         detections: Vec::new(),
@@ -84,7 +101,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
         timing,
     };
     if scene.objects.len() < MIN_SCENE_POINTS {
-        report.timing.total_ms = ms(start);
+        report.timing.total_ms = plane_ms + ms(start);
         return report;
     }
     let t = Instant::now();
@@ -127,7 +144,7 @@ pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
     if let Some(plane) = &report.plane {
         select::stand_on_plane(&mut report.detections, model, plane);
     }
-    timing.total_ms = ms(start);
+    timing.total_ms = plane_ms + ms(start);
     report.timing = timing;
     report
 }

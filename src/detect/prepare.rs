@@ -179,7 +179,8 @@ fn sight_grid(points: &[Point3<f64>]) -> Grid {
 
 /// The scene indexed for the search and the checks of one model.
 pub struct Prepared {
-    pub scene: Scene,
+    /// Shared: one sweep's scene serves the detections of every object asked for on it.
+    pub scene: std::sync::Arc<Scene>,
     /// The objects' points subsampled to a quarter of the model's smallest size.
     pub sub: Vec<Point3<f64>>,
     /// Grid over `sub`, cells the size of the model's smallest part.
@@ -228,7 +229,7 @@ impl Prepared {
 }
 
 /// Subsample the scene and build the grids, surface samples and plane checks for `model`.
-pub fn index(scene: Scene, model: &Model, params: &Params) -> Prepared {
+pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Prepared {
     let min_size = model
         .parts
         .iter()
