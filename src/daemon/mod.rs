@@ -20,6 +20,7 @@
 mod acquire;
 mod backend;
 pub mod cli;
+mod cloud;
 pub mod config;
 mod hardware;
 mod idle;

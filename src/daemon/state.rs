@@ -316,7 +316,7 @@ pub struct Shared {
     /// Objects watched by clients, with how many watch each.
     pub watched: Mutex<BTreeMap<String, usize>>,
     pub detect_slots: Semaphore,
-    /// `cloud` payloads in memory at once (`server::CLOUD_SLOTS`).
+    /// `cloud` payloads in memory at once (`cloud::CLOUD_SLOTS`).
     pub cloud_slots: Arc<Semaphore>,
     pub started: Instant,
     /// Turns true when the daemon is stopping.
@@ -348,7 +348,7 @@ impl Shared {
             stats: Stats::default(),
             watched: Mutex::new(BTreeMap::new()),
             detect_slots: Semaphore::new(workers),
-            cloud_slots: Arc::new(Semaphore::new(super::server::CLOUD_SLOTS)),
+            cloud_slots: Arc::new(Semaphore::new(super::cloud::CLOUD_SLOTS)),
             started: Instant::now(),
             shutdown: watch::channel(false).0,
         }

@@ -32,6 +32,7 @@ pub mod output;
 mod params;
 mod plane_check;
 mod prepare;
+mod refine;
 mod report;
 mod rigid;
 mod search;
