@@ -22,7 +22,8 @@ use super::refine::REFINE_POINTS;
 pub use super::refine::{Coarse, refine_band, refine_coarse, refine_fine};
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
-use crate::geometry::{PlacedKernel, PlacedSuperquadric, Superquadric};
+use crate::geometry::{NearBatch, PlacedKernel, PlacedSuperquadric, Superquadric};
+use crate::numeric::lanes::widened;
 use crate::numeric::stream_seed;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -209,6 +210,7 @@ pub fn local_inliers(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band:
     inliers_in(space.points, space.grid, placed, band)
 }
 
+widened! {
 pub(super) fn inliers_in(
     points: &[Point3<f64>],
     grid: &Grid,
@@ -218,13 +220,17 @@ pub(super) fn inliers_in(
     let centre = Point3::from(placed.pose.translation.vector);
     let kernel = PlacedKernel::new(placed);
     let mut out = Vec::new();
-    grid.for_each_within(points, &centre, placed.shape.bounding_radius() + band, |i| {
-        let p = &points[i];
-        if kernel.surface_distance_near(p, band).is_some_and(|d| d.abs() < band) {
-            out.push(*p);
+    let mut batch = NearBatch::new(&kernel, band, |i, _, rg| {
+        if PlacedSuperquadric::distance_from(rg).abs() < band {
+            out.push(points[i]);
         }
     });
+    grid.for_each_within(points, &centre, placed.shape.bounding_radius() + band, |i| {
+        batch.push(i, &points[i])
+    });
+    batch.finish();
     out
+}
 }
 
 /// Radius of the neighbourhood a trial samples around its seed. The paper takes min(a1, a2, a3);
@@ -293,22 +299,25 @@ pub fn ransac(
     best
 }
 
+widened! {
 /// Points of the coarse subsample within `band` of the placed surface.
 fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
     let centre = Point3::from(placed.pose.translation.vector);
     let kernel = PlacedKernel::new(placed);
     let mut n = 0;
+    let mut batch = NearBatch::new(&kernel, band, |_, _, rg| {
+        if PlacedSuperquadric::distance_from(rg).abs() < band {
+            n += 1;
+        }
+    });
     space
         .coarse_grid
         .for_each_within(space.coarse, &centre, placed.shape.bounding_radius() + band, |i| {
-            if kernel
-                .surface_distance_near(&space.coarse[i], band)
-                .is_some_and(|d| d.abs() < band)
-            {
-                n += 1;
-            }
+            batch.push(i, &space.coarse[i])
         });
+    batch.finish();
     n
+}
 }
 
 /// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.

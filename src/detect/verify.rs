@@ -21,7 +21,8 @@
 use super::base::BaseCap;
 use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
-use crate::geometry::PlacedSuperquadric;
+use crate::geometry::{NearBatch, PlacedSuperquadric};
+use crate::numeric::lanes::widened;
 use nalgebra::{Point3, Vector3};
 use std::fmt;
 
@@ -91,6 +92,7 @@ impl fmt::Display for Scores {
     }
 }
 
+widened! {
 /// Compute the paper's S and I and the acceptance measures for a hypothesis.
 pub fn score(
     space: &SearchSpace<'_>,
@@ -142,17 +144,11 @@ pub fn score(
     let mut inner_wall: Vec<Point3<f64>> = Vec::new();
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
     let kernel = crate::geometry::PlacedKernel::new(placed);
-    space.grid.for_each_within(
-        space.points,
-        &centre,
-        radius.max(shape.bounding_radius() + shell),
-        |k| {
+    // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order surface
+    // distance and the normal (the lid test); every point in reach is evaluated.
+    let mut batch = NearBatch::new(&kernel, f64::INFINITY, |k, q, rg| {
             let p = &space.points[k];
             let within_paper_radius = (p - centre).norm() <= radius;
-            // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order
-            // surface distance and the normal (the lid test).
-            let q = kernel.to_local(p);
-            let rg = kernel.kernel.residual_grad(&q);
             let g = rg.residual + 1.0;
             if within_paper_radius {
                 if g < 1.0 - gamma {
@@ -161,9 +157,9 @@ pub fn score(
                     s += 1;
                 }
             }
-            let d = PlacedSuperquadric::distance_from(&rg);
+            let d = PlacedSuperquadric::distance_from(rg);
             // The raised middle of a vessel's base lies inside the model's end, which is flat.
-            let in_base = on_rim && base.add(&q);
+            let in_base = on_rim && base.add(q);
             if opening_up && d.abs() < band && crate::model::is_lid(&rg.grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
@@ -186,8 +182,14 @@ pub fn score(
             } else if d < shell {
                 outside_near.push(*p);
             }
-        },
+        });
+    space.grid.for_each_within(
+        space.points,
+        &centre,
+        radius.max(shape.bounding_radius() + shell),
+        |k| batch.push(k, &space.points[k]),
     );
+    batch.finish();
     // Of the points just outside, those that continue the explained surface (a neighbour on it
     // within reach): the data goes on past the model's edge, as when a smaller model sits on a
     // larger object of the same shape. Points of another object across a gap do not count.
@@ -241,6 +243,7 @@ pub fn score(
         faces,
         base_recess: on_rim.then(|| base.recess()),
     }
+}
 }
 
 /// Whether the side wall is round or made of flat faces. A can fitted to the edge of a box (or

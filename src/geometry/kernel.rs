@@ -10,6 +10,7 @@
 //! apart.
 
 use super::superquadric::{PlacedSuperquadric, ResidualGrad, Superquadric};
+use crate::numeric::lanes::{Lanes, Mask};
 use nalgebra::{Matrix3, Point3, Vector3};
 
 /// How `s^(e2/e1)` is taken in the plain form.
@@ -99,19 +100,6 @@ impl Kernel {
         &self.shape
     }
 
-    /// `F^e1` from `F`.
-    #[inline(always)]
-    fn pow_e1(&self, f: f64) -> f64 {
-        match self.outer {
-            OuterPower::One => f,
-            OuterPower::Sqrt => f.sqrt(),
-            // exp(e1 ln F) is two of libm's fast paths, where `powf` takes its general one; the
-            // two differ by a few units in the last place.
-            OuterPower::Real(e1) if f > 0.0 => (e1 * f.ln()).exp(),
-            OuterPower::Real(e1) => f.powf(e1),
-        }
-    }
-
     /// The taper factors at height `z` and whether each is clamped.
     #[inline(always)]
     fn taper(&self, z: f64) -> ([f64; 2], [bool; 2]) {
@@ -160,60 +148,75 @@ impl Kernel {
         Vector3::new(q.x * fx, q.y * fy, q.z)
     }
 
-    /// The residual `F^e1 - 1` of a local point.
+    /// The residual `F^e1 - 1` of a local point (the same as [`Self::residual_grad`]'s).
     #[inline]
     pub fn residual(&self, p: &Vector3<f64>) -> f64 {
-        let ([fx, fy], _) = self.taper(p.z);
-        let q = Vector3::new(p.x / fx, p.y / fy, p.z);
         if let Some(pf) = &self.plain {
-            let r = [
-                q.x.abs() * self.inv_a[0],
-                q.y.abs() * self.inv_a[1],
-                q.z.abs() * self.inv_a[2],
-            ];
-            if r[0] <= PLAIN_REACH && r[1] <= PLAIN_REACH && r[2] <= PLAIN_REACH {
-                let s = ipow(r[0], pf.n2) + ipow(r[1], pf.n2);
-                return self.pow_e1(section_power(s, pf.section) + ipow(r[2], pf.n1)) - 1.0;
+            let (r, _, far) = self.plain_lanes(pf, [Lanes([p.x]), Lanes([p.y]), Lanes([p.z])]);
+            if !far.0[0] {
+                return r.0[0];
             }
         }
-        self.shape.residual_log(&q)
+        let ([fx, fy], _) = self.taper(p.z);
+        self.shape.residual_log(&Vector3::new(p.x / fx, p.y / fy, p.z))
     }
 
     /// The residual and its gradient with respect to the local point coordinates.
     #[inline]
     pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
-        if self.untapered {
-            let (g, gx, gy, gz) = match self.plain_grad(p) {
-                Some(v) => v,
-                None => match self.shape.log_grad_untapered(p) {
-                    Some(v) => v,
-                    None => {
-                        return ResidualGrad {
-                            residual: self.shape.residual_log(p),
-                            grad: Vector3::zeros(),
-                        };
-                    }
-                },
-            };
-            return ResidualGrad {
-                residual: g - 1.0,
-                grad: Vector3::new(gx, gy, gz),
-            };
+        let (r, [gx, gy, gz]) = self.residual_grad_lanes([Lanes([p.x]), Lanes([p.y]), Lanes([p.z])]);
+        ResidualGrad {
+            residual: r.0[0],
+            grad: Vector3::new(gx.0[0], gy.0[0], gz.0[0]),
         }
+    }
+
+    /// [`Self::residual_grad`] of `L` local points at once (their x, y and z coordinates), the
+    /// same to the bit as one at a time.
+    #[inline(always)]
+    pub fn residual_grad_lanes<const L: usize>(&self, p: [Lanes<L>; 3]) -> (Lanes<L>, [Lanes<L>; 3]) {
+        let Some(pf) = &self.plain else {
+            return self.log_lanes(p, Mask([true; L]), (Lanes::splat(0.0), [Lanes::splat(0.0); 3]));
+        };
+        let (r, g, far) = self.plain_lanes(pf, p);
+        if far.any() {
+            return self.log_lanes(p, far, (r, g));
+        }
+        (r, g)
+    }
+
+    /// The lanes of `into` the mask selects, replaced by the log-domain evaluation: for shapes
+    /// without a plain form, and for points beyond its reach.
+    #[cold]
+    fn log_lanes<const L: usize>(
+        &self,
+        p: [Lanes<L>; 3],
+        which: Mask<L>,
+        into: (Lanes<L>, [Lanes<L>; 3]),
+    ) -> (Lanes<L>, [Lanes<L>; 3]) {
+        let (mut r, mut g) = into;
+        for i in 0..L {
+            if which.0[i] {
+                let rg = self.residual_grad_log(&Vector3::new(p[0].0[i], p[1].0[i], p[2].0[i]));
+                r.0[i] = rg.residual;
+                for k in 0..3 {
+                    g[k].0[i] = rg.grad[k];
+                }
+            }
+        }
+        (r, g)
+    }
+
+    /// The residual and gradient through the log domain (any exponents, any distance).
+    fn residual_grad_log(&self, p: &Vector3<f64>) -> ResidualGrad {
         let ([fx, fy], clamped) = self.taper(p.z);
         let (ix, iy) = (1.0 / fx, 1.0 / fy);
         let q = Vector3::new(p.x * ix, p.y * iy, p.z);
-        let (g, gx, gy, gz) = match self.plain_grad(&q) {
-            Some(v) => v,
-            None => match self.shape.log_grad_untapered(&q) {
-                Some(v) => v,
-                None => {
-                    return ResidualGrad {
-                        residual: self.shape.residual_log(&q),
-                        grad: Vector3::zeros(),
-                    };
-                }
-            },
+        let Some((g, gx, gy, gz)) = self.shape.log_grad_untapered(&q) else {
+            return ResidualGrad {
+                residual: self.shape.residual_log(&q),
+                grad: Vector3::zeros(),
+            };
         };
         // Chain through the untaper x = X / fx(Z): dx/dX = 1/fx, dx/dZ = -x (dfx/dZ) / fx. Where
         // the factor is clamped it does not depend on Z.
@@ -225,47 +228,91 @@ impl Kernel {
         }
     }
 
-    /// `F^e1` and its gradient in the untapered frame, plain form; `None` where the plain form
-    /// does not apply.
+    /// The residual and gradient in the plain form, branch-free across the lanes, and which
+    /// lanes lie beyond its reach (their values are not to be used).
     #[inline(always)]
-    fn plain_grad(&self, q: &Vector3<f64>) -> Option<(f64, f64, f64, f64)> {
-        let pf = self.plain.as_ref()?;
-        let r = [
-            q.x.abs() * self.inv_a[0],
-            q.y.abs() * self.inv_a[1],
-            q.z.abs() * self.inv_a[2],
-        ];
-        if r[0] > PLAIN_REACH || r[1] > PLAIN_REACH || r[2] > PLAIN_REACH {
-            return None;
-        }
-        let u = ipow(r[0], pf.n2);
-        let v = ipow(r[1], pf.n2);
-        let s = u + v;
-        let a = section_power(s, pf.section);
-        let b = ipow(r[2], pf.n1);
-        let f = a + b;
-        let g = self.pow_e1(f);
-        if f == 0.0 {
-            return Some((g, 0.0, 0.0, 0.0));
-        }
-        let e1 = self.shape.e1;
-        let dg_df = e1 * g / f;
-        let da_ds = if s > 0.0 { self.section_exponent * a / s } else { 0.0 };
-        // d(r^n)/dq = n r^(n-1) sign(q) / a, with r = |q| / a; r^(n-1) = r^n / r from the value
-        // already computed (no second integer power).
-        let d = |r: f64, rn: f64, n: i32, c: f64, inv_a: f64| {
-            if n == 1 {
-                c.signum() * inv_a
-            } else if c == 0.0 || r == 0.0 {
-                0.0
-            } else {
-                n as f64 * (rn / r) * c.signum() * inv_a
-            }
+    fn plain_lanes<const L: usize>(&self, pf: &PlainForm, p: [Lanes<L>; 3]) -> (Lanes<L>, [Lanes<L>; 3], Mask<L>) {
+        let zero = Lanes::splat(0.0);
+        let [px, py, pz] = p;
+        // The untaper x = X / fx(Z), and dfx/dZ where the factor is not clamped.
+        let (qx, qy, ix, iy, dfx, dfy) = if self.untapered {
+            (px, py, Lanes::splat(1.0), Lanes::splat(1.0), zero, zero)
+        } else {
+            let t = pz * self.inv_a[2];
+            let rx = t * self.shape.kx + 1.0;
+            let ry = t * self.shape.ky + 1.0;
+            let (cx, cy) = (Lanes::splat(self.clamp[0]), Lanes::splat(self.clamp[1]));
+            let ix = Lanes::splat(1.0) / rx.max(cx);
+            let iy = Lanes::splat(1.0) / ry.max(cy);
+            let dfx = Mask::select(rx.le(cx), zero, Lanes::splat(self.slope[0]));
+            let dfy = Mask::select(ry.le(cy), zero, Lanes::splat(self.slope[1]));
+            (px * ix, py * iy, ix, iy, dfx, dfy)
         };
-        let gx = dg_df * da_ds * d(r[0], u, pf.n2, q.x, self.inv_a[0]);
-        let gy = dg_df * da_ds * d(r[1], v, pf.n2, q.y, self.inv_a[1]);
-        let gz = dg_df * d(r[2], b, pf.n1, q.z, self.inv_a[2]);
-        Some((g, gx, gy, gz))
+        let r0 = qx.abs() * self.inv_a[0];
+        let r1 = qy.abs() * self.inv_a[1];
+        let r2 = pz.abs() * self.inv_a[2];
+        let reach = Lanes::splat(PLAIN_REACH);
+        let far = reach.lt(r0).or(reach.lt(r1)).or(reach.lt(r2));
+        // r^(n-1) and r^n: the first is the derivative's, the second one product more.
+        let u1 = ipow_lanes(r0, pf.n2 - 1);
+        let v1 = ipow_lanes(r1, pf.n2 - 1);
+        let b1 = ipow_lanes(r2, pf.n1 - 1);
+        let (u, v, b) = (u1 * r0, v1 * r1, b1 * r2);
+        let s = u + v;
+        let a = match pf.section {
+            SectionPower::Int(k) => ipow_lanes(s, k),
+            SectionPower::Half(k) => ipow_lanes(s, k) * s.sqrt(),
+            SectionPower::Real(m) => s.powf_pos(m),
+        };
+        let f = a + b;
+        let g = match self.outer {
+            OuterPower::One => f,
+            OuterPower::Sqrt => f.sqrt(),
+            OuterPower::Real(e1) => f.powf_pos(e1),
+        };
+        let dg_df = Mask::select(f.eq(zero), zero, g * self.shape.e1 / f);
+        let da_ds = Mask::select(s.eq(zero), zero, a * self.section_exponent / s);
+        // d(r^n)/dq = n r^(n-1) sign(q) / a.
+        let dgx = (dg_df * da_ds * u1 * (pf.n2 as f64 * self.inv_a[0])).copysign(qx);
+        let dgy = (dg_df * da_ds * v1 * (pf.n2 as f64 * self.inv_a[1])).copysign(qy);
+        let dgz = (dg_df * b1 * (pf.n1 as f64 * self.inv_a[2])).copysign(pz);
+        // Chain through the untaper: dx/dX = 1/fx, dx/dZ = -x (dfx/dZ) / fx.
+        let grad = [dgx * ix, dgy * iy, dgz - dgx * qx * dfx * ix - dgy * qy * dfy * iy];
+        (g - 1.0, grad, far)
+    }
+}
+
+/// [`ipow`] of each lane (`n` is the same for all, so the choice is made once).
+#[inline(always)]
+pub(super) fn ipow_lanes<const L: usize>(x: Lanes<L>, n: i32) -> Lanes<L> {
+    match n {
+        0 => Lanes::splat(1.0),
+        1 => x,
+        2 => x * x,
+        3 => x * x * x,
+        4 => {
+            let x2 = x * x;
+            x2 * x2
+        }
+        5 => {
+            let x2 = x * x;
+            x2 * x2 * x
+        }
+        n if n > 0 => {
+            // Square and multiply, the same steps in every lane.
+            let (mut acc, mut base, mut e) = (Lanes::splat(1.0), x, n as u32);
+            loop {
+                if e & 1 == 1 {
+                    acc = acc * base;
+                }
+                e >>= 1;
+                if e == 0 {
+                    return acc;
+                }
+                base = base * base;
+            }
+        }
+        _ => x.map(|x| x.powi(n)),
     }
 }
 
@@ -308,7 +355,17 @@ impl PlacedKernel {
     /// A frame point in the local frame.
     #[inline(always)]
     pub fn to_local(&self, p: &Point3<f64>) -> Vector3<f64> {
-        self.rotation.tr_mul(&(p.coords - self.translation))
+        let [x, y, z] = self.to_local_lanes(lanes_of::<1>(std::slice::from_ref(p)));
+        Vector3::new(x.0[0], y.0[0], z.0[0])
+    }
+
+    /// `L` frame points (their x, y and z coordinates) in the local frame.
+    #[inline(always)]
+    pub fn to_local_lanes<const L: usize>(&self, p: [Lanes<L>; 3]) -> [Lanes<L>; 3] {
+        let t = &self.translation;
+        let d = [p[0] - t.x, p[1] - t.y, p[2] - t.z];
+        let r = &self.rotation;
+        std::array::from_fn(|i| d[0] * r[(0, i)] + d[1] * r[(1, i)] + d[2] * r[(2, i)])
     }
 
     /// The residual `F^e1 - 1` of a frame point.
@@ -327,13 +384,101 @@ impl PlacedKernel {
     /// [`PlacedSuperquadric::residual_pose_jacobian`]).
     #[inline]
     pub fn residual_pose_jacobian(&self, p: &Point3<f64>) -> (f64, [f64; 6]) {
-        let q = self.to_local(p);
-        let rg = self.kernel.residual_grad(&q);
-        let g = rg.grad;
-        let dt = -(self.rotation * g);
-        let dw = g.cross(&q);
-        (rg.residual, [dt.x, dt.y, dt.z, dw.x, dw.y, dw.z])
+        let (r, j) = self.residual_pose_jacobian_lanes(lanes_of::<1>(std::slice::from_ref(p)));
+        (r.0[0], j.map(|j| j.0[0]))
     }
+
+    /// [`Self::residual_pose_jacobian`] of `L` frame points at once, the same to the bit.
+    #[inline(always)]
+    pub fn residual_pose_jacobian_lanes<const L: usize>(&self, p: [Lanes<L>; 3]) -> (Lanes<L>, [Lanes<L>; 6]) {
+        let q = self.to_local_lanes(p);
+        let (r, g) = self.kernel.residual_grad_lanes(q);
+        let rot = &self.rotation;
+        let dt: [Lanes<L>; 3] =
+            std::array::from_fn(|i| -(g[0] * rot[(i, 0)] + g[1] * rot[(i, 1)] + g[2] * rot[(i, 2)]));
+        (
+            r,
+            [
+                dt[0],
+                dt[1],
+                dt[2],
+                g[1] * q[2] - g[2] * q[1],
+                g[2] * q[0] - g[0] * q[2],
+                g[0] * q[1] - g[1] * q[0],
+            ],
+        )
+    }
+}
+
+/// Points near a placed shape, evaluated four at a time: [`NearBatch::push`] each candidate,
+/// then [`NearBatch::finish`]. Those within `band` of the shape's local box reach the callback
+/// with their local coordinates and residual and gradient, in the order they were pushed; the
+/// others are dropped after the box test (no point of the surface lies within `band` of them).
+pub struct NearBatch<'k, F: FnMut(usize, &Vector3<f64>, &ResidualGrad)> {
+    kernel: &'k PlacedKernel,
+    reach: Vector3<f64>,
+    index: [usize; BATCH],
+    local: [[f64; BATCH]; 3],
+    n: usize,
+    f: F,
+}
+
+const BATCH: usize = 4;
+
+impl<'k, F: FnMut(usize, &Vector3<f64>, &ResidualGrad)> NearBatch<'k, F> {
+    #[inline(always)]
+    pub fn new(kernel: &'k PlacedKernel, band: f64, f: F) -> Self {
+        NearBatch {
+            kernel,
+            reach: kernel.half_extents.add_scalar(band),
+            index: [0; BATCH],
+            local: [[0.0; BATCH]; 3],
+            n: 0,
+            f,
+        }
+    }
+
+    #[inline(always)]
+    pub fn push(&mut self, i: usize, p: &Point3<f64>) {
+        let q = self.kernel.to_local(p);
+        if q.x.abs() > self.reach.x || q.y.abs() > self.reach.y || q.z.abs() > self.reach.z {
+            return;
+        }
+        let n = self.n;
+        self.index[n] = i;
+        for k in 0..3 {
+            self.local[k][n] = q[k];
+        }
+        self.n = n + 1;
+        if self.n == BATCH {
+            let (r, g) = self.kernel.kernel.residual_grad_lanes(self.local.map(Lanes));
+            for l in 0..BATCH {
+                let q = Vector3::new(self.local[0][l], self.local[1][l], self.local[2][l]);
+                let rg = ResidualGrad {
+                    residual: r.0[l],
+                    grad: Vector3::new(g[0].0[l], g[1].0[l], g[2].0[l]),
+                };
+                (self.f)(self.index[l], &q, &rg);
+            }
+            self.n = 0;
+        }
+    }
+
+    /// Evaluate what is left (one at a time: the same values as in a group).
+    #[inline(always)]
+    pub fn finish(mut self) {
+        for l in 0..self.n {
+            let q = Vector3::new(self.local[0][l], self.local[1][l], self.local[2][l]);
+            let rg = self.kernel.kernel.residual_grad(&q);
+            (self.f)(self.index[l], &q, &rg);
+        }
+    }
+}
+
+/// The x, y and z coordinates of `L` points as lanes.
+#[inline(always)]
+pub fn lanes_of<const L: usize>(points: &[Point3<f64>]) -> [Lanes<L>; 3] {
+    std::array::from_fn(|k| Lanes(std::array::from_fn(|i| points[i][k])))
 }
 
 #[inline(always)]

@@ -10,7 +10,7 @@ pub(crate) mod ray;
 mod sampling;
 mod superquadric;
 
-pub use kernel::{Kernel, PlacedKernel};
+pub use kernel::{Kernel, NearBatch, PlacedKernel, lanes_of};
 pub use moments::principal_axes;
 pub use superquadric::*;
 

@@ -478,3 +478,63 @@ fn kernels_agree_with_the_pointwise_evaluation() {
         }
     }
 }
+
+/// Four points evaluated together give what each gives alone, to the bit: also when some of them
+/// leave the plain form (far away, the centre, a zero coordinate) or the shape has none.
+#[test]
+fn four_points_at_once_are_four_points_one_at_a_time() {
+    use crate::numeric::lanes::Lanes;
+    let mut rng = ChaCha8Rng::seed_from_u64(34);
+    let nice = [0.1, 0.2, 0.25, 1.0 / 3.0, 0.4, 0.5, 1.0, 2.0];
+    for _ in 0..3000 {
+        let mut sq = random_sq(&mut rng);
+        if rng.random_bool(0.7) {
+            sq.e1 = nice[rng.random_range(0..nice.len())];
+            sq.e2 = nice[rng.random_range(0..nice.len())];
+        }
+        if rng.random_bool(0.3) {
+            (sq.kx, sq.ky) = (0.0, 0.0);
+        }
+        let k = Kernel::new(&sq);
+        let points: [Vector3<f64>; 4] = std::array::from_fn(|_| {
+            let scale = [0.0, 0.3, 1.0, 2.0, 1e5][rng.random_range(0..5)];
+            let mut p = Vector3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            ) * sq.max_size()
+                * scale;
+            if rng.random_bool(0.1) {
+                p[rng.random_range(0..3)] = 0.0;
+            }
+            p
+        });
+        let lanes: [Lanes<4>; 3] = std::array::from_fn(|c| Lanes(std::array::from_fn(|i| points[i][c])));
+        let (r, g) = k.residual_grad_lanes(lanes);
+        for (i, p) in points.iter().enumerate() {
+            let one = k.residual_grad(p);
+            assert_eq!(r.0[i].to_bits(), one.residual.to_bits(), "{p:?} of {sq}");
+            for c in 0..3 {
+                assert_eq!(g[c].0[i].to_bits(), one.grad[c].to_bits(), "{p:?} of {sq}");
+            }
+            if one.residual.is_finite() && one.residual.abs() < 1e6 {
+                let reference = sq.f_pow_e1_log(p) - 1.0;
+                let tol = 1e-9 * one.residual.abs().max(reference.abs()).max(1e-12);
+                assert!((one.residual - reference).abs() <= tol, "{} vs {reference} at {p:?} of {sq}", one.residual);
+            }
+        }
+    }
+}
+
+/// The whole-number powers of the plain form, for every exponent it can take.
+#[test]
+fn integer_powers_of_lanes_agree_with_powi() {
+    use crate::numeric::lanes::Lanes;
+    for n in 0..=64 {
+        for x in [0.0, 0.3, 0.9, 1.0, 1.7, 3.5] {
+            let got = super::kernel::ipow_lanes(Lanes::<1>([x]), n).0[0];
+            let want = f64::powi(x, n);
+            assert!((got - want).abs() <= 1e-14 * want.abs(), "{x}^{n}: {got} vs {want}");
+        }
+    }
+}

@@ -3,6 +3,7 @@
 //! robust weights ([`stats`]), and independent random streams from one seed ([`stream_seed`]).
 
 pub mod dual;
+pub mod lanes;
 pub mod lm;
 pub mod stats;
 
