@@ -12,6 +12,8 @@ pub struct Grid {
     cell: f64,
     origin: Point3<f64>,
     dims: [usize; 3],
+    /// `dims - 1` per axis, as floats.
+    top: [f64; 3],
     /// `starts[c]..starts[c + 1]` indexes `order` for cell `c`.
     starts: Vec<u32>,
     order: Vec<u32>,
@@ -50,6 +52,7 @@ impl Grid {
             cell,
             origin: lo,
             dims,
+            top: dims.map(|d| (d - 1) as f64),
             starts: vec![0; n_cells + 1],
             order: Vec::new(),
         };
@@ -75,9 +78,13 @@ impl Grid {
 
     #[inline]
     fn coords(&self, p: &Point3<f64>) -> [usize; 3] {
-        // A float-to-integer cast truncates towards zero and saturates (negative and NaN to 0),
-        // which is the floor clamped at the grid's low end, without a call to libm's floor.
-        [0, 1, 2].map(|k| (((p[k] - self.origin[k]) / self.cell) as usize).min(self.dims[k] - 1))
+        // Clamped to the grid as a float first (NaN to 0: `max` returns the other operand), then
+        // truncated, which is the floor there, without a call to libm's floor; a cast to i32 of a
+        // value in range is one instruction, where a saturating cast to usize is a dozen.
+        [0, 1, 2].map(|k| {
+            let v = ((p[k] - self.origin[k]) / self.cell).max(0.0).min(self.top[k]);
+            v as i32 as usize
+        })
     }
 
     #[inline]
@@ -145,16 +152,20 @@ pub fn voxel_subsample(points: &[Point3<f64>], voxel: f64) -> Vec<usize> {
     let mut keep = Vec::new();
     let inv = 1.0 / voxel;
     for (i, p) in points.iter().enumerate() {
-        let key = (
-            (p.x * inv).floor() as i64,
-            (p.y * inv).floor() as i64,
-            (p.z * inv).floor() as i64,
-        );
+        let key = (floor_i64(p.x * inv), floor_i64(p.y * inv), floor_i64(p.z * inv));
         if seen.insert(key) {
             keep.push(i);
         }
     }
     keep
+}
+
+/// `v.floor() as i64` without a call to libm's `floor` (baseline x86-64 has no rounding
+/// instruction): truncate, then step down where that rounded up.
+#[inline(always)]
+fn floor_i64(v: f64) -> i64 {
+    let t = v as i64;
+    if (t as f64) > v { t - 1 } else { t }
 }
 
 /// A set of voxel keys.

@@ -191,7 +191,10 @@ impl RangeScale {
     /// The median range of `points` from `viewpoint` as the reference.
     pub fn new(points: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> RangeScale {
         let r_ref = viewpoint.map_or(1.0, |v| {
-            let mut r: Vec<f64> = points.iter().map(|p| (p - v).norm()).collect();
+            // The median of an even share of 2 000 points: a reference range, not a statistic
+            // of the cloud that needs to be exact.
+            let stride = points.len().div_ceil(2_000).max(1);
+            let mut r: Vec<f64> = points.iter().step_by(stride).map(|p| (p - v).norm()).collect();
             median(&mut r).unwrap_or(0.0).max(1e-3)
         });
         RangeScale { viewpoint, r_ref }
@@ -292,23 +295,19 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Counting every hypothesis against thousands of points is most of the plane's cost, and
     // most hypotheses are near copies of a few planes: each is counted on a coarse share first,
     // and only the leaders on the full consensus set.
-    let count_within = |h: &Plane, n: usize| {
-        points
-            .iter()
-            .step_by((points.len() / n).max(1))
-            .filter(|p| h.signed_distance(p).abs() < 0.01)
-            .count()
-    };
+    let every = |n: usize| -> Vec<Point3<f64>> { points.iter().step_by((points.len() / n).max(1)).copied().collect() };
+    let (screen, consensus) = (every(SCREEN_POINTS), every(CONSENSUS_POINTS));
+    let count_within = |h: &Plane, on: &[Point3<f64>]| on.iter().filter(|p| h.signed_distance(p).abs() < 0.01).count();
     let mut screened: Vec<(usize, Plane, f64)> = voted
         .iter()
-        .map(|(_, h, rms)| (count_within(h, SCREEN_POINTS), *h, *rms))
+        .map(|(_, h, rms)| (count_within(h, &screen), *h, *rms))
         .collect();
     // Stable: among equal counts the better-voted hypothesis stays first.
     screened.sort_by_key(|s| std::cmp::Reverse(s.0));
     let (best, patch_rms) = screened
         .iter()
         .take(LEADERS)
-        .map(|(_, h, rms)| (count_within(h, CONSENSUS_POINTS), *h, *rms))
+        .map(|(_, h, rms)| (count_within(h, &consensus), *h, *rms))
         .max_by_key(|(c, _, _)| *c)
         .map(|(_, h, rms)| (h, rms))
         .expect("hypotheses is not empty");

@@ -121,11 +121,11 @@ fn normal_equations(
     let kernel = PlacedKernel::new(placed);
     // J^T J is symmetric: only its upper triangle is summed (21 products a point, not 36). Four
     // points at a time, each lane summing its own share, then the rest one at a time.
-    let chunks = points.chunks_exact(LANES);
-    let rest = chunks.remainder();
     let mut upper4 = [Lanes::<LANES>::splat(0.0); 21];
     let mut g4 = [Lanes::<LANES>::splat(0.0); 6];
     let mut cost4 = Lanes::<LANES>::splat(0.0);
+    let chunks = points.chunks_exact(LANES);
+    let rest = chunks.remainder();
     for c in chunks {
         let (r, j) = kernel.residual_pose_jacobian_lanes(lanes_of::<LANES>(c));
         let mut n = 0;
@@ -141,17 +141,23 @@ fn normal_equations(
     let mut upper = upper4.map(|v| v.sum());
     let mut g = g4.map(|v| v.sum());
     let mut cost = cost4.sum();
-    for p in rest {
-        let (r, j) = kernel.residual_pose_jacobian(p);
-        let mut n = 0;
-        for a in 0..6 {
-            for b in a..6 {
-                upper[n] += j[a] * j[b];
-                n += 1;
+    if !rest.is_empty() {
+        // The last few points evaluated as one group (padded with copies of the first), summed
+        // one by one.
+        let padded: [Point3<f64>; LANES] = std::array::from_fn(|i| rest[i % rest.len()]);
+        let (r, j) = kernel.residual_pose_jacobian_lanes(lanes_of::<LANES>(&padded));
+        for i in 0..rest.len() {
+            let r = r.0[i];
+            let mut n = 0;
+            for a in 0..6 {
+                for b in a..6 {
+                    upper[n] += j[a].0[i] * j[b].0[i];
+                    n += 1;
+                }
+                g[a] += j[a].0[i] * r;
             }
-            g[a] += j[a] * r;
+            cost += r * r;
         }
-        cost += r * r;
     }
     let mut h = Matrix6::<f64>::zeros();
     let mut n = 0;

@@ -520,7 +520,11 @@ fn four_points_at_once_are_four_points_one_at_a_time() {
             if one.residual.is_finite() && one.residual.abs() < 1e6 {
                 let reference = sq.f_pow_e1_log(p) - 1.0;
                 let tol = 1e-9 * one.residual.abs().max(reference.abs()).max(1e-12);
-                assert!((one.residual - reference).abs() <= tol, "{} vs {reference} at {p:?} of {sq}", one.residual);
+                assert!(
+                    (one.residual - reference).abs() <= tol,
+                    "{} vs {reference} at {p:?} of {sq}",
+                    one.residual
+                );
             }
         }
     }
