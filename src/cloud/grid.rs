@@ -41,7 +41,7 @@ impl Grid {
             let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
             if d.iter()
                 .try_fold(1usize, |acc, &x| acc.checked_mul(x))
-                .is_some_and(|n| n <= 8 * points.len().max(1024))
+                .is_some_and(|n| n <= (8 * points.len().max(1024)).min(1 << 31))
             {
                 break d;
             }
@@ -78,12 +78,15 @@ impl Grid {
 
     #[inline]
     fn coords(&self, p: &Point3<f64>) -> [usize; 3] {
-        // Clamped to the grid as a float first (NaN to 0: `max` returns the other operand), then
-        // truncated, which is the floor there, without a call to libm's floor; a cast to i32 of a
-        // value in range is one instruction, where a saturating cast to usize is a dozen.
+        // Clamped to the grid as a float first (NaN to 0), then truncated, which is the floor
+        // there, without a call to libm's floor; a truncation of a value known to be in range is
+        // one instruction, where a saturating cast to usize is a dozen.
         [0, 1, 2].map(|k| {
-            let v = ((p[k] - self.origin[k]) / self.cell).max(0.0).min(self.top[k]);
-            v as i32 as usize
+            let v = (p[k] - self.origin[k]) / self.cell;
+            let v = if v > 0.0 { v } else { 0.0 };
+            let v = if v < self.top[k] { v } else { self.top[k] };
+            // SAFETY: v is in [0, dims - 1] (NaN became 0), and a grid has at most 2^31 cells.
+            unsafe { v.to_int_unchecked::<u32>() as usize }
         })
     }
 

@@ -25,9 +25,29 @@ pub fn measure_of_fit(placed: &PlacedSuperquadric, points: &[Point3<f64>]) -> f6
     if points.is_empty() {
         return f64::INFINITY;
     }
-    let k = PlacedKernel::new(placed);
-    let ss: f64 = points.iter().map(|p| k.residual(p).powi(2)).sum();
-    (ss / points.len() as f64).sqrt()
+    (squared_residuals(&PlacedKernel::new(placed), points) / points.len() as f64).sqrt()
+}
+
+widened! {
+/// `sum (F^e1 - 1)^2` of frame points, four at a time.
+pub(super) fn squared_residuals(kernel: &PlacedKernel, points: &[Point3<f64>]) -> f64 {
+    let mut sum = Lanes::<LANES>::splat(0.0);
+    let chunks = points.chunks_exact(LANES);
+    let rest = chunks.remainder();
+    for c in chunks {
+        let (r, _) = kernel.kernel.residual_grad_lanes(kernel.to_local_lanes(lanes_of::<LANES>(c)));
+        sum = sum + r * r;
+    }
+    let mut sum = sum.sum();
+    if !rest.is_empty() {
+        let padded: [Point3<f64>; LANES] = std::array::from_fn(|i| rest[i % rest.len()]);
+        let (r, _) = kernel.kernel.residual_grad_lanes(kernel.to_local_lanes(lanes_of::<LANES>(&padded)));
+        for i in 0..rest.len() {
+            sum += r.0[i] * r.0[i];
+        }
+    }
+    sum
+}
 }
 
 /// Fit the pose of `start` to `points` with at most `max_iterations` accepted or rejected LM
@@ -108,26 +128,37 @@ impl LeastSquares<6> for PoseFit<'_> {
 }
 
 /// Points evaluated together.
-const LANES: usize = 4;
+pub(super) const LANES: usize = 4;
 
-widened! {
-/// The cost `sum r^2`, the Gauss-Newton matrix `J^T J` and the gradient `J^T r` at a pose, in
-/// one pass over the points. For a 5-DoF fit the spin row and column are replaced by identity.
-fn normal_equations(
-    placed: &PlacedSuperquadric,
-    points: &[Point3<f64>],
-    freedom: Freedom,
-) -> (f64, Matrix6<f64>, Vector6<f64>) {
-    let kernel = PlacedKernel::new(placed);
-    // J^T J is symmetric: only its upper triangle is summed (21 products a point, not 36). Four
-    // points at a time, each lane summing its own share, then the rest one at a time.
+/// Residuals and Jacobian rows of four points at once. (A trait rather than a closure: a
+/// closure's body is compiled apart, without the vector width `widened!` gives its caller.)
+pub(super) trait Rows {
+    fn rows(&self, p: [Lanes<LANES>; 3]) -> (Lanes<LANES>, [Lanes<LANES>; 6]);
+}
+
+/// The rows of a pose fit: one placed shape.
+struct PoseRows<'a>(&'a PlacedKernel);
+
+impl Rows for PoseRows<'_> {
+    #[inline(always)]
+    fn rows(&self, p: [Lanes<LANES>; 3]) -> (Lanes<LANES>, [Lanes<LANES>; 6]) {
+        self.0.residual_pose_jacobian_lanes(p)
+    }
+}
+
+/// The upper triangle of `J^T J` (row by row), `J^T r` and `sum r^2` over `points`, whose
+/// residuals and Jacobian rows `eval` gives four at a time. Each lane sums its own share; the
+/// last few points are evaluated as one group padded with copies, and summed one by one.
+#[inline(always)]
+pub(super) fn normal_sums(points: &[Point3<f64>], eval: &impl Rows) -> ([f64; 21], [f64; 6], f64) {
+    // J^T J is symmetric: only its upper triangle is summed (21 products a point, not 36).
     let mut upper4 = [Lanes::<LANES>::splat(0.0); 21];
     let mut g4 = [Lanes::<LANES>::splat(0.0); 6];
     let mut cost4 = Lanes::<LANES>::splat(0.0);
     let chunks = points.chunks_exact(LANES);
     let rest = chunks.remainder();
     for c in chunks {
-        let (r, j) = kernel.residual_pose_jacobian_lanes(lanes_of::<LANES>(c));
+        let (r, j) = eval.rows(lanes_of::<LANES>(c));
         let mut n = 0;
         for a in 0..6 {
             for b in a..6 {
@@ -142,10 +173,8 @@ fn normal_equations(
     let mut g = g4.map(|v| v.sum());
     let mut cost = cost4.sum();
     if !rest.is_empty() {
-        // The last few points evaluated as one group (padded with copies of the first), summed
-        // one by one.
         let padded: [Point3<f64>; LANES] = std::array::from_fn(|i| rest[i % rest.len()]);
-        let (r, j) = kernel.residual_pose_jacobian_lanes(lanes_of::<LANES>(&padded));
+        let (r, j) = eval.rows(lanes_of::<LANES>(&padded));
         for i in 0..rest.len() {
             let r = r.0[i];
             let mut n = 0;
@@ -159,6 +188,11 @@ fn normal_equations(
             cost += r * r;
         }
     }
+    (upper, g, cost)
+}
+
+/// The symmetric matrix of an upper triangle given row by row.
+pub(super) fn symmetric(upper: &[f64; 21]) -> Matrix6<f64> {
     let mut h = Matrix6::<f64>::zeros();
     let mut n = 0;
     for a in 0..6 {
@@ -168,6 +202,20 @@ fn normal_equations(
             n += 1;
         }
     }
+    h
+}
+
+widened! {
+/// The cost `sum r^2`, the Gauss-Newton matrix `J^T J` and the gradient `J^T r` at a pose, in
+/// one pass over the points. For a 5-DoF fit the spin row and column are replaced by identity.
+fn normal_equations(
+    placed: &PlacedSuperquadric,
+    points: &[Point3<f64>],
+    freedom: Freedom,
+) -> (f64, Matrix6<f64>, Vector6<f64>) {
+    let kernel = PlacedKernel::new(placed);
+    let (upper, g, cost) = normal_sums(points, &PoseRows(&kernel));
+    let mut h = symmetric(&upper);
     let mut g = Vector6::from(g);
     let frozen: &[usize] = match freedom {
         Freedom::Free => &[],

@@ -6,15 +6,16 @@
 //! visible point of every part for all six parameters: a cup's handle fixes the spin its body
 //! cannot, and a half-hidden handle no longer drags its own fit off.
 
-use super::fit::measure_of_fit;
+use super::fit::{LANES, Rows, measure_of_fit, normal_sums, squared_residuals, symmetric};
 use super::search::SearchSpace;
 use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use crate::model::Model;
+use crate::numeric::lanes::{Lanes, widened};
 use crate::numeric::{LeastSquares, LmSettings, minimize};
-use nalgebra::{Isometry3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
+use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
 
-/// Points near the placed model: each with the index of the part whose surface it is nearest.
-fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> Vec<(usize, Point3<f64>)> {
+/// Points near the placed model, each in the list of the part whose surface it is nearest.
+fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> Vec<Vec<Point3<f64>>> {
     let centre = parts
         .iter()
         .fold(Vector3::zeros(), |a, p| a + p.pose.translation.vector)
@@ -25,7 +26,7 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
         .fold(0.0, f64::max)
         + band;
     let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
-    let mut out = Vec::new();
+    let mut out = vec![Vec::new(); parts.len()];
     let mut d = vec![0.0; parts.len()];
     space
         .grid
@@ -33,7 +34,9 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
             let p = &space.points[i];
             let mut best = (f64::INFINITY, usize::MAX);
             for (k, part) in kernels.iter().enumerate() {
-                d[k] = part.surface_distance(p);
+                // Outside a part's box grown by the band, the point is none of its surface and
+                // not inside it.
+                d[k] = part.surface_distance_near(p, band).unwrap_or(f64::INFINITY);
                 if d[k].abs() < best.0.abs() {
                     best = (d[k], k);
                 }
@@ -41,7 +44,7 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
             // A point inside one part but on another's surface belongs to the other: a handle's
             // root sits inside the body.
             if best.0.abs() < band && d.iter().all(|&dk| dk > -band) {
-                out.push((best.1, *p));
+                out[best.1].push(*p);
             }
         });
     out
@@ -51,9 +54,13 @@ fn place(model: &Model, pose: &Isometry3<f64>) -> Vec<PlacedSuperquadric> {
     model.placed_parts(pose)
 }
 
-fn cost(model: &Model, pose: &Isometry3<f64>, pts: &[(usize, Point3<f64>)]) -> f64 {
-    let parts: Vec<PlacedKernel> = place(model, pose).iter().map(PlacedKernel::new).collect();
-    pts.iter().map(|(k, p)| parts[*k].residual(p).powi(2)).sum()
+/// `sum r^2` over the parts' points.
+fn cost(model: &Model, pose: &Isometry3<f64>, by_part: &[Vec<Point3<f64>>]) -> f64 {
+    place(model, pose)
+        .iter()
+        .zip(by_part)
+        .map(|(part, pts)| squared_residuals(&PlacedKernel::new(part), pts))
+        .sum()
 }
 
 /// Refine the object pose with the parts held rigidly, over `rounds` rounds of point gathering
@@ -71,16 +78,13 @@ pub fn refine_object(
     let mut band = start_band.max(final_band);
     let mut m = f64::INFINITY;
     for _ in 0..6 {
-        let pts = gather(space, &place(model, &pose), band);
-        if pts.len() < 8 {
+        let by_part = gather(space, &place(model, &pose), band);
+        let n: usize = by_part.iter().map(Vec::len).sum();
+        if n < 8 {
             break;
         }
-        pose = fit_object(model, &pose, &pts, iterations);
-        let parts: Vec<PlacedKernel> = place(model, &pose).iter().map(PlacedKernel::new).collect();
-        let new_m = {
-            let ss: f64 = pts.iter().map(|(k, p)| parts[*k].residual(p).powi(2)).sum();
-            (ss / pts.len() as f64).sqrt()
-        };
+        pose = fit_object(model, &pose, &by_part, iterations);
+        let new_m = (cost(model, &pose, &by_part) / n as f64).sqrt();
         let done = band <= final_band && new_m >= 0.999 * m;
         m = new_m;
         if done {
@@ -89,9 +93,9 @@ pub fn refine_object(
         band = (0.5 * band).max(final_band);
     }
     if !m.is_finite() {
-        let pts = gather(space, &place(model, &pose), final_band);
+        let by_part = gather(space, &place(model, &pose), final_band);
         let parts = place(model, &pose);
-        let p: Vec<Point3<f64>> = pts.iter().map(|(_, p)| *p).collect();
+        let p: Vec<Point3<f64>> = by_part.into_iter().flatten().collect();
         m = parts.first().map_or(f64::INFINITY, |q| measure_of_fit(q, &p));
     }
     (pose, m)
@@ -101,11 +105,11 @@ pub fn refine_object(
 fn fit_object(
     model: &Model,
     start: &Isometry3<f64>,
-    pts: &[(usize, Point3<f64>)],
+    by_part: &[Vec<Point3<f64>>],
     iterations: usize,
 ) -> Isometry3<f64> {
     minimize(
-        &RigidFit { model, pts },
+        &RigidFit { model, by_part },
         *start,
         &LmSettings::attempts(iterations, 1e-6),
     )
@@ -116,7 +120,7 @@ fn fit_object(
 /// for.
 struct RigidFit<'a> {
     model: &'a Model,
-    pts: &'a [(usize, Point3<f64>)],
+    by_part: &'a [Vec<Point3<f64>>],
 }
 
 impl LeastSquares<6> for RigidFit<'_> {
@@ -125,28 +129,34 @@ impl LeastSquares<6> for RigidFit<'_> {
     type Evaluation = ();
 
     fn evaluate(&self, pose: &Isometry3<f64>) -> (f64, ()) {
-        (cost(self.model, pose, self.pts), ())
+        (cost(self.model, pose, self.by_part), ())
     }
 
     fn linearize(&self, pose: &Isometry3<f64>, _: &()) -> (Matrix6<f64>, Vector6<f64>) {
-        let parts: Vec<PlacedKernel> = place(self.model, pose).iter().map(PlacedKernel::new).collect();
-        let rot = pose.rotation;
-        let mut h = Matrix6::<f64>::zeros();
-        let mut g = Vector6::<f64>::zeros();
-        for (k, p) in self.pts {
-            let (r, j) = parts[*k].residual_pose_jacobian(p);
-            let m_t = self.model.parts[*k].pose_in_object.translation.vector;
-            let m_r = self.model.parts[*k].pose_in_object.rotation;
-            let jt = Vector3::new(j[0], j[1], j[2]);
-            let jw = Vector3::new(j[3], j[4], j[5]);
-            // Part perturbation from object perturbation: dt_part = dt - R [m_t]x w and
-            // w_part = M_R^T w, so dr/dw = -(R^T j_t) x m_t + M_R j_w.
-            let dw = -(rot.inverse() * jt).cross(&m_t) + m_r * jw;
-            let row = Vector6::new(jt.x, jt.y, jt.z, dw.x, dw.y, dw.z);
-            h.ger(1.0, &row, &row, 1.0);
-            g += row * r;
+        let parts = place(self.model, pose);
+        let rot_inv = pose.rotation.inverse().to_rotation_matrix().into_inner();
+        let mut upper = [0.0; 21];
+        let mut g = [0.0; 6];
+        for (k, pts) in self.by_part.iter().enumerate() {
+            let rows = RigidRows {
+                kernel: PlacedKernel::new(&parts[k]),
+                rot_inv,
+                m_t: self.model.parts[k].pose_in_object.translation.vector,
+                m_r: self.model.parts[k]
+                    .pose_in_object
+                    .rotation
+                    .to_rotation_matrix()
+                    .into_inner(),
+            };
+            let (u, gk, _) = rigid_sums(pts, &rows);
+            for (a, b) in upper.iter_mut().zip(u) {
+                *a += b;
+            }
+            for (a, b) in g.iter_mut().zip(gk) {
+                *a += b;
+            }
         }
-        (h, g)
+        (symmetric(&upper), Vector6::from(g))
     }
 
     fn step(&self, pose: &Isometry3<f64>, delta: &Vector6<f64>) -> Isometry3<f64> {
@@ -154,6 +164,44 @@ impl LeastSquares<6> for RigidFit<'_> {
         let r = pose.rotation * UnitQuaternion::from_scaled_axis(Vector3::new(delta[3], delta[4], delta[5]));
         Isometry3::from_parts(t.into(), r)
     }
+}
+
+/// The object-pose rows of one part's points.
+struct RigidRows {
+    kernel: PlacedKernel,
+    /// The object's rotation, inverted.
+    rot_inv: Matrix3<f64>,
+    /// The part's pose in the object.
+    m_t: Vector3<f64>,
+    m_r: Matrix3<f64>,
+}
+
+impl Rows for RigidRows {
+    #[inline(always)]
+    fn rows(&self, p: [Lanes<LANES>; 3]) -> (Lanes<LANES>, [Lanes<LANES>; 6]) {
+        let (r, j) = self.kernel.residual_pose_jacobian_lanes(p);
+        // Part perturbation from object perturbation: dt_part = dt - R [m_t]x w and
+        // w_part = M_R^T w, so dr/dw = -(R^T j_t) x m_t + M_R j_w.
+        let (jt, jw) = ([j[0], j[1], j[2]], [j[3], j[4], j[5]]);
+        let mul = |m: &Matrix3<f64>, v: &[Lanes<LANES>; 3]| -> [Lanes<LANES>; 3] {
+            std::array::from_fn(|i| v[0] * m[(i, 0)] + v[1] * m[(i, 1)] + v[2] * m[(i, 2)])
+        };
+        let a = mul(&self.rot_inv, &jt);
+        let b = mul(&self.m_r, &jw);
+        let t = &self.m_t;
+        let dw = [
+            b[0] - (a[1] * t.z - a[2] * t.y),
+            b[1] - (a[2] * t.x - a[0] * t.z),
+            b[2] - (a[0] * t.y - a[1] * t.x),
+        ];
+        (r, [jt[0], jt[1], jt[2], dw[0], dw[1], dw[2]])
+    }
+}
+
+widened! {
+fn rigid_sums(points: &[Point3<f64>], rows: &RigidRows) -> ([f64; 21], [f64; 6], f64) {
+    normal_sums(points, rows)
+}
 }
 
 #[cfg(test)]
