@@ -9,6 +9,7 @@
 //! it holds more points than the rest of the scene.
 
 use super::grid::Grid;
+use crate::numeric::lanes::widened;
 use crate::numeric::median;
 use nalgebra::{Matrix3, Point3, SymmetricEigen, Vector3};
 
@@ -295,9 +296,9 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Counting every hypothesis against thousands of points is most of the plane's cost, and
     // most hypotheses are near copies of a few planes: each is counted on a coarse share first,
     // and only the leaders on the full consensus set.
-    let every = |n: usize| -> Vec<Point3<f64>> { points.iter().step_by((points.len() / n).max(1)).copied().collect() };
+    let every = |n: usize| Columns::new(points.iter().step_by((points.len() / n).max(1)));
     let (screen, consensus) = (every(SCREEN_POINTS), every(CONSENSUS_POINTS));
-    let count_within = |h: &Plane, on: &[Point3<f64>]| on.iter().filter(|p| h.signed_distance(p).abs() < 0.01).count();
+    let count_within = |h: &Plane, on: &Columns| count_near(on, h, 0.01);
     let mut screened: Vec<(usize, Plane, f64)> = voted
         .iter()
         .map(|(_, h, rms)| (count_within(h, &screen), *h, *rms))
@@ -352,6 +353,38 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
         }
     }
     Some((plane, band))
+}
+
+/// Points as three columns of coordinates: a pass over them that only adds and compares is
+/// vectorized by the compiler.
+struct Columns {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+}
+
+impl Columns {
+    fn new<'a>(points: impl Iterator<Item = &'a Point3<f64>>) -> Columns {
+        let (mut x, mut y, mut z) = (Vec::new(), Vec::new(), Vec::new());
+        for p in points {
+            x.push(p.x);
+            y.push(p.y);
+            z.push(p.z);
+        }
+        Columns { x, y, z }
+    }
+}
+
+widened! {
+/// How many of the points lie within `tol` of the plane.
+fn count_near(points: &Columns, plane: &Plane, tol: f64) -> usize {
+    let n = &plane.normal;
+    let mut count = 0usize;
+    for ((x, y), z) in points.x.iter().zip(&points.y).zip(&points.z) {
+        count += usize::from((n.x * x + n.y * y + n.z * z + plane.d).abs() < tol);
+    }
+    count
+}
 }
 
 /// Two unit vectors completing `n` to an orthonormal basis.
