@@ -34,9 +34,7 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
             let p = &space.points[i];
             let mut best = (f64::INFINITY, usize::MAX);
             for (k, part) in kernels.iter().enumerate() {
-                // Outside a part's box grown by the band, the point is none of its surface and
-                // not inside it.
-                d[k] = part.surface_distance_near(p, band).unwrap_or(f64::INFINITY);
+                d[k] = part.surface_distance(p);
                 if d[k].abs() < best.0.abs() {
                     best = (d[k], k);
                 }
