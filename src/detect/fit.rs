@@ -263,6 +263,49 @@ mod tests {
         assert!(fit.m < 1e-6, "M = {}", fit.m);
     }
 
+    /// The normal equations and M come out the same to the bit from the AVX2 code and from the
+    /// baseline (SSE2) code, where the CPU has both.
+    #[test]
+    fn the_vector_widths_agree_to_the_bit() {
+        use crate::numeric::lanes::BASELINE_ONLY;
+        use std::sync::atomic::Ordering;
+        let shapes = [
+            Superquadric::new([0.06, 0.06, 0.02], 0.4, 1.0, 0.3, 0.3).unwrap(),
+            Superquadric::untapered([0.038, 0.038, 0.048], 0.1, 1.0).unwrap(),
+            Superquadric::new([0.05, 0.03, 0.02], 0.284, 0.263, -0.2, 0.1).unwrap(),
+        ];
+        for (i, sq) in shapes.iter().enumerate() {
+            let truth = PlacedSuperquadric::new(
+                *sq,
+                Isometry3::new(Vector3::new(0.8, 0.1, 0.74), Vector3::new(0.1, -0.2, 0.3)),
+            );
+            let pts: Vec<Point3<f64>> = truth.sample_surface(0.006).into_iter().take(101 + i).collect();
+            let at = truth.perturbed(&[0.003, -0.002, 0.001, 0.05, -0.02, 0.03]);
+            let run = |baseline: bool| {
+                BASELINE_ONLY.store(baseline, Ordering::Relaxed);
+                let (c, h, g) = normal_equations(&at, &pts, Freedom::Free);
+                let m = measure_of_fit(&at, &pts);
+                BASELINE_ONLY.store(false, Ordering::Relaxed);
+                (c, h, g, m)
+            };
+            let (wide, base) = (run(false), run(true));
+            assert_eq!(wide.0.to_bits(), base.0.to_bits());
+            assert!(
+                wide.1
+                    .iter()
+                    .zip(base.1.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
+            assert!(
+                wide.2
+                    .iter()
+                    .zip(base.2.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits())
+            );
+            assert_eq!(wide.3.to_bits(), base.3.to_bits());
+        }
+    }
+
     #[test]
     fn five_dof_fit_of_a_cylinder_keeps_its_spin() {
         let sq = Superquadric::untapered([0.038, 0.038, 0.048], 0.1, 1.0).unwrap();

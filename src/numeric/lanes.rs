@@ -277,7 +277,7 @@ macro_rules! widened {
                 body($($arg),*)
             }
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if std::arch::is_x86_feature_detected!("avx2") && !$crate::numeric::lanes::baseline_only() {
                 // SAFETY: the CPU has AVX2.
                 return unsafe { avx2($($arg),*) };
             }
@@ -286,6 +286,23 @@ macro_rules! widened {
     };
 }
 pub(crate) use widened;
+
+/// Tests set this to run the baseline code where the CPU has AVX2, to hold the two to the same
+/// results.
+#[cfg(test)]
+pub(crate) static BASELINE_ONLY: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+#[cfg(test)]
+#[inline(always)]
+pub(crate) fn baseline_only() -> bool {
+    BASELINE_ONLY.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+#[cfg(not(test))]
+#[inline(always)]
+pub(crate) fn baseline_only() -> bool {
+    false
+}
 
 const SIGN: u64 = 1 << 63;
 const ONE_BITS: u64 = 0x3ff0_0000_0000_0000;
