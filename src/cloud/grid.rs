@@ -58,18 +58,26 @@ impl Grid {
             starts: vec![0; n_cells + 1],
             order: Vec::new(),
         };
-        let ids: Vec<usize> = points.iter().map(|p| g.cell_index(p)).collect();
+        let mut ids: Vec<u32> = Vec::with_capacity(points.len());
+        for p in points {
+            ids.push(g.cell_index(p) as u32);
+        }
+        // A counting sort: each cell's count at its index, summed into where each cell ends,
+        // then the points placed from the back, so that each cell's end moves to its start
+        // and its points stay in input order.
         for &c in &ids {
-            g.starts[c + 1] += 1;
+            g.starts[c as usize] += 1;
         }
-        for c in 0..n_cells {
-            g.starts[c + 1] += g.starts[c];
+        let mut end = 0;
+        for s in g.starts.iter_mut() {
+            end += *s;
+            *s = end;
         }
-        let mut fill = g.starts.clone();
         g.order = vec![0; points.len()];
-        for (i, &c) in ids.iter().enumerate() {
-            g.order[fill[c] as usize] = i as u32;
-            fill[c] += 1;
+        for (i, &c) in ids.iter().enumerate().rev() {
+            let at = &mut g.starts[c as usize];
+            *at -= 1;
+            g.order[*at as usize] = i as u32;
         }
         g
     }
@@ -83,13 +91,16 @@ impl Grid {
         // Clamped to the grid as a float first (NaN to 0), then truncated, which is the floor
         // there, without a call to libm's floor; a truncation of a value known to be in range is
         // one instruction, where a saturating cast to usize is a dozen.
-        [0, 1, 2].map(|k| {
-            let v = (p[k] - self.origin[k]) / self.cell;
-            let v = if v > 0.0 { v } else { 0.0 };
-            let v = if v < self.top[k] { v } else { self.top[k] };
-            // SAFETY: v is in [0, dims - 1] (NaN became 0), and a grid has at most 2^31 cells.
-            unsafe { v.to_int_unchecked::<u32>() as usize }
-        })
+        [self.axis(p.x, 0), self.axis(p.y, 1), self.axis(p.z, 2)]
+    }
+
+    #[inline(always)]
+    fn axis(&self, x: f64, k: usize) -> usize {
+        let v = (x - self.origin[k]) / self.cell;
+        let v = if v > 0.0 { v } else { 0.0 };
+        let v = if v < self.top[k] { v } else { self.top[k] };
+        // SAFETY: v is in [0, dims - 1] (NaN became 0), and a grid has at most 2^31 cells.
+        unsafe { v.to_int_unchecked::<u32>() as usize }
     }
 
     #[inline]

@@ -296,7 +296,7 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Counting every hypothesis against thousands of points is most of the plane's cost, and
     // most hypotheses are near copies of a few planes: each is counted on a coarse share first,
     // and only the leaders on the full consensus set.
-    let every = |n: usize| Columns::new(points.iter().step_by((points.len() / n).max(1)));
+    let every = |n: usize| Columns::every(points, points.len() / n);
     let (screen, consensus) = (every(SCREEN_POINTS), every(CONSENSUS_POINTS));
     let count_within = |h: &Plane, on: &Columns| count_near(on, h, 0.01);
     let mut screened: Vec<(usize, Plane, f64)> = voted
@@ -364,14 +364,14 @@ struct Columns {
 }
 
 impl Columns {
-    fn new<'a>(points: impl Iterator<Item = &'a Point3<f64>>) -> Columns {
-        let (mut x, mut y, mut z) = (Vec::new(), Vec::new(), Vec::new());
-        for p in points {
-            x.push(p.x);
-            y.push(p.y);
-            z.push(p.z);
+    /// Every `stride`-th point.
+    fn every(points: &[Point3<f64>], stride: usize) -> Columns {
+        let pick = || points.iter().step_by(stride.max(1));
+        Columns {
+            x: pick().map(|p| p.x).collect(),
+            y: pick().map(|p| p.y).collect(),
+            z: pick().map(|p| p.z).collect(),
         }
-        Columns { x, y, z }
     }
 }
 
