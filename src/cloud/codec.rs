@@ -222,10 +222,13 @@ impl FieldData {
             (first, len): (usize, usize),
             big_endian: bool,
         ) {
-            let decode = if big_endian { T::from_be } else { T::from_le };
             v.reserve(records * (len / T::SIZE));
             for rec in data.chunks_exact(stride).take(records) {
-                extend_from(v, &rec[first..first + len], decode);
+                if big_endian {
+                    extend_from(v, &rec[first..first + len], T::from_be);
+                } else {
+                    extend_from(v, &rec[first..first + len], T::from_le);
+                }
             }
         }
         if stride == 0 {
@@ -269,7 +272,10 @@ impl FieldData {
     }
 }
 
-fn extend_from<T: Scalar>(v: &mut Vec<T>, bytes: &[u8], decode: fn(&[u8]) -> T) {
+/// (Generic over the decoder, not a function pointer: a call through a pointer per value cost
+/// more than the decoding.)
+#[inline(always)]
+fn extend_from<T: Scalar>(v: &mut Vec<T>, bytes: &[u8], decode: impl Fn(&[u8]) -> T) {
     v.extend(bytes.chunks_exact(T::SIZE).map(decode));
 }
 
