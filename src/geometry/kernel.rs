@@ -115,30 +115,62 @@ impl Kernel {
     /// The surface point in the untapered frame in unit direction `d` from the centre.
     #[inline]
     pub fn untapered_surface_along(&self, d: &Vector3<f64>) -> Vector3<f64> {
+        let [x, y, z] = self.untapered_surface_along_lanes([Lanes([d.x]), Lanes([d.y]), Lanes([d.z])]);
+        Vector3::new(x.0[0], y.0[0], z.0[0])
+    }
+
+    /// [`Self::untapered_surface_along`] of `L` unit directions at once, the same to the bit.
+    #[inline(always)]
+    pub fn untapered_surface_along_lanes<const L: usize>(&self, d: [Lanes<L>; 3]) -> [Lanes<L>; 3] {
         // F is homogeneous of degree 2/e1 along a ray: the surface lies at t = F(d)^(-e1/2).
         // With integer exponents F(d) is a few multiplications and one power, where the log
         // domain takes about ten transcendental calls; surface sampling (the detector's coverage
         // samples, the simulator's placement) spends nearly all its time here.
+        let mut ok = Mask([false; L]);
+        let mut out = d;
         if let Some(pf) = &self.plain {
-            let r = [
-                d.x.abs() * self.inv_a[0],
-                d.y.abs() * self.inv_a[1],
-                d.z.abs() * self.inv_a[2],
-            ];
-            if r[0] <= PLAIN_REACH && r[1] <= PLAIN_REACH && r[2] <= PLAIN_REACH {
-                let s = ipow(r[0], pf.n2) + ipow(r[1], pf.n2);
-                let f = section_power(s, pf.section) + ipow(r[2], pf.n1);
-                if f.is_finite() && f > 0.0 {
-                    let t = match self.outer {
-                        OuterPower::One => 1.0 / f.sqrt(),
-                        OuterPower::Sqrt => 1.0 / f.sqrt().sqrt(),
-                        OuterPower::Real(e1) => (-0.5 * e1 * f.ln()).exp(),
-                    };
-                    return d * t;
+            let r: [Lanes<L>; 3] = std::array::from_fn(|k| d[k].abs() * self.inv_a[k]);
+            let s = ipow_lanes(r[0], pf.n2) + ipow_lanes(r[1], pf.n2);
+            let a = match pf.section {
+                SectionPower::Int(k) => ipow_lanes(s, k),
+                SectionPower::Half(k) => ipow_lanes(s, k) * s.sqrt(),
+                SectionPower::Real(m) => s.powf_pos(m),
+            };
+            let f = a + ipow_lanes(r[2], pf.n1);
+            let one = Lanes::splat(1.0);
+            let t = match self.outer {
+                OuterPower::One => one / f.sqrt(),
+                OuterPower::Sqrt => one / f.sqrt().sqrt(),
+                OuterPower::Real(e1) => (f.ln() * (-0.5 * e1)).exp(),
+            };
+            out = d.map(|c| c * t);
+            for i in 0..L {
+                ok.0[i] = r.iter().all(|r| r.0[i] <= PLAIN_REACH) && f.0[i].is_finite() && f.0[i] > 0.0;
+            }
+        }
+        for i in 0..L {
+            if !ok.0[i] {
+                let q = self
+                    .shape
+                    .untapered_surface_along_log(&Vector3::new(d[0].0[i], d[1].0[i], d[2].0[i]));
+                for k in 0..3 {
+                    out[k].0[i] = q[k];
                 }
             }
         }
-        self.shape.untapered_surface_along_log(d)
+        out
+    }
+
+    /// [`Self::taper_point`] of `L` points at once.
+    #[inline(always)]
+    pub fn taper_lanes<const L: usize>(&self, q: [Lanes<L>; 3]) -> [Lanes<L>; 3] {
+        if self.untapered {
+            return q;
+        }
+        let t = q[2] * self.inv_a[2];
+        let fx = (t * self.shape.kx + 1.0).max(Lanes::splat(self.clamp[0]));
+        let fy = (t * self.shape.ky + 1.0).max(Lanes::splat(self.clamp[1]));
+        [q[0] * fx, q[1] * fy, q[2]]
     }
 
     /// Apply the taper to an untapered local point.
@@ -479,15 +511,6 @@ impl<'k, F: FnMut(usize, &Vector3<f64>, &ResidualGrad)> NearBatch<'k, F> {
 #[inline(always)]
 pub fn lanes_of<const L: usize>(points: &[Point3<f64>]) -> [Lanes<L>; 3] {
     std::array::from_fn(|k| Lanes(std::array::from_fn(|i| points[i][k])))
-}
-
-#[inline(always)]
-fn section_power(s: f64, p: SectionPower) -> f64 {
-    match p {
-        SectionPower::Int(k) => ipow(s, k),
-        SectionPower::Half(k) => ipow(s, k) * s.sqrt(),
-        SectionPower::Real(m) => s.powf(m),
-    }
 }
 
 /// `x^n` for the small integer powers of the plain form, unrolled: `powi` is a call into a

@@ -12,6 +12,7 @@
 use super::Superquadric;
 use super::kernel::Kernel;
 use super::superquadric::PlacedSuperquadric;
+use crate::numeric::lanes::{Lanes, widened};
 use nalgebra::{Point3, Vector3};
 
 /// Depth of the first uniform split of every cube face (4^3 = 64 cells): deep enough that the
@@ -24,16 +25,37 @@ const MAX_DEPTH: u32 = 12;
 impl Kernel {
     /// The surface point in the direction of the cube-face point `(u, v)` of face `face`.
     fn cube_surface_point(&self, face: usize, u: f64, v: f64) -> Vector3<f64> {
-        let d = match face {
-            0 => Vector3::new(1.0, u, v),
-            1 => Vector3::new(-1.0, -u, v),
-            2 => Vector3::new(u, 1.0, v),
-            3 => Vector3::new(-u, -1.0, v),
-            4 => Vector3::new(u, v, 1.0),
-            _ => Vector3::new(u, -v, -1.0),
-        };
-        self.taper_point(&self.untapered_surface_along(&d.normalize()))
+        let [x, y, z] = self.cube_surface_points(face, Lanes([u]), Lanes([v]));
+        Vector3::new(x.0[0], y.0[0], z.0[0])
     }
+
+    /// [`Self::cube_surface_point`] of `L` points of one face at once, the same to the bit.
+    #[inline(always)]
+    fn cube_surface_points<const L: usize>(&self, face: usize, u: Lanes<L>, v: Lanes<L>) -> [Lanes<L>; 3] {
+        let (one, mone) = (Lanes::splat(1.0), Lanes::splat(-1.0));
+        let d = match face {
+            0 => [one, u, v],
+            1 => [mone, -u, v],
+            2 => [u, one, v],
+            3 => [-u, mone, v],
+            4 => [u, v, one],
+            _ => [u, -v, mone],
+        };
+        let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        self.taper_lanes(self.untapered_surface_along_lanes(d.map(|c| c / n)))
+    }
+
+    /// Four points of one face, as vectors.
+    fn cube_surface_points4(&self, face: usize, uv: [(f64, f64); 4]) -> [Vector3<f64>; 4] {
+        four_points(self, face, uv)
+    }
+}
+
+widened! {
+fn four_points(kernel: &Kernel, face: usize, uv: [(f64, f64); 4]) -> [Vector3<f64>; 4] {
+    let [x, y, z] = kernel.cube_surface_points(face, Lanes(uv.map(|p| p.0)), Lanes(uv.map(|p| p.1)));
+    std::array::from_fn(|i| Vector3::new(x.0[i], y.0[i], z.0[i]))
+}
 }
 
 impl Superquadric {
@@ -91,12 +113,10 @@ impl Walk<'_> {
         }
         let ([p00, p10, p11, p01], c) = known.unwrap_or_else(|| {
             (
-                [
-                    sq.cube_surface_point(face, u0, v0),
-                    sq.cube_surface_point(face, u0 + size, v0),
-                    sq.cube_surface_point(face, u0 + size, v0 + size),
-                    sq.cube_surface_point(face, u0, v0 + size),
-                ],
+                sq.cube_surface_points4(
+                    face,
+                    [(u0, v0), (u0 + size, v0), (u0 + size, v0 + size), (u0, v0 + size)],
+                ),
                 sq.cube_surface_point(face, u0 + half, v0 + half),
             )
         });
@@ -109,37 +129,30 @@ impl Walk<'_> {
         if area > 0.5 * self.share && depth < MAX_DEPTH {
             // Serpentine order keeps consecutive cells adjacent, which spreads the diffused error.
             let q = 0.5 * half;
-            let m0 = sq.cube_surface_point(face, u0 + half, v0);
-            let m1 = sq.cube_surface_point(face, u0 + size, v0 + half);
-            let m2 = sq.cube_surface_point(face, u0 + half, v0 + size);
-            let m3 = sq.cube_surface_point(face, u0, v0 + half);
-            let centre = |u: f64, v: f64| sq.cube_surface_point(face, u + q, v + q);
+            // The four edge midpoints, then the four children's centres, four at a time.
+            let [m0, m1, m2, m3] = sq.cube_surface_points4(
+                face,
+                [
+                    (u0 + half, v0),
+                    (u0 + size, v0 + half),
+                    (u0 + half, v0 + size),
+                    (u0, v0 + half),
+                ],
+            );
+            let [c0, c1, c2, c3] = sq.cube_surface_points4(
+                face,
+                [
+                    (u0 + q, v0 + q),
+                    (u0 + half + q, v0 + q),
+                    (u0 + half + q, v0 + half + q),
+                    (u0 + q, v0 + half + q),
+                ],
+            );
             let d = depth + 1;
-            self.cell(face, u0, v0, half, d, Some(([p00, m0, c, m3], centre(u0, v0))));
-            self.cell(
-                face,
-                u0 + half,
-                v0,
-                half,
-                d,
-                Some(([m0, p10, m1, c], centre(u0 + half, v0))),
-            );
-            self.cell(
-                face,
-                u0 + half,
-                v0 + half,
-                half,
-                d,
-                Some(([c, m1, p11, m2], centre(u0 + half, v0 + half))),
-            );
-            self.cell(
-                face,
-                u0,
-                v0 + half,
-                half,
-                d,
-                Some(([m3, c, m2, p01], centre(u0, v0 + half))),
-            );
+            self.cell(face, u0, v0, half, d, Some(([p00, m0, c, m3], c0)));
+            self.cell(face, u0 + half, v0, half, d, Some(([m0, p10, m1, c], c1)));
+            self.cell(face, u0 + half, v0 + half, half, d, Some(([c, m1, p11, m2], c2)));
+            self.cell(face, u0, v0 + half, half, d, Some(([m3, c, m2, p01], c3)));
             return;
         }
         self.acc += area;
