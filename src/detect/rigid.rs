@@ -8,12 +8,13 @@
 
 use super::fit::{LANES, Rows, measure_of_fit, normal_sums, squared_residuals, symmetric};
 use super::search::SearchSpace;
-use crate::geometry::{PlacedKernel, PlacedSuperquadric};
+use crate::geometry::{PlacedKernel, PlacedSuperquadric, ResidualGrad, lanes_of};
 use crate::model::Model;
 use crate::numeric::lanes::{Lanes, widened};
 use crate::numeric::{LeastSquares, LmSettings, minimize};
 use nalgebra::{Isometry3, Matrix3, Matrix6, Point3, UnitQuaternion, Vector3, Vector6};
 
+widened! {
 /// Points near the placed model, each in the list of the part whose surface it is nearest.
 fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> Vec<Vec<Point3<f64>>> {
     let centre = parts
@@ -26,26 +27,41 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
         .fold(0.0, f64::max)
         + band;
     let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
-    let mut out = vec![Vec::new(); parts.len()];
-    let mut d = vec![0.0; parts.len()];
+    let mut near = Vec::new();
     space
         .grid
-        .for_each_within(space.points, &Point3::from(centre), reach, |i| {
-            let p = &space.points[i];
+        .for_each_within(space.points, &Point3::from(centre), reach, |i| near.push(space.points[i]));
+    let mut out = vec![Vec::new(); parts.len()];
+    // Each point's surface distance to every part, four points at a time.
+    let mut d = vec![[0.0; LANES]; parts.len()];
+    for group in near.chunks(LANES) {
+        let padded: [Point3<f64>; LANES] = std::array::from_fn(|i| group[i % group.len()]);
+        let p = lanes_of::<LANES>(&padded);
+        for (k, part) in kernels.iter().enumerate() {
+            let (r, g) = part.kernel.residual_grad_lanes(part.to_local_lanes(p));
+            for (i, dk) in d[k].iter_mut().enumerate() {
+                *dk = PlacedSuperquadric::distance_from(&ResidualGrad {
+                    residual: r.0[i],
+                    grad: Vector3::new(g[0].0[i], g[1].0[i], g[2].0[i]),
+                });
+            }
+        }
+        for (i, p) in group.iter().enumerate() {
             let mut best = (f64::INFINITY, usize::MAX);
-            for (k, part) in kernels.iter().enumerate() {
-                d[k] = part.surface_distance(p);
-                if d[k].abs() < best.0.abs() {
-                    best = (d[k], k);
+            for (k, dk) in d.iter().enumerate() {
+                if dk[i].abs() < best.0.abs() {
+                    best = (dk[i], k);
                 }
             }
             // A point inside one part but on another's surface belongs to the other: a handle's
             // root sits inside the body.
-            if best.0.abs() < band && d.iter().all(|&dk| dk > -band) {
+            if best.0.abs() < band && d.iter().all(|dk| dk[i] > -band) {
                 out[best.1].push(*p);
             }
-        });
+        }
+    }
     out
+}
 }
 
 fn place(model: &Model, pose: &Isometry3<f64>) -> Vec<PlacedSuperquadric> {
