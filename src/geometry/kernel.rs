@@ -330,6 +330,25 @@ pub(super) fn ipow_lanes<const L: usize>(x: Lanes<L>, n: i32) -> Lanes<L> {
             let x2 = x * x;
             x2 * x2 * x
         }
+        // The exponents of e = 0.1 (2/e = 20, its section power 10, the derivative's 19), in the
+        // order of the square and multiply below, so that the bits are the same.
+        10 => {
+            let x2 = x * x;
+            let x8 = {
+                let x4 = x2 * x2;
+                x4 * x4
+            };
+            x2 * x8
+        }
+        19 | 20 => {
+            let x2 = x * x;
+            let x4 = x2 * x2;
+            let x16 = {
+                let x8 = x4 * x4;
+                x8 * x8
+            };
+            if n == 19 { x * x2 * x16 } else { x4 * x16 }
+        }
         n if n > 0 => {
             // Square and multiply, the same steps in every lane.
             let (mut acc, mut base, mut e) = (Lanes::splat(1.0), x, n as u32);

@@ -530,10 +530,30 @@ fn four_points_at_once_are_four_points_one_at_a_time() {
     }
 }
 
-/// The whole-number powers of the plain form, for every exponent it can take.
+/// The whole-number powers of the plain form, for every exponent it can take; the unrolled ones
+/// the same to the bit as the square and multiply they replace.
 #[test]
 fn integer_powers_of_lanes_agree_with_powi() {
     use crate::numeric::lanes::Lanes;
+    let square_and_multiply = |x: f64, n: u32| {
+        let (mut acc, mut base, mut e) = (1.0f64, x, n);
+        loop {
+            if e & 1 == 1 {
+                acc *= base;
+            }
+            e >>= 1;
+            if e == 0 {
+                return acc;
+            }
+            base *= base;
+        }
+    };
+    for n in [10, 19, 20] {
+        for x in [0.3, 0.9, 1.0, 1.7, 3.5, 0.123456789] {
+            let got = super::kernel::ipow_lanes(Lanes::<1>([x]), n).0[0];
+            assert_eq!(got.to_bits(), square_and_multiply(x, n as u32).to_bits(), "{x}^{n}");
+        }
+    }
     for n in 0..=64 {
         for x in [0.0, 0.3, 0.9, 1.0, 1.7, 3.5] {
             let got = super::kernel::ipow_lanes(Lanes::<1>([x]), n).0[0];
