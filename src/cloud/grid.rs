@@ -58,10 +58,7 @@ impl Grid {
             starts: vec![0; n_cells + 1],
             order: Vec::new(),
         };
-        let mut ids: Vec<u32> = Vec::with_capacity(points.len());
-        for p in points {
-            ids.push(g.cell_index(p) as u32);
-        }
+        let ids: Vec<u32> = points.iter().map(|p| g.cell_index(p) as u32).collect();
         // A counting sort: each cell's count at its index, summed into where each cell ends,
         // then the points placed from the back, so that each cell's end moves to its start
         // and its points stay in input order.

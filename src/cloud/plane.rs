@@ -118,9 +118,8 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
     let Some((mut plane, band)) = find_plane(&sample, &range_scale) else {
         return no_plane(0, 0.0, RangeScale::uniform());
     };
-    let norm_dist = |plane: &Plane, p: &Point3<f64>| plane.signed_distance(p) / range_scale.at(p);
     // Each point's distance once: the split below and the count here both need it.
-    let dist: Vec<f64> = points.iter().map(|p| norm_dist(&plane, p)).collect();
+    let dist = normalized_distances(points, &plane, &range_scale);
     let inliers = dist.iter().filter(|d| d.abs() < band).count();
     // The paper removes the plane only when it holds more points than the rest. A cluttered
     // table seen with the room behind it holds less than half (mOSD test64: 48 %), and leaving it
@@ -373,6 +372,26 @@ impl Columns {
             z: pick().map(|p| p.z).collect(),
         }
     }
+}
+
+widened! {
+/// Each point's signed distance to the plane in units of the noise at its range
+/// (`RangeScale::at`).
+fn normalized_distances(points: &[Point3<f64>], plane: &Plane, scale: &RangeScale) -> Vec<f64> {
+    match scale.viewpoint {
+        Some(v) => {
+            let r2 = scale.r_ref * scale.r_ref;
+            points
+                .iter()
+                .map(|p| {
+                    let s = (p - v).norm_squared() / r2;
+                    plane.signed_distance(p) / if s > 0.05 { s } else { 0.05 }
+                })
+                .collect()
+        }
+        None => points.iter().map(|p| plane.signed_distance(p) / 1.0).collect(),
+    }
+}
 }
 
 widened! {
