@@ -134,7 +134,10 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
                 return err(start, "output longer than the declared size");
             }
             if ip + MAX_LIT <= input.len() {
-                out[op..op + MAX_LIT].copy_from_slice(&input[ip..ip + MAX_LIT]);
+                // SAFETY: `ip + MAX_LIT <= input.len()` just above, and `op + MAX_LIT <=
+                // expected_len + MAX_LIT = out.len()` as `op + len <= expected_len`; two
+                // buffers never overlap.
+                unsafe { std::ptr::copy_nonoverlapping(input.as_ptr().add(ip), out.as_mut_ptr().add(op), MAX_LIT) };
             } else {
                 out[op..op + len].copy_from_slice(&input[ip..ip + len]);
             }
@@ -161,11 +164,18 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
             if op + len > expected_len {
                 return err(start, "output longer than the declared size");
             }
+            // Every copy below writes within `op..op + len + 15` and reads before what it writes:
+            // `op + len <= expected_len` was checked and `out` has MAX_LIT bytes to spare, so
+            // the copies are made through a pointer, without a bounds check per block or byte.
+            debug_assert!(op + len + 16 <= out.len());
+            let base = out.as_mut_ptr();
             if back >= 16 {
-                // Each block is read before it is written over, and lies wholly before it.
+                // Each block lies wholly before the one it is copied to.
                 let mut k = 0;
                 while k < len {
-                    out.copy_within(from + k..from + k + 16, op + k);
+                    // SAFETY: both blocks lie within `out` (see above) and are `back >= 16`
+                    // bytes apart, so they do not overlap.
+                    unsafe { std::ptr::copy_nonoverlapping(base.add(from + k), base.add(op + k), 16) };
                     k += 16;
                 }
             } else {
@@ -176,11 +186,13 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
                 let period = back * 16usize.div_ceil(back);
                 let head = len.min(period);
                 for k in 0..head {
-                    out[op + k] = out[from + k];
+                    // SAFETY: `from + k < op + k < op + len`, within `out`.
+                    unsafe { *base.add(op + k) = *base.add(from + k) };
                 }
                 let mut k = head;
                 while k < len {
-                    out.copy_within(op + k - period..op + k - period + 16, op + k);
+                    // SAFETY: within `out` (see above); `period >= 16` bytes apart.
+                    unsafe { std::ptr::copy_nonoverlapping(base.add(op + k - period), base.add(op + k), 16) };
                     k += 16;
                 }
             }
