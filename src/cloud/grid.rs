@@ -5,6 +5,7 @@
 //! 27 cells, and is built in one pass with one sort — cheaper to build than a k-d tree for the
 //! few thousand to few hundred thousand points of a sweep, and as fast to query at these radii.
 
+use crate::numeric::lanes::widened;
 use nalgebra::Point3;
 
 /// Points bucketed into cubic cells; every cell's points are contiguous in `order`.
@@ -22,61 +23,7 @@ pub struct Grid {
 impl Grid {
     /// Build a grid with the given cell size over `points` (all finite).
     pub fn new(points: &[Point3<f64>], cell: f64) -> Grid {
-        let cell = cell.max(1e-6);
-        let mut lo = Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY);
-        let mut hi = Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
-        for p in points {
-            for k in 0..3 {
-                // Selects, which compile to one instruction each; `f64::min` spends three more
-                // on NaN, and the points are finite.
-                lo[k] = if p[k] < lo[k] { p[k] } else { lo[k] };
-                hi[k] = if p[k] > hi[k] { p[k] } else { hi[k] };
-            }
-        }
-        if points.is_empty() {
-            lo = Point3::origin();
-            hi = Point3::origin();
-        }
-        // Bound the cell count: a few stray far points must not make a huge sparse array.
-        let mut cell = cell;
-        let dims = loop {
-            let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
-            if d.iter()
-                .try_fold(1usize, |acc, &x| acc.checked_mul(x))
-                .is_some_and(|n| n <= (8 * points.len().max(1024)).min(1 << 31))
-            {
-                break d;
-            }
-            cell *= 1.5;
-        };
-        let n_cells = dims[0] * dims[1] * dims[2];
-        let mut g = Grid {
-            cell,
-            origin: lo,
-            dims,
-            top: dims.map(|d| (d - 1) as f64),
-            starts: vec![0; n_cells + 1],
-            order: Vec::new(),
-        };
-        let ids: Vec<u32> = points.iter().map(|p| g.cell_index(p) as u32).collect();
-        // A counting sort: each cell's count at its index, summed into where each cell ends,
-        // then the points placed from the back, so that each cell's end moves to its start
-        // and its points stay in input order.
-        for &c in &ids {
-            g.starts[c as usize] += 1;
-        }
-        let mut end = 0;
-        for s in g.starts.iter_mut() {
-            end += *s;
-            *s = end;
-        }
-        g.order = vec![0; points.len()];
-        for (i, &c) in ids.iter().enumerate().rev() {
-            let at = &mut g.starts[c as usize];
-            *at -= 1;
-            g.order[*at as usize] = i as u32;
-        }
-        g
+        build(points, cell)
     }
 
     pub fn cell_size(&self) -> f64 {
@@ -152,6 +99,66 @@ impl Grid {
         self.for_each_within(points, centre, radius, |i| out.push(i));
         out
     }
+}
+
+widened! {
+fn build(points: &[Point3<f64>], cell: f64) -> Grid {
+    let cell = cell.max(1e-6);
+    let mut lo = Point3::new(f64::INFINITY, f64::INFINITY, f64::INFINITY);
+    let mut hi = Point3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for p in points {
+        for k in 0..3 {
+            // Selects, which compile to one instruction each; `f64::min` spends three more
+            // on NaN, and the points are finite.
+            lo[k] = if p[k] < lo[k] { p[k] } else { lo[k] };
+            hi[k] = if p[k] > hi[k] { p[k] } else { hi[k] };
+        }
+    }
+    if points.is_empty() {
+        lo = Point3::origin();
+        hi = Point3::origin();
+    }
+    // Bound the cell count: a few stray far points must not make a huge sparse array.
+    let mut cell = cell;
+    let dims = loop {
+        let d = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / cell).floor() as usize).saturating_add(1));
+        if d.iter()
+            .try_fold(1usize, |acc, &x| acc.checked_mul(x))
+            .is_some_and(|n| n <= (8 * points.len().max(1024)).min(1 << 31))
+        {
+            break d;
+        }
+        cell *= 1.5;
+    };
+    let n_cells = dims[0] * dims[1] * dims[2];
+    let mut g = Grid {
+        cell,
+        origin: lo,
+        dims,
+        top: dims.map(|d| (d - 1) as f64),
+        starts: vec![0; n_cells + 1],
+        order: Vec::new(),
+    };
+    let ids: Vec<u32> = points.iter().map(|p| g.cell_index(p) as u32).collect();
+    // A counting sort: each cell's count at its index, summed into where each cell ends,
+    // then the points placed from the back, so that each cell's end moves to its start
+    // and its points stay in input order.
+    for &c in &ids {
+        g.starts[c as usize] += 1;
+    }
+    let mut end = 0;
+    for s in g.starts.iter_mut() {
+        end += *s;
+        *s = end;
+    }
+    g.order = vec![0; points.len()];
+    for (i, &c) in ids.iter().enumerate().rev() {
+        let at = &mut g.starts[c as usize];
+        *at -= 1;
+        g.order[*at as usize] = i as u32;
+    }
+    g
+}
 }
 
 /// One representative point per voxel of side `voxel` (the point nearest the voxel's centroid is
