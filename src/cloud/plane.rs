@@ -219,8 +219,12 @@ impl RangeScale {
     #[inline]
     pub fn at(&self, p: &Point3<f64>) -> f64 {
         match self.viewpoint {
-            // (r / r_ref)^2 without the square root.
-            Some(v) => ((p - v).norm_squared() / (self.r_ref * self.r_ref)).max(0.05),
+            // (r / r_ref)^2 without the square root; a select rather than `f64::max`, whose NaN
+            // handling costs more in the split's pass over every point.
+            Some(v) => {
+                let s = (p - v).norm_squared() / (self.r_ref * self.r_ref);
+                if s > 0.05 { s } else { 0.05 }
+            }
             None => 1.0,
         }
     }
@@ -378,19 +382,7 @@ widened! {
 /// Each point's signed distance to the plane in units of the noise at its range
 /// (`RangeScale::at`).
 fn normalized_distances(points: &[Point3<f64>], plane: &Plane, scale: &RangeScale) -> Vec<f64> {
-    match scale.viewpoint {
-        Some(v) => {
-            let r2 = scale.r_ref * scale.r_ref;
-            points
-                .iter()
-                .map(|p| {
-                    let s = (p - v).norm_squared() / r2;
-                    plane.signed_distance(p) / if s > 0.05 { s } else { 0.05 }
-                })
-                .collect()
-        }
-        None => points.iter().map(|p| plane.signed_distance(p) / 1.0).collect(),
-    }
+    points.iter().map(|p| plane.signed_distance(p) / scale.at(p)).collect()
 }
 }
 

@@ -44,14 +44,10 @@ impl Kernel {
         let n = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         self.taper_lanes(self.untapered_surface_along_lanes(d.map(|c| c / n)))
     }
-
-    /// Four points of one face, as vectors.
-    fn cube_surface_points4(&self, face: usize, uv: [(f64, f64); 4]) -> [Vector3<f64>; 4] {
-        four_points(self, face, uv)
-    }
 }
 
 widened! {
+/// Four points of one face, as vectors.
 fn four_points(kernel: &Kernel, face: usize, uv: [(f64, f64); 4]) -> [Vector3<f64>; 4] {
     let [x, y, z] = kernel.cube_surface_points(face, Lanes(uv.map(|p| p.0)), Lanes(uv.map(|p| p.1)));
     std::array::from_fn(|i| Vector3::new(x.0[i], y.0[i], z.0[i]))
@@ -113,7 +109,8 @@ impl Walk<'_> {
         }
         let ([p00, p10, p11, p01], c) = known.unwrap_or_else(|| {
             (
-                sq.cube_surface_points4(
+                four_points(
+                    sq,
                     face,
                     [(u0, v0), (u0 + size, v0), (u0 + size, v0 + size), (u0, v0 + size)],
                 ),
@@ -130,7 +127,8 @@ impl Walk<'_> {
             // Serpentine order keeps consecutive cells adjacent, which spreads the diffused error.
             let q = 0.5 * half;
             // The four edge midpoints, then the four children's centres, four at a time.
-            let [m0, m1, m2, m3] = sq.cube_surface_points4(
+            let [m0, m1, m2, m3] = four_points(
+                sq,
                 face,
                 [
                     (u0 + half, v0),
@@ -139,7 +137,8 @@ impl Walk<'_> {
                     (u0, v0 + half),
                 ],
             );
-            let [c0, c1, c2, c3] = sq.cube_surface_points4(
+            let [c0, c1, c2, c3] = four_points(
+                sq,
                 face,
                 [
                     (u0 + q, v0 + q),
