@@ -179,3 +179,32 @@ fn degenerate_clouds_give_an_answer_not_a_panic() {
         assert!(r.best_found().is_none());
     }
 }
+
+/// A sweep of 4096 columns (600k points, rows a fifth of a millimetre apart) is thinned along
+/// its rows before the search, and the bowl is still found where it is; the report still counts
+/// every point the sweep measured.
+#[test]
+fn a_4096_column_sweep_is_thinned_and_the_bowl_found() {
+    let text = std::fs::read_to_string(root().join("scenes/fig3_table.toml")).unwrap();
+    let text = text.replace("columns = 256", "columns = 4096");
+    let s = Scene::from_toml_str(&text, Path::new("fig3_4096.toml"), &root().join("models")).unwrap();
+    let m = model("bowl");
+    let (_, truth) = eval::truth_pose(&s, &m).expect("the scene holds the bowl");
+    let sweep = simulate(&s, 0);
+    let params = Params {
+        viewpoint: sweep.cloud.viewpoint_position(),
+        ..Params::default()
+    };
+    let r = detect(&sweep.cloud.points, &m, &params);
+    let finite = sweep
+        .cloud
+        .points
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .count();
+    assert!(finite > 500_000, "{finite} points");
+    assert_eq!(r.points, finite);
+    let d = r.detections.iter().find(|d| d.found).expect("the bowl is found");
+    let error = (d.pose.translation.vector - truth.translation.vector).norm();
+    assert!(error < 0.01, "position error {error:.4} m");
+}

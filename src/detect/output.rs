@@ -101,7 +101,8 @@ pub struct ReportJson {
     pub plane: Option<[f64; 4]>,
     /// Points in the cloud given.
     pub points: usize,
-    /// Points left for the search after plane removal and cropping.
+    /// Points left for the search after plane removal and cropping (rows far denser than 2 mm
+    /// thinned first).
     pub scene_points: usize,
     pub timing_ms: TimingJson,
 }

@@ -56,7 +56,8 @@ pub struct Report {
     pub plane: Option<Plane>,
     /// Finite input points.
     pub points: usize,
-    /// Points left after plane removal and the range cut.
+    /// Points left after plane removal and the range cut, of those the detector kept (a cloud
+    /// whose rows are far denser than 2 mm is thinned along them first).
     pub scene_points: usize,
     pub timing: Timing,
 }
