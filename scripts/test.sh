@@ -32,6 +32,17 @@ fi
 # The package test fails, instead of skipping, where its tools are missing.
 export SQSCAN_REQUIRE_PACKAGE_TOOLS=1
 
+# The MCAP test reads the daemon's recordings with independent readers from PyPI (mcap, and
+# mcap-ros2-support's ROS 2 decoder), in a venv of their own under target/.
+venv=target/py-venv
+if ! "$venv/bin/python" -c "import mcap, mcap_ros2" >/dev/null 2>&1; then
+    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support)"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install --quiet --disable-pip-version-check mcap==1.6.0 mcap-ros2-support==0.6.0
+fi
+export SQSCAN_PYTHON="$PWD/$venv/bin/python"
+export SQSCAN_REQUIRE_PYTHON_TOOLS=1
+
 # The GigE Vision tests run inside a private network namespace with only loopback (unshare -n,
 # root): they say SKIPPED where none can be had.
 cargo test --workspace --locked --all-features

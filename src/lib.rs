@@ -36,6 +36,7 @@ pub mod mock;
 pub mod model;
 pub mod numeric;
 pub mod pose;
+pub mod ros;
 pub mod sim;
 pub mod spec;
 pub mod sweep;

@@ -49,16 +49,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 shared.latest.send_replace(Some(entry.clone()));
                 warm_detections(&shared, &entry);
                 if let Some(dir) = shared.config().record_dir.clone() {
-                    let keep = shared.config().record_keep;
-                    let frame = shared.config().frame_id.clone();
-                    let e = entry.clone();
-                    let s = shared.clone();
-                    tokio::task::spawn_blocking(move || {
-                        if let Err(err) = record::write_sweep(&dir, &e, keep, &frame) {
-                            tracing::error!("recording sweep {}: {err:#}", e.id);
-                            s.stats.record_fault(format!("recording sweep {}: {err:#}", e.id));
-                        }
-                    });
+                    tokio::spawn(record_sweep(shared.clone(), entry.clone(), dir));
                 }
                 if shared.config().sweep.back_and_forth {
                     forward = !forward;
@@ -89,12 +80,48 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
 
 /// Starts the detections that someone is bound to want on a new sweep: the configured watch
 /// list and the objects clients watch. They run once per sweep whoever asks first.
-fn warm_detections(shared: &Arc<Shared>, entry: &Arc<SweepEntry>) {
+/// The objects detected on every sweep: the configuration's and the clients' watches.
+fn watched_objects(shared: &Shared) -> Vec<String> {
     let mut objects: Vec<String> = shared.config().watch.clone();
     objects.extend(lock(&shared.watched).keys().cloned());
     objects.sort();
     objects.dedup();
-    for name in objects {
+    objects
+}
+
+/// Records a sweep; with `[record] mcap`, after the watched objects' detections on it are done
+/// (they are the ones [`warm_detections`] started: awaiting them starts nothing new).
+async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::path::PathBuf) {
+    let config = shared.config();
+    let mut extras = record::Extras::default();
+    if config.record_mcap {
+        let mut found = Vec::new();
+        for name in watched_objects(&shared) {
+            if let Ok(model) = shared.model(&name) {
+                let d = entry.detection(&shared, model.clone(), false).await;
+                found.push((model, d));
+            }
+        }
+        extras.mcap = Some(found);
+    }
+    let (keep, frame) = (config.record_keep, config.frame_id.clone());
+    let e = entry.clone();
+    let written = tokio::task::spawn_blocking(move || record::write_sweep(&dir, &e, keep, &frame, extras)).await;
+    let failure = match written {
+        Ok(Ok(())) => None,
+        Ok(Err(err)) => Some(format!("{err:#}")),
+        Err(join) => Some(format!("the recording task failed: {join}")),
+    };
+    if let Some(err) = failure {
+        tracing::error!("recording sweep {}: {err}", entry.id);
+        shared
+            .stats
+            .record_fault(format!("recording sweep {}: {err}", entry.id));
+    }
+}
+
+fn warm_detections(shared: &Arc<Shared>, entry: &Arc<SweepEntry>) {
+    for name in watched_objects(shared) {
         if let Ok(model) = shared.model(&name) {
             let (s, e) = (shared.clone(), entry.clone());
             tokio::spawn(async move {

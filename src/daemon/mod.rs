@@ -28,6 +28,8 @@ mod lines;
 pub mod notify;
 pub mod protocol;
 mod record;
+#[cfg(feature = "mcap")]
+mod record_mcap;
 mod replay;
 pub mod reply;
 mod server;

@@ -1,7 +1,9 @@
 //! Recording sweeps: each as `sweep-NNNNNNNN.pcd` (organized, binary_compressed, viewpoint set)
-//! beside `sweep-NNNNNNNN.json` (id, time, the assembler's report). Both are written to a
-//! temporary name, synced, then renamed into place, so a reader (or a crash) never sees half a
-//! file; the JSON is renamed last, so a JSON on disk means its PCD is complete.
+//! beside `sweep-NNNNNNNN.json` (id, time, the assembler's report), and with `[record] mcap` (the
+//! `mcap` feature) `sweep-NNNNNNNN.mcap` too: the same sweep and the watched objects' detections
+//! as ROS 2 messages ([`super::record_mcap`]). Every file is written to a temporary name, synced,
+//! then renamed into place, so a reader (or a crash) never sees half a file; the JSON is renamed
+//! last, so a JSON on disk means the rest of its recording is complete.
 
 use std::fs;
 use std::io::Write;
@@ -20,25 +22,47 @@ pub fn stem(id: u64) -> String {
     format!("sweep-{id:08}")
 }
 
+/// What goes into a recording besides the PCD and the JSON.
+#[derive(Default)]
+pub struct Extras {
+    /// The MCAP file, with these detections (the `mcap` feature; without it, nothing).
+    pub mcap: Option<
+        Vec<(
+            std::sync::Arc<crate::model::Model>,
+            std::sync::Arc<super::state::Detected>,
+        )>,
+    >,
+}
+
 /// Records one sweep and prunes the directory to the newest `keep` (0 keeps all).
-pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str) -> Result<()> {
+pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str, extras: Extras) -> Result<()> {
     fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let stem = stem(entry.id);
     write_atomic(&dir.join(format!("{stem}.pcd")), |w| {
         write_pcd(w, &entry.sweep.cloud, PcdData::BinaryCompressed)?;
         Ok(())
     })?;
-    let meta = json!({
+    #[cfg_attr(not(feature = "mcap"), allow(unused_mut))]
+    let mut meta = json!({
         "id": entry.id,
         "time": entry.time_s(),
         "frame": frame,
         "profiles": entry.sweep.profiles,
         "columns": entry.sweep.columns,
         "points": entry.points,
+        "viewpoint": entry.sweep.cloud.viewpoint,
         "cloud": format!("{stem}.pcd"),
         "report": entry.sweep.report,
         "release": env!("CARGO_PKG_VERSION"),
     });
+    #[cfg(feature = "mcap")]
+    if let Some(detections) = &extras.mcap {
+        let name = format!("{stem}.mcap");
+        super::record_mcap::write(&dir.join(&name), entry, detections, frame, &meta)?;
+        meta["mcap"] = json!(name);
+    }
+    #[cfg(not(feature = "mcap"))]
+    let _ = extras;
     write_atomic(&dir.join(format!("{stem}.json")), |w| {
         serde_json::to_writer_pretty(&mut *w, &meta)?;
         w.write_all(b"\n")?;
@@ -64,7 +88,7 @@ fn prune(dir: &Path, keep: usize) -> Result<()> {
     let excess = ids.len().saturating_sub(keep);
     for id in &ids[..excess] {
         // The JSON first: a PCD without its JSON is an unfinished recording, never the reverse.
-        for ext in ["json", "pcd"] {
+        for ext in ["json", "pcd", "mcap"] {
             let p: PathBuf = dir.join(format!("{}.{ext}", stem(*id)));
             if let Err(e) = fs::remove_file(&p)
                 && e.kind() != std::io::ErrorKind::NotFound
@@ -117,7 +141,7 @@ mod tests {
                     recorded: None,
                 },
             );
-            write_sweep(&dir, &e, 2, "base_link").unwrap();
+            write_sweep(&dir, &e, 2, "base_link", Extras::default()).unwrap();
         }
         let mut names: Vec<String> = fs::read_dir(&dir)
             .unwrap()

@@ -151,6 +151,9 @@ struct RecordFile {
     dir: PathBuf,
     /// Keep the newest N recordings (0: keep all).
     keep: Option<usize>,
+    /// Also record each sweep as MCAP (the `mcap` feature).
+    #[serde(default)]
+    mcap: bool,
 }
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -220,6 +223,8 @@ pub struct Config {
     pub max_range_m: Option<f64>,
     pub record_dir: Option<PathBuf>,
     pub record_keep: usize,
+    /// Record each sweep as MCAP too, with the watched objects' detections.
+    pub record_mcap: bool,
     pub watch: Vec<String>,
     /// The frame the sweeps' points and the poses are in, as replies and recordings name it.
     pub frame_id: String,
@@ -346,6 +351,7 @@ impl Config {
             max_range_m: None,
             record_dir: None,
             record_keep: 20,
+            record_mcap: false,
             watch: Vec::new(),
             frame_id: "base_link".into(),
         }
@@ -604,6 +610,14 @@ impl Config {
         if let Some(r) = &raw.record {
             c.record_dir = Some(rel(&r.dir));
             c.record_keep = count_within(path, "record.keep", r.keep, limits::RECORD_KEEP)?.unwrap_or(20);
+            if r.mcap && !cfg!(feature = "mcap") {
+                return Err(SpecError::invalid(
+                    path,
+                    "record.mcap",
+                    "this sqscand was built without MCAP recording (cargo feature `mcap`)",
+                ));
+            }
+            c.record_mcap = r.mcap;
         }
         c.watch = raw.watch.objects.clone();
         Ok(c)

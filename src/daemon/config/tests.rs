@@ -265,3 +265,17 @@ fn gige_settings_that_make_no_sense_are_named() {
         assert!(e.contains(field), "{text:?}: {e}");
     }
 }
+
+/// `[record] mcap` needs the `mcap` feature: a daemon built without it says so, naming the key,
+/// instead of recording nothing.
+#[test]
+fn mcap_recording_is_on_only_where_it_was_built() {
+    let r = parse("[record]\ndir = \"r\"\nmcap = true");
+    if cfg!(feature = "mcap") {
+        assert!(r.unwrap().record_mcap);
+    } else {
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("record.mcap") && e.contains("feature"), "{e}");
+    }
+    assert!(!parse("[record]\ndir = \"r\"").unwrap().record_mcap);
+}

@@ -1,0 +1,116 @@
+//! A sweep recorded as an MCAP file of ROS 2 messages (the `mcap` feature): what Foxglove opens
+//! and what `ros2 bag` tools read, beside or instead of the PCD. One file a sweep:
+//! - `/sqscan/points` (`sensor_msgs/msg/PointCloud2`): the organized cloud, stamped with the
+//!   last profile's time;
+//! - `/sqscan/joint_states` (`sensor_msgs/msg/JointState`): the PTU's pan and tilt at each
+//!   profile's time;
+//! - `/sqscan/detections` (`vision_msgs/msg/Detection3DArray`): the watched objects'
+//!   detections on this sweep, at the sweep's time; an empty array where none was found;
+//! - a metadata record `sqscan.sweep`: the sweep's id, time, frame, size, viewpoint and the
+//!   assembler's report, as the JSON beside it has them.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::{Duration, SystemTime};
+
+use anyhow::{Context, Result};
+
+use super::state::{Detected, SweepEntry};
+use crate::atomic::write_atomic;
+use crate::model::Model;
+use crate::ros::{self, Found, Header, Time, schema};
+
+/// Topic of the sweeps' clouds.
+pub const POINTS_TOPIC: &str = "/sqscan/points";
+/// Topic of the PTU's joint angles.
+pub const JOINTS_TOPIC: &str = "/sqscan/joint_states";
+/// Topic of the detections.
+pub const DETECTIONS_TOPIC: &str = "/sqscan/detections";
+/// The joints' names in `JointState`.
+pub const JOINT_NAMES: [&str; 2] = ["ptu_pan", "ptu_tilt"];
+
+/// Unix time (s) of the sweep's last profile: its completion less the time from the last
+/// profile's exposure to completion.
+pub fn last_profile_unix_s(entry: &SweepEntry) -> f64 {
+    let behind = entry.completed.saturating_duration_since(entry.last_profile);
+    let t = entry.completed_wall.checked_sub(behind).unwrap_or(entry.completed_wall);
+    t.duration_since(SystemTime::UNIX_EPOCH)
+        .unwrap_or(Duration::ZERO)
+        .as_secs_f64()
+}
+
+/// Writes `path` (atomically, as the PCD and JSON are) for one sweep and the detections made on
+/// it.
+pub fn write(
+    path: &Path,
+    entry: &SweepEntry,
+    detections: &[(Arc<Model>, Arc<Detected>)],
+    frame: &str,
+    meta: &serde_json::Value,
+) -> Result<()> {
+    write_atomic(path, |w| {
+        let options = mcap::WriteOptions::new()
+            .compression(None)
+            .profile("ros2")
+            .library(concat!("sqscand ", env!("CARGO_PKG_VERSION")));
+        let mut out = options.create(&mut *w).context("starting the MCAP file")?;
+        let none = BTreeMap::new();
+        let mut channel = |name: &str, schema_text: String, topic: &str| -> Result<u16> {
+            let s = out.add_schema(name, "ros2msg", schema_text.as_bytes())?;
+            Ok(out.add_channel(s, topic, "cdr", &none)?)
+        };
+        let points = channel(schema::POINT_CLOUD2, schema::point_cloud2(), POINTS_TOPIC)?;
+        let joints = channel(schema::JOINT_STATE, schema::joint_state(), JOINTS_TOPIC)?;
+        let found = channel(schema::DETECTION3D_ARRAY, schema::detection3d_array(), DETECTIONS_TOPIC)?;
+        let sweep = &entry.sweep;
+        let last = last_profile_unix_s(entry);
+        let last_stamp = sweep.stamp_s.last().copied().unwrap_or(0.0);
+        // The joint states first, in time order, then the cloud and the detections at the end.
+        for (i, (pan, tilt)) in sweep.pan_rad.iter().zip(&sweep.tilt_rad).enumerate() {
+            let at = last - (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp));
+            let stamp = Time::from_unix_s(at);
+            let h = Header { stamp, frame_id: "" };
+            let data = ros::joint_state(&h, &JOINT_NAMES, &[*pan, *tilt]);
+            out.write_to_known_channel(&message(joints, i as u32, stamp), &data)?;
+        }
+        let stamp = Time::from_unix_s(last);
+        let h = Header { stamp, frame_id: frame };
+        out.write_to_known_channel(&message(points, 0, stamp), &ros::point_cloud2(&sweep.cloud, &h))?;
+        let mut objects: Vec<Found> = Vec::new();
+        for (model, d) in detections {
+            let bbox = ros::model_bbox(model);
+            objects.extend(d.report.detections.iter().filter(|x| x.found).map(|x| Found {
+                object: &model.name,
+                confidence: x.confidence,
+                pose: x.pose,
+                bbox,
+            }));
+        }
+        out.write_to_known_channel(&message(found, 0, stamp), &ros::detection3d_array(&h, &objects))?;
+        let mut fields = BTreeMap::new();
+        if let Some(m) = meta.as_object() {
+            for (k, v) in m {
+                fields.insert(
+                    k.clone(),
+                    v.as_str().map(str::to_string).unwrap_or_else(|| v.to_string()),
+                );
+            }
+        }
+        out.write_metadata(&mcap::records::Metadata {
+            name: "sqscan.sweep".into(),
+            metadata: fields,
+        })?;
+        out.finish().context("finishing the MCAP file")?;
+        Ok(())
+    })
+}
+
+fn message(channel_id: u16, sequence: u32, stamp: Time) -> mcap::records::MessageHeader {
+    mcap::records::MessageHeader {
+        channel_id,
+        sequence,
+        log_time: stamp.nanos(),
+        publish_time: stamp.nanos(),
+    }
+}

@@ -1,0 +1,451 @@
+//! ROS 2 messages, encoded as ROS 2 encodes them (CDR, [`cdr`]), with the message definitions
+//! that name their layout (the `ros2msg` schema encoding of MCAP and rosbag2). Written here
+//! rather than generated: sqscan needs five message types and no ROS installation, and the
+//! encoding is checked against an independent decoder (PyPI `mcap-ros2-support`, in
+//! `tests/mcap.rs`).
+//!
+//! The definitions are ROS 2 Humble's and later (`vision_msgs` 4: a `Detection3D` holds its
+//! `results`, `bbox` and `id`).
+
+pub mod cdr;
+
+use crate::cloud::{FieldData, PointCloud};
+use crate::model::Model;
+use cdr::CdrWriter;
+use nalgebra::{Isometry3, Point3, Vector3};
+
+/// `builtin_interfaces/Time`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Time {
+    pub sec: i32,
+    pub nanosec: u32,
+}
+
+impl Time {
+    /// From Unix time in seconds (before 1970 or past 2038 it saturates, as ROS's own does).
+    pub fn from_unix_s(t: f64) -> Time {
+        let t = if t.is_finite() { t.max(0.0) } else { 0.0 };
+        let sec = t.floor().min(i32::MAX as f64);
+        let nanosec = ((t - sec) * 1e9).round().clamp(0.0, 999_999_999.0) as u32;
+        Time {
+            sec: sec as i32,
+            nanosec,
+        }
+    }
+
+    /// Nanoseconds since the epoch, as MCAP stamps a message.
+    pub fn nanos(self) -> u64 {
+        self.sec.max(0) as u64 * 1_000_000_000 + self.nanosec as u64
+    }
+}
+
+/// `std_msgs/Header`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Header<'a> {
+    pub stamp: Time,
+    pub frame_id: &'a str,
+}
+
+fn header(w: &mut CdrWriter, h: &Header) {
+    w.i32(h.stamp.sec);
+    w.u32(h.stamp.nanosec);
+    w.string(h.frame_id);
+}
+
+fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
+    w.f64(v.x);
+    w.f64(v.y);
+    w.f64(v.z);
+}
+
+/// `geometry_msgs/Pose`: the position, then the orientation as `x, y, z, w`.
+fn pose(w: &mut CdrWriter, p: &Isometry3<f64>) {
+    vector3(w, &p.translation.vector);
+    let q = p.rotation.coords;
+    for v in [q.x, q.y, q.z, q.w] {
+        w.f64(v);
+    }
+}
+
+/// `sensor_msgs/PointField` data types.
+fn datatype(d: &FieldData) -> (u8, usize) {
+    match d {
+        FieldData::I8(_) => (1, 1),
+        FieldData::U8(_) => (2, 1),
+        FieldData::I16(_) => (3, 2),
+        FieldData::U16(_) => (4, 2),
+        FieldData::I32(_) => (5, 4),
+        FieldData::U32(_) => (6, 4),
+        FieldData::F32(_) => (7, 4),
+        FieldData::F64(_) => (8, 8),
+    }
+}
+
+/// The little-endian bytes of value `i` of a field.
+fn value_bytes(d: &FieldData, i: usize, out: &mut [u8]) {
+    match d {
+        FieldData::I8(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::U8(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::I16(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::U16(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::I32(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::U32(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::F32(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+        FieldData::F64(v) => out.copy_from_slice(&v[i].to_le_bytes()),
+    }
+}
+
+/// `sensor_msgs/PointCloud2` of a cloud, organized as it is (`height` rows of `width`; a
+/// sweep's rows are its profiles), points without a return kept as NaN and `is_dense` false.
+/// The fields are `x`, `y`, `z` (float32) and then the cloud's own scalar fields (a sweep's
+/// `intensity`, a simulated sweep's `label`), each aligned to its size.
+pub fn point_cloud2(cloud: &PointCloud, h: &Header) -> Vec<u8> {
+    let mut fields: Vec<(&str, usize, u8, Option<&FieldData>)> =
+        vec![("x", 0, 7, None), ("y", 4, 7, None), ("z", 8, 7, None)];
+    let mut step: usize = 12;
+    let mut align: usize = 4;
+    for f in cloud
+        .fields
+        .iter()
+        .filter(|f| f.count == 1 && f.data.len() == cloud.points.len())
+    {
+        let (ty, size) = datatype(&f.data);
+        step = step.next_multiple_of(size);
+        fields.push((f.name.as_str(), step, ty, Some(&f.data)));
+        step += size;
+        align = align.max(size);
+    }
+    let step = step.next_multiple_of(align);
+    let n = cloud.points.len();
+    let mut data = vec![0u8; n * step];
+    for (i, (p, row)) in cloud.points.iter().zip(data.chunks_exact_mut(step)).enumerate() {
+        for k in 0..3 {
+            row[4 * k..4 * k + 4].copy_from_slice(&p[k].to_le_bytes());
+        }
+        for &(_, offset, ty, d) in &fields[3..] {
+            let size = datatype_size(ty);
+            if let Some(d) = d {
+                value_bytes(d, i, &mut row[offset..offset + size]);
+            }
+        }
+    }
+    let (width, height) = if cloud.width * cloud.height == n {
+        (cloud.width, cloud.height)
+    } else {
+        (n, 1)
+    };
+    let mut w = CdrWriter::with_capacity(data.len() + 256);
+    header(&mut w, h);
+    w.count(height);
+    w.count(width);
+    w.count(fields.len());
+    for (name, offset, ty, _) in &fields {
+        w.string(name);
+        w.count(*offset);
+        w.u8(*ty);
+        w.u32(1);
+    }
+    w.bool(false);
+    w.count(step);
+    w.count(step * width);
+    w.bytes(&data);
+    w.bool(false);
+    w.finish()
+}
+
+fn datatype_size(ty: u8) -> usize {
+    match ty {
+        1 | 2 => 1,
+        3 | 4 => 2,
+        8 => 8,
+        _ => 4,
+    }
+}
+
+/// `sensor_msgs/JointState` with positions only (velocity and effort empty, as the message
+/// allows).
+pub fn joint_state(h: &Header, names: &[&str], positions: &[f64]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    header(&mut w, h);
+    w.string_seq(names);
+    w.f64_seq(positions);
+    w.f64_seq(&[]);
+    w.f64_seq(&[]);
+    w.finish()
+}
+
+/// One `geometry_msgs/TransformStamped`: `child` in `header.frame_id`.
+pub struct Transform<'a> {
+    pub header: Header<'a>,
+    pub child: &'a str,
+    pub transform: Isometry3<f64>,
+}
+
+/// `tf2_msgs/TFMessage`, as `/tf` and `/tf_static` carry it.
+pub fn tf_message(transforms: &[Transform]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.count(transforms.len());
+    for t in transforms {
+        header(&mut w, &t.header);
+        w.string(t.child);
+        pose(&mut w, &t.transform);
+    }
+    w.finish()
+}
+
+/// One object found, for a `vision_msgs/Detection3D`.
+pub struct Found<'a> {
+    /// The object's name (the hypothesis' `class_id`).
+    pub object: &'a str,
+    /// The detector's confidence in [0, 1] (the hypothesis' `score`).
+    pub confidence: f64,
+    /// The object's model frame in the header's frame.
+    pub pose: Isometry3<f64>,
+    /// The model's bounding box in its own frame: centre and size.
+    pub bbox: (Point3<f64>, Vector3<f64>),
+}
+
+/// `vision_msgs/Detection3DArray`: every detection with the array's header, one hypothesis each
+/// (the object, its confidence and its pose; the covariance unknown, all zero), the model's
+/// bounding box placed with it, and `id` the object's name with the detection's index
+/// (`mug#0`). An empty array says the objects asked for are not there.
+pub fn detection3d_array(h: &Header, found: &[Found]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    header(&mut w, h);
+    w.count(found.len());
+    for (k, f) in found.iter().enumerate() {
+        header(&mut w, h);
+        w.count(1);
+        w.string(f.object);
+        w.f64(f.confidence);
+        pose(&mut w, &f.pose);
+        for _ in 0..36 {
+            w.f64(0.0);
+        }
+        let centre = f.pose * Isometry3::translation(f.bbox.0.x, f.bbox.0.y, f.bbox.0.z);
+        pose(&mut w, &centre);
+        vector3(&mut w, &f.bbox.1);
+        w.string(&format!("{}#{k}", f.object));
+    }
+    w.finish()
+}
+
+/// A model's bounding box in its own frame (centre, size): the box around every part's box.
+pub fn model_bbox(model: &Model) -> (Point3<f64>, Vector3<f64>) {
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for part in &model.parts {
+        let e = part.shape.local_half_extents();
+        for corner in 0..8 {
+            let c = Vector3::new(
+                if corner & 1 == 0 { -e.x } else { e.x },
+                if corner & 2 == 0 { -e.y } else { e.y },
+                if corner & 4 == 0 { -e.z } else { e.z },
+            );
+            let p = part.pose_in_object * Point3::from(c);
+            lo = lo.inf(&p.coords);
+            hi = hi.sup(&p.coords);
+        }
+    }
+    if !(lo.iter().all(|v| v.is_finite()) && hi.iter().all(|v| v.is_finite())) {
+        return (Point3::origin(), Vector3::zeros());
+    }
+    (Point3::from((lo + hi) / 2.0), hi - lo)
+}
+
+/// The `ros2msg` definitions (MCAP's schema encoding of that name, and rosbag2's): the message's
+/// own fields, then every type it uses after a line of 80 `=` and `MSG: package/Type`.
+pub mod schema {
+    const SEPARATOR: &str = "================================================================================\n";
+
+    fn with(own: &str, deps: &[(&str, &str)]) -> String {
+        let mut s = own.to_string();
+        for (name, def) in deps {
+            s.push_str(SEPARATOR);
+            s.push_str(&format!("MSG: {name}\n"));
+            s.push_str(def);
+        }
+        s
+    }
+
+    const TIME: (&str, &str) = ("builtin_interfaces/Time", "int32 sec\nuint32 nanosec\n");
+    const HEADER: (&str, &str) = ("std_msgs/Header", "builtin_interfaces/Time stamp\nstring frame_id\n");
+    const VECTOR3: (&str, &str) = ("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z\n");
+    const POINT: (&str, &str) = ("geometry_msgs/Point", "float64 x\nfloat64 y\nfloat64 z\n");
+    const QUATERNION: (&str, &str) = (
+        "geometry_msgs/Quaternion",
+        "float64 x 0\nfloat64 y 0\nfloat64 z 0\nfloat64 w 1\n",
+    );
+    const POSE: (&str, &str) = (
+        "geometry_msgs/Pose",
+        "geometry_msgs/Point position\ngeometry_msgs/Quaternion orientation\n",
+    );
+
+    pub const POINT_CLOUD2: &str = "sensor_msgs/msg/PointCloud2";
+    pub fn point_cloud2() -> String {
+        with(
+            "std_msgs/Header header\nuint32 height\nuint32 width\nsensor_msgs/PointField[] fields\n\
+             bool is_bigendian\nuint32 point_step\nuint32 row_step\nuint8[] data\nbool is_dense\n",
+            &[
+                HEADER,
+                TIME,
+                (
+                    "sensor_msgs/PointField",
+                    "uint8 INT8=1\nuint8 UINT8=2\nuint8 INT16=3\nuint8 UINT16=4\nuint8 INT32=5\n\
+                     uint8 UINT32=6\nuint8 FLOAT32=7\nuint8 FLOAT64=8\n\
+                     string name\nuint32 offset\nuint8 datatype\nuint32 count\n",
+                ),
+            ],
+        )
+    }
+
+    pub const JOINT_STATE: &str = "sensor_msgs/msg/JointState";
+    pub fn joint_state() -> String {
+        with(
+            "std_msgs/Header header\nstring[] name\nfloat64[] position\nfloat64[] velocity\nfloat64[] effort\n",
+            &[HEADER, TIME],
+        )
+    }
+
+    pub const TF_MESSAGE: &str = "tf2_msgs/msg/TFMessage";
+    pub fn tf_message() -> String {
+        with(
+            "geometry_msgs/TransformStamped[] transforms\n",
+            &[
+                (
+                    "geometry_msgs/TransformStamped",
+                    "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n",
+                ),
+                HEADER,
+                TIME,
+                (
+                    "geometry_msgs/Transform",
+                    "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n",
+                ),
+                VECTOR3,
+                QUATERNION,
+            ],
+        )
+    }
+
+    pub const DETECTION3D_ARRAY: &str = "vision_msgs/msg/Detection3DArray";
+    pub fn detection3d_array() -> String {
+        with(
+            "std_msgs/Header header\nvision_msgs/Detection3D[] detections\n",
+            &[
+                HEADER,
+                TIME,
+                (
+                    "vision_msgs/Detection3D",
+                    "std_msgs/Header header\nvision_msgs/ObjectHypothesisWithPose[] results\n\
+                     vision_msgs/BoundingBox3D bbox\nstring id\n",
+                ),
+                (
+                    "vision_msgs/ObjectHypothesisWithPose",
+                    "vision_msgs/ObjectHypothesis hypothesis\ngeometry_msgs/PoseWithCovariance pose\n",
+                ),
+                ("vision_msgs/ObjectHypothesis", "string class_id\nfloat64 score\n"),
+                (
+                    "geometry_msgs/PoseWithCovariance",
+                    "geometry_msgs/Pose pose\nfloat64[36] covariance\n",
+                ),
+                POSE,
+                POINT,
+                QUATERNION,
+                (
+                    "vision_msgs/BoundingBox3D",
+                    "geometry_msgs/Pose center\ngeometry_msgs/Vector3 size\n",
+                ),
+                VECTOR3,
+            ],
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::Field;
+
+    #[test]
+    fn time_splits_seconds_and_nanoseconds() {
+        assert_eq!(
+            Time::from_unix_s(1.25),
+            Time {
+                sec: 1,
+                nanosec: 250_000_000
+            }
+        );
+        assert_eq!(Time::from_unix_s(-5.0), Time::default());
+        assert_eq!(Time::from_unix_s(f64::NAN), Time::default());
+        assert_eq!(Time::from_unix_s(1e12).sec, i32::MAX);
+        assert_eq!(Time::from_unix_s(2.5).nanos(), 2_500_000_000);
+    }
+
+    /// Two points of an organized 2 x 1 cloud with an intensity: the fields' offsets, the step
+    /// and the points' bytes where the layout puts them.
+    #[test]
+    fn a_point_cloud2_lays_out_its_fields() {
+        let mut cloud = PointCloud::from_points(vec![[1.0, 2.0, 3.0], [f32::NAN; 3]]);
+        cloud.width = 1;
+        cloud.height = 2;
+        cloud.fields.push(Field::scalar("intensity", FieldData::U8(vec![7, 0])));
+        cloud.fields.push(Field::scalar("label", FieldData::U32(vec![3, 4])));
+        let b = point_cloud2(
+            &cloud,
+            &Header {
+                stamp: Time { sec: 1, nanosec: 2 },
+                frame_id: "base_link",
+            },
+        );
+        // x y z at 0 4 8, intensity at 12, label at 16: 20 bytes a point.
+        let data_len = 40u32.to_le_bytes();
+        let at = b.windows(4).rposition(|w| w == data_len).expect("the data's length");
+        let data = &b[at + 4..at + 44];
+        assert_eq!(&data[0..4], &1.0f32.to_le_bytes());
+        assert_eq!(&data[8..12], &3.0f32.to_le_bytes());
+        assert_eq!(data[12], 7);
+        assert_eq!(&data[16..20], &3u32.to_le_bytes());
+        assert!(f32::from_le_bytes(data[20..24].try_into().unwrap()).is_nan());
+        assert_eq!(&data[36..40], &4u32.to_le_bytes());
+        assert_eq!(b.last(), Some(&0), "is_dense false");
+        // height 2, width 1 right after the header.
+        let h = 4 + 8 + 4 + "base_link\0".len();
+        let h = h.next_multiple_of(4);
+        assert_eq!(&b[h..h + 8], &[2, 0, 0, 0, 1, 0, 0, 0]);
+    }
+
+    #[test]
+    fn every_schema_names_each_type_it_uses_once() {
+        for s in [
+            schema::point_cloud2(),
+            schema::joint_state(),
+            schema::tf_message(),
+            schema::detection3d_array(),
+        ] {
+            let defined: Vec<&str> = s.lines().filter_map(|l| l.strip_prefix("MSG: ")).collect();
+            let mut unique = defined.clone();
+            unique.sort();
+            unique.dedup();
+            assert_eq!(unique.len(), defined.len(), "{s}");
+            for l in s.lines() {
+                let ty = l.split_whitespace().next().unwrap_or("").trim_end_matches("[]");
+                let ty = ty.split('[').next().unwrap_or("");
+                if ty.contains('/') {
+                    assert!(defined.contains(&ty), "{ty} is not defined in\n{s}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_models_box_holds_every_part() {
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+        let m = Model::load("mallet", &dir).unwrap();
+        let (c, size) = model_bbox(&m);
+        // The head 6 cm across at the origin, the shaft 24 cm long along x from 5 to 29 cm.
+        assert!((size.x - 0.32).abs() < 1e-9, "{size}");
+        assert!((c.x - 0.13).abs() < 1e-9, "{c}");
+        assert!((size.z - 0.112).abs() < 1e-9, "{size}");
+    }
+}

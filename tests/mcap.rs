@@ -1,0 +1,179 @@
+//! MCAP recordings (the `mcap` feature), read back by an independent reader: PyPI `mcap` and
+//! `mcap-ros2-support`'s ROS 2 decoder (`tests/py/read_mcap.py`), in the Python that
+//! `scripts/test.sh` prepares (`SQSCAN_PYTHON`). Without it the test says it skipped, unless
+//! `SQSCAN_REQUIRE_PYTHON_TOOLS` is set (as `scripts/test.sh` sets it).
+#![cfg(feature = "mcap")]
+
+use std::io::{BufRead, BufReader, Write};
+use std::os::unix::net::UnixStream;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use serde_json::{Value, json};
+
+mod common;
+use common::{Proc, wait_for};
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The Python with the MCAP reader, or `None` (the test then skips, or fails when required).
+fn python() -> Option<PathBuf> {
+    let found = std::env::var_os("SQSCAN_PYTHON").map(PathBuf::from).filter(|p| {
+        Command::new(p)
+            .args(["-c", "import mcap, mcap_ros2"])
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    if found.is_none() {
+        assert!(
+            std::env::var_os("SQSCAN_REQUIRE_PYTHON_TOOLS").is_none(),
+            "SQSCAN_PYTHON must name a Python with the PyPI packages mcap and mcap-ros2-support"
+        );
+        eprintln!("SKIPPED: no Python with mcap and mcap-ros2-support (set SQSCAN_PYTHON; scripts/test.sh makes one)");
+    }
+    found
+}
+
+fn ask(socket: &Path, request: Value) -> Value {
+    let s = UnixStream::connect(socket).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(90))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = BufReader::new(s);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap(); // the version greeting
+    w.write_all(format!("{request}\n").as_bytes()).unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    serde_json::from_str(&line).unwrap()
+}
+
+/// A sweep recorded with `[record] mcap = true`: the MCAP file beside the PCD holds the cloud
+/// (organized, NaN kept, the same points as the PCD), a joint state per profile, the watched
+/// cup's detection as `find` answered it, and the sweep's metadata.
+#[test]
+fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
+    let Some(python) = python() else { return };
+    let dir = std::env::temp_dir().join(format!("sqscan-mcap-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let config = format!(
+        "[sim]\nscene = {:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
+         [record]\ndir = \"rec\"\nmcap = true\n[watch]\nobjects = [\"cup\"]\n",
+        root().join("scenes/fig3_table.toml")
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let _daemon = Proc(
+        Command::new(env!("CARGO_BIN_EXE_sqscand"))
+            .arg("--config")
+            .arg(dir.join("sqscand.toml"))
+            .arg("--socket")
+            .arg(&socket)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
+            .env_remove("NOTIFY_SOCKET")
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .spawn()
+            .unwrap(),
+    );
+    wait_for("the socket", Duration::from_secs(30), || {
+        UnixStream::connect(&socket).is_ok()
+    });
+    let found = ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":60}));
+    assert_eq!(found["found"], true, "{found}");
+    let json_path = dir.join("rec/sweep-00000001.json");
+    wait_for("the recording", Duration::from_secs(30), || json_path.is_file());
+    let meta: Value = serde_json::from_str(&std::fs::read_to_string(&json_path).unwrap()).unwrap();
+    assert_eq!(meta["mcap"], "sweep-00000001.mcap", "{meta}");
+
+    let out = Command::new(&python)
+        .arg(root().join("tests/py/read_mcap.py"))
+        .arg(dir.join("rec/sweep-00000001.mcap"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(m["profile"], "ros2");
+    assert_eq!(m["topics"]["/sqscan/points"]["schema"], "sensor_msgs/msg/PointCloud2");
+    assert_eq!(m["topics"]["/sqscan/points"]["encoding"], "cdr");
+    assert_eq!(
+        m["topics"]["/sqscan/detections"]["schema"],
+        "vision_msgs/msg/Detection3DArray"
+    );
+    assert_eq!(
+        m["topics"]["/sqscan/joint_states"]["schema"],
+        "sensor_msgs/msg/JointState"
+    );
+
+    // The cloud: as the PCD beside it has it, point for point, the holes kept.
+    let pcd = sqscan::cloud::read_cloud(&dir.join("rec/sweep-00000001.pcd")).unwrap();
+    let cloud = &m["clouds"][0];
+    assert_eq!(m["clouds"].as_array().unwrap().len(), 1);
+    assert_eq!(cloud["frame"], "base_link");
+    assert_eq!(cloud["height"].as_u64().unwrap() as usize, pcd.height);
+    assert_eq!(cloud["width"].as_u64().unwrap() as usize, pcd.width);
+    assert_eq!(cloud["is_dense"], false);
+    assert_eq!(cloud["is_bigendian"], false);
+    let names: Vec<&str> = cloud["fields"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(&names[..3], ["x", "y", "z"]);
+    assert!(names.contains(&"intensity"), "{names:?}");
+    let step = cloud["point_step"].as_u64().unwrap() as usize;
+    assert_eq!(cloud["row_step"].as_u64().unwrap() as usize, step * pcd.width);
+    assert_eq!(cloud["bytes"].as_u64().unwrap() as usize, step * pcd.points.len());
+    let points = cloud["points"].as_array().unwrap();
+    assert_eq!(points.len(), pcd.points.len());
+    let mut holes = 0;
+    for (p, q) in pcd.points.iter().zip(points) {
+        if p[0].is_nan() {
+            assert!(q[0].is_null());
+            holes += 1;
+        } else {
+            for k in 0..3 {
+                assert_eq!(q[k].as_f64().unwrap() as f32, p[k]);
+            }
+        }
+    }
+    assert!(holes > 0, "a simulated sweep has points without a return");
+
+    // One joint state a profile, pan and tilt, in time order, the last at the cloud's stamp.
+    let joints = m["joint_states"].as_array().unwrap();
+    assert_eq!(joints.len(), pcd.height);
+    assert_eq!(joints[0]["names"], json!(["ptu_pan", "ptu_tilt"]));
+    let stamps: Vec<f64> = joints.iter().map(|j| j["stamp"].as_f64().unwrap()).collect();
+    assert!(stamps.windows(2).all(|w| w[0] <= w[1]), "{stamps:?}");
+    assert!((stamps[stamps.len() - 1] - cloud["stamp"].as_f64().unwrap()).abs() < 1e-6);
+    let tilt: Vec<f64> = joints.iter().map(|j| j["position"][1].as_f64().unwrap()).collect();
+    assert!(tilt[tilt.len() - 1] - tilt[0] > 0.3, "the sweep tilts: {tilt:?}");
+
+    // The watched cup, as find answered it.
+    let d = &m["detections"][0];
+    assert_eq!(d["frame"], "base_link");
+    let det = &d["detections"][0];
+    assert_eq!(d["detections"].as_array().unwrap().len(), 1, "{d}");
+    assert_eq!(det["class_id"], "cup");
+    assert_eq!(det["id"], "cup#0");
+    assert!((det["score"].as_f64().unwrap() - found["confidence"].as_f64().unwrap()).abs() < 1e-5);
+    for k in 0..3 {
+        let want = found["pose"]["position"][k].as_f64().unwrap();
+        assert!(
+            (det["position"][k].as_f64().unwrap() - want).abs() < 1e-5,
+            "{det} {found}"
+        );
+    }
+    let size: Vec<f64> = (0..3).map(|k| det["bbox_size"][k].as_f64().unwrap()).collect();
+    assert!(size.iter().all(|&s| s > 0.05 && s < 0.2), "{size:?}");
+
+    let sweep = &m["metadata"]["sqscan.sweep"];
+    assert_eq!(sweep["id"], "1");
+    assert_eq!(sweep["frame"], "base_link");
+    let _ = std::fs::remove_dir_all(&dir);
+}
