@@ -37,6 +37,31 @@ fn python() -> Option<PathBuf> {
     found
 }
 
+/// `sqscand` on `dir/NAME.toml`, its socket `dir/NAME.sock`, its log `dir/NAME.log`, with
+/// `args` more; returns once the socket answers.
+fn sqscand(dir: &Path, name: &str, args: &[&std::ffi::OsStr]) -> Proc {
+    let socket = dir.join(format!("{name}.sock"));
+    let p = Proc(
+        Command::new(env!("CARGO_BIN_EXE_sqscand"))
+            .arg("--config")
+            .arg(dir.join(format!("{name}.toml")))
+            .arg("--socket")
+            .arg(&socket)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(dir.join(format!("{name}.log"))).unwrap())
+            .env_remove("NOTIFY_SOCKET")
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .spawn()
+            .unwrap(),
+    );
+    wait_for("the daemon's socket", Duration::from_secs(30), || {
+        UnixStream::connect(&socket).is_ok()
+    });
+    p
+}
+
 fn ask(socket: &Path, request: Value) -> Value {
     let s = UnixStream::connect(socket).unwrap();
     s.set_read_timeout(Some(Duration::from_secs(90))).unwrap();
@@ -52,7 +77,8 @@ fn ask(socket: &Path, request: Value) -> Value {
 
 /// A sweep recorded with `[record] mcap = true`: the MCAP file beside the PCD holds the cloud
 /// (organized, NaN kept, the same points as the PCD), a joint state per profile, the watched
-/// cup's detection as `find` answered it, and the sweep's metadata.
+/// cup's detection as `find` answered it, and the sweep's metadata; `sqscand --replay` serves
+/// the MCAP file alone and answers as the recording daemon did.
 #[test]
 fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     let Some(python) = python() else { return };
@@ -66,23 +92,7 @@ fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     );
     std::fs::write(dir.join("sqscand.toml"), config).unwrap();
     let socket = dir.join("sqscand.sock");
-    let _daemon = Proc(
-        Command::new(env!("CARGO_BIN_EXE_sqscand"))
-            .arg("--config")
-            .arg(dir.join("sqscand.toml"))
-            .arg("--socket")
-            .arg(&socket)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
-            .env_remove("NOTIFY_SOCKET")
-            .env("SQSCAN_MODELS_DIR", root().join("models"))
-            .spawn()
-            .unwrap(),
-    );
-    wait_for("the socket", Duration::from_secs(30), || {
-        UnixStream::connect(&socket).is_ok()
-    });
+    let _daemon = sqscand(&dir, "sqscand", &[]);
     let found = ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":60}));
     assert_eq!(found["found"], true, "{found}");
     let json_path = dir.join("rec/sweep-00000001.json");
@@ -175,5 +185,45 @@ fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     let sweep = &m["metadata"]["sqscan.sweep"];
     assert_eq!(sweep["id"], "1");
     assert_eq!(sweep["frame"], "base_link");
+
+    // Read back as a cloud: the PCD's points to the bit, its organization and viewpoint.
+    let back = sqscan::cloud::read_cloud(&dir.join("rec/sweep-00000001.mcap")).unwrap();
+    assert_eq!((back.width, back.height), (pcd.width, pcd.height));
+    assert_eq!(back.viewpoint, pcd.viewpoint);
+    let bits = |c: &sqscan::cloud::PointCloud| c.points.iter().map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+    assert!(bits(&back) == bits(&pcd));
+
+    // Cut short anywhere, or with bytes flipped, the file is an error naming it, not a panic
+    // (a cut after the cloud's message may still read, as MCAP is meant to be read while it is
+    // being written).
+    let whole = std::fs::read(dir.join("rec/sweep-00000001.mcap")).unwrap();
+    let hostile = dir.join("hostile.mcap");
+    for cut in [0, 8, 9, 100, whole.len() / 3, whole.len() / 2, whole.len() - 9] {
+        std::fs::write(&hostile, &whole[..cut]).unwrap();
+        if let Err(e) = sqscan::cloud::read_cloud(&hostile) {
+            assert!(e.to_string().contains("hostile.mcap"), "{e}");
+        }
+    }
+    let mut flipped = whole.clone();
+    for i in (8..flipped.len()).step_by(997) {
+        flipped[i] ^= 0xa5;
+    }
+    std::fs::write(&hostile, &flipped).unwrap();
+    let _ = sqscan::cloud::read_cloud(&hostile);
+
+    // Replayed from the MCAP file alone, the sweep is sweep 1 again and gets the answer the
+    // recording daemon gave, to the digit.
+    let replay = dir.join("replay");
+    std::fs::create_dir_all(&replay).unwrap();
+    std::fs::copy(dir.join("rec/sweep-00000001.mcap"), replay.join("field.mcap")).unwrap();
+    std::fs::write(dir.join("replay.toml"), "").unwrap();
+    let replay_args = [replay.as_os_str(), "--replay-speed".as_ref(), "0".as_ref()];
+    let _replayer = sqscand(&dir, "replay", &[&["--replay".as_ref()], &replay_args[..]].concat());
+    let socket = dir.join("replay.sock");
+    let again = ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":60}));
+    assert_eq!(again["found"], true, "{again}");
+    assert_eq!(again["sweep"]["id"], found["sweep"]["id"], "{again}");
+    assert_eq!(again["pose"], found["pose"], "{again} {found}");
+    assert_eq!(again["confidence"], found["confidence"]);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -60,7 +60,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand info" -l json -d 'Print on
 complete -c sqscan -n "__fish_sqscan_using_subcommand info" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l model -d 'Model name (looked up in the models directory) or model file' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l cloud -d 'Point cloud file (.pcd, .ply, or text with x y z per line)' -r -F
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l cloud -d 'Point cloud file (.pcd, .ply, text with x y z per line, or .mcap in a build with the mcap feature)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l seed -d 'Seed of every random choice of the search' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l out -d 'Write the input cloud with the detected surfaces added in colour (PLY)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l max-range -d 'Ignore points farther than this from the viewpoint (m), e.g. a wall behind the table' -r

@@ -63,7 +63,7 @@ _arguments "${_arguments_options[@]}" : \
 _arguments "${_arguments_options[@]}" : \
 '--models-dir=[Directory of object models \[default\: \$SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists\]]:DIR:_files' \
 '--model=[Model name (looked up in the models directory) or model file]:MODEL:_default' \
-'--cloud=[Point cloud file (.pcd, .ply, or text with x y z per line)]:CLOUD:_files' \
+'--cloud=[Point cloud file (.pcd, .ply, text with x y z per line, or .mcap in a build with the mcap feature)]:CLOUD:_files' \
 '--seed=[Seed of every random choice of the search]:SEED:_default' \
 '--out=[Write the input cloud with the detected surfaces added in colour (PLY)]:DETECTED.ply:_files' \
 '--max-range=[Ignore points farther than this from the viewpoint (m), e.g. a wall behind the table]:M:_default' \

@@ -18,7 +18,7 @@ _sqscand() {
 '--config=[Configuration file \[default\: /etc/sqscan/sqscand.toml if it exists, else the embedded simulator configuration\]]:FILE:_files' \
 '--socket=[Unix socket to listen on (overrides the file'\''s server.socket)]:PATH:_files' \
 '--models-dir=[Directory of object models (overrides the file'\''s server.models_dir) \[default\: \$SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists\]]:DIR:_files' \
-'--replay=[Serve the recorded sweeps in DIR instead of scanning (overrides the file'\''s backend)\: the daemon'\''s recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint]:DIR:_files' \
+'--replay=[Serve the recorded sweeps in DIR instead of scanning (overrides the file'\''s backend)\: the daemon'\''s recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint (and, in a build with the mcap feature, MCAP files with a ROS 2 PointCloud2)]:DIR:_files' \
 '--replay-speed=[With --replay\: 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked]:FACTOR:_default' \
 '--replay-loop[With --replay\: start again after the last sweep instead of stopping there]' \
 '--check[Run every start-up check (configuration, models, scene or calibration, serial devices) and exit]' \

@@ -21,6 +21,8 @@
 //!   (and, if they look like integers, read) as the `u32` of their bits, as PCL does, because many
 //!   packed colours are NaN as floats. The viewpoint is checked but not kept (written as identity).
 //!   Writing puts `x y z` (`F 4`) first, then the fields in order.
+//! - **MCAP** (the `mcap` feature, read only): the first `sensor_msgs/msg/PointCloud2` in CDR,
+//!   that of `/sqscan/points` where there is one (see [`super::mcap`]).
 //! - **Plain text** ([`read_text`], [`write_text`]): one point per line, `x y z [more columns]`,
 //!   separated by whitespace and/or commas; `#` starts a comment, lines starting with `//` (e.g.
 //!   CloudCompare's column header) are ignored. Every line must have the same number of columns.
@@ -56,14 +58,19 @@ use super::{CloudError, PcdData, PlyFormat, PointCloud};
 enum Format {
     Ply,
     Pcd,
+    Mcap,
     Text,
 }
+
+/// The first bytes of every MCAP file.
+pub(super) const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 fn format_of(path: &Path, content: Option<&[u8]>) -> Format {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     match (ext.as_deref(), content) {
         (Some("ply"), _) => Format::Ply,
         (Some("pcd"), _) => Format::Pcd,
+        (Some("mcap"), _) => Format::Mcap,
         (_, Some(bytes)) => sniff(bytes),
         (_, None) => Format::Text,
     }
@@ -77,6 +84,9 @@ fn sniff(bytes: &[u8]) -> Format {
     if bytes.starts_with(b"# .PCD") {
         return Format::Pcd;
     }
+    if bytes.starts_with(MCAP_MAGIC) {
+        return Format::Mcap;
+    }
     // PCD headers may open with other comments: look at the first line that is not one.
     let first = lines(bytes)
         .take(100)
@@ -89,13 +99,20 @@ fn sniff(bytes: &[u8]) -> Format {
     }
 }
 
-/// Reads a cloud from `path`: `.ply` and `.pcd` by extension, anything else (including files
-/// without extension) by content: PLY magic, PCD header, else plain text.
+/// Reads a cloud from `path`: `.ply`, `.pcd` and `.mcap` (the `mcap` feature: the first ROS 2
+/// `PointCloud2` in it) by extension, anything else (including files without extension) by
+/// content: PLY or MCAP magic, PCD header, else plain text.
 pub fn read_cloud(path: &Path) -> Result<PointCloud, CloudError> {
     let bytes = fs::read(path).map_err(|e| CloudError::Io(e).in_file(path))?;
     let result = match format_of(path, Some(&bytes)) {
         Format::Ply => super::ply::parse_ply(&bytes),
         Format::Pcd => super::pcd::parse_pcd(&bytes),
+        #[cfg(feature = "mcap")]
+        Format::Mcap => super::mcap::parse_mcap(&bytes),
+        #[cfg(not(feature = "mcap"))]
+        Format::Mcap => Err(CloudError::Format(
+            "an MCAP file: this build reads MCAP only with the `mcap` feature".into(),
+        )),
         Format::Text => super::text::parse_text(&bytes),
     };
     result.map_err(|e| e.in_file(path))
@@ -109,6 +126,11 @@ pub fn write_cloud(path: &Path, cloud: &PointCloud) -> Result<(), CloudError> {
         match format_of(path, None) {
             Format::Ply => super::ply::write_ply(&mut file, cloud, PlyFormat::BinaryLittleEndian)?,
             Format::Pcd => super::pcd::write_pcd(&mut file, cloud, PcdData::BinaryCompressed)?,
+            Format::Mcap => {
+                return Err(CloudError::Format(
+                    "MCAP is written by the daemon's recordings, not as a cloud file".into(),
+                ));
+            }
             Format::Text => super::text::write_text(&mut file, cloud)?,
         }
         file.flush()?;

@@ -12,6 +12,8 @@ mod codec;
 pub mod grid;
 pub mod io;
 pub mod lzf;
+#[cfg(feature = "mcap")]
+mod mcap;
 mod median;
 mod pcd;
 pub mod plane;

@@ -32,6 +32,7 @@ pub struct DaemonCli {
     pub models_dir: Option<PathBuf>,
     /// Serve the recorded sweeps in DIR instead of scanning (overrides the file's backend): the
     /// daemon's recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint
+    /// (and, in a build with the mcap feature, MCAP files with a ROS 2 PointCloud2)
     #[arg(long, value_name = "DIR")]
     pub replay: Option<PathBuf>,
     /// With --replay: 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked

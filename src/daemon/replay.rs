@@ -3,7 +3,8 @@
 //!
 //! A replay directory holds the daemon's own recordings (`sweep-NNNNNNNN.json` beside its
 //! `.pcd`, see [`super::record`]) and any other organized PCD with a viewpoint (one row a
-//! profile, as `sqscan simulate` and other tools write them). Recordings are served in the order
+//! profile, as `sqscan simulate` and other tools write them) or, with the `mcap` feature, MCAP
+//! file with one (the daemon's own MCAP recordings, see [`crate::cloud::io`]). Recordings are served in the order
 //! of their sweep ids, then the other clouds in the order of their names. A recording keeps its
 //! sweep id for the detector's seed, so the same cloud, models and `detect.seed` give the same
 //! answers as when it was recorded.
@@ -43,6 +44,8 @@ struct RecordingMeta {
     id: u64,
     time: f64,
     cloud: String,
+    /// The same sweep as MCAP beside it (`[record] mcap`): not served a second time.
+    mcap: Option<String>,
     report: Option<SweepReport>,
 }
 
@@ -143,6 +146,7 @@ fn index(dir: &Path) -> Result<Vec<Item>> {
             bail!("{}: its cloud {} is missing", path.display(), cloud.display());
         }
         claimed.push(meta.cloud.clone());
+        claimed.extend(meta.mcap.clone());
         recorded.push(Item {
             cloud,
             id: Some(meta.id),
@@ -151,9 +155,14 @@ fn index(dir: &Path) -> Result<Vec<Item>> {
         });
     }
     recorded.sort_by_key(|i| i.id);
+    // MCAP files only where this build reads them.
+    let served = |n: &str| {
+        let n = n.to_ascii_lowercase();
+        n.ends_with(".pcd") || (cfg!(feature = "mcap") && n.ends_with(".mcap"))
+    };
     let others = names
         .iter()
-        .filter(|n| n.to_ascii_lowercase().ends_with(".pcd") && !claimed.contains(n))
+        .filter(|n| served(n) && !claimed.contains(n))
         .map(|n| Item {
             cloud: dir.join(n),
             id: None,

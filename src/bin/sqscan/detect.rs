@@ -16,7 +16,8 @@ pub struct DetectArgs {
     /// Model name (looked up in the models directory) or model file
     #[arg(long)]
     model: String,
-    /// Point cloud file (.pcd, .ply, or text with x y z per line)
+    /// Point cloud file (.pcd, .ply, text with x y z per line, or .mcap in a build with the mcap
+    /// feature)
     #[arg(long)]
     cloud: PathBuf,
     /// Seed of every random choice of the search
