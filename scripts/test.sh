@@ -32,13 +32,15 @@ fi
 # The package test fails, instead of skipping, where its tools are missing.
 export SQSCAN_REQUIRE_PACKAGE_TOOLS=1
 
-# The MCAP test reads the daemon's recordings with independent readers from PyPI (mcap, and
-# mcap-ros2-support's ROS 2 decoder), in a venv of their own under target/.
+# The MCAP and live-view tests check the daemon with independent readers from PyPI (mcap,
+# mcap-ros2-support's ROS 2 decoder, and websockets for a Foxglove client), in a venv of their
+# own under target/.
 venv=target/py-venv
-if ! "$venv/bin/python" -c "import mcap, mcap_ros2" >/dev/null 2>&1; then
-    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support)"
+if ! "$venv/bin/python" -c "import mcap, mcap_ros2, websockets" >/dev/null 2>&1; then
+    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support, websockets)"
     python3 -m venv "$venv"
-    "$venv/bin/pip" install --quiet --disable-pip-version-check mcap==1.6.0 mcap-ros2-support==0.6.0
+    "$venv/bin/pip" install --quiet --disable-pip-version-check \
+        mcap==1.6.0 mcap-ros2-support==0.6.0 websockets==15.0.1
 fi
 export SQSCAN_PYTHON="$PWD/$venv/bin/python"
 export SQSCAN_REQUIRE_PYTHON_TOOLS=1

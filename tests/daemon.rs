@@ -19,17 +19,10 @@ use sqscan::sim::Scene;
 
 mod common;
 use common::protocol::check_reply;
-use common::{Proc, wait_for};
+use common::{Proc, free_port, tmpdir, wait_for};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-fn tmpdir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("sqscan-e2e-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Starts `sqscand --config` on `config` text written into `dir`; returns once the socket
@@ -744,11 +737,7 @@ fn unplugged_device_comes_back(dir: &Path, socket: &Path, k: usize, name: &str, 
 #[test]
 fn on_demand_sweeps_recorded_atomically_and_served_over_tcp() {
     let dir = tmpdir("ondemand");
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port();
+    let port = free_port();
     let config = format!(
         "{}\n[acquisition]\nmode = \"on_demand\"\n[server]\ntcp = \"127.0.0.1:{port}\"\nframe_id = \"robot_base\"\n[record]\ndir = \"rec\"\nkeep = 2\n",
         sim_config()

@@ -4,76 +4,13 @@
 //! `SQSCAN_REQUIRE_PYTHON_TOOLS` is set (as `scripts/test.sh` sets it).
 #![cfg(feature = "mcap")]
 
-use std::io::{BufRead, BufReader, Write};
-use std::os::unix::net::UnixStream;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 
 use serde_json::{Value, json};
 
 mod common;
-use common::{Proc, wait_for};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
-/// The Python with the MCAP reader, or `None` (the test then skips, or fails when required).
-fn python() -> Option<PathBuf> {
-    let found = std::env::var_os("SQSCAN_PYTHON").map(PathBuf::from).filter(|p| {
-        Command::new(p)
-            .args(["-c", "import mcap, mcap_ros2"])
-            .status()
-            .is_ok_and(|s| s.success())
-    });
-    if found.is_none() {
-        assert!(
-            std::env::var_os("SQSCAN_REQUIRE_PYTHON_TOOLS").is_none(),
-            "SQSCAN_PYTHON must name a Python with the PyPI packages mcap and mcap-ros2-support"
-        );
-        eprintln!("SKIPPED: no Python with mcap and mcap-ros2-support (set SQSCAN_PYTHON; scripts/test.sh makes one)");
-    }
-    found
-}
-
-/// `sqscand` on `dir/NAME.toml`, its socket `dir/NAME.sock`, its log `dir/NAME.log`, with
-/// `args` more; returns once the socket answers.
-fn sqscand(dir: &Path, name: &str, args: &[&std::ffi::OsStr]) -> Proc {
-    let socket = dir.join(format!("{name}.sock"));
-    let p = Proc(
-        Command::new(env!("CARGO_BIN_EXE_sqscand"))
-            .arg("--config")
-            .arg(dir.join(format!("{name}.toml")))
-            .arg("--socket")
-            .arg(&socket)
-            .args(args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(std::fs::File::create(dir.join(format!("{name}.log"))).unwrap())
-            .env_remove("NOTIFY_SOCKET")
-            .env("SQSCAN_MODELS_DIR", root().join("models"))
-            .spawn()
-            .unwrap(),
-    );
-    wait_for("the daemon's socket", Duration::from_secs(30), || {
-        UnixStream::connect(&socket).is_ok()
-    });
-    p
-}
-
-fn ask(socket: &Path, request: Value) -> Value {
-    let s = UnixStream::connect(socket).unwrap();
-    s.set_read_timeout(Some(Duration::from_secs(90))).unwrap();
-    let mut w = s.try_clone().unwrap();
-    let mut r = BufReader::new(s);
-    let mut line = String::new();
-    r.read_line(&mut line).unwrap(); // the version greeting
-    w.write_all(format!("{request}\n").as_bytes()).unwrap();
-    line.clear();
-    r.read_line(&mut line).unwrap();
-    serde_json::from_str(&line).unwrap()
-}
+use common::{ask, python, root, sqscand, tmpdir, wait_for};
 
 /// A sweep recorded with `[record] mcap = true`: the MCAP file beside the PCD holds the cloud
 /// (organized, NaN kept, the same points as the PCD), a joint state per profile, the watched
@@ -81,10 +18,10 @@ fn ask(socket: &Path, request: Value) -> Value {
 /// the MCAP file alone and answers as the recording daemon did.
 #[test]
 fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
-    let Some(python) = python() else { return };
-    let dir = std::env::temp_dir().join(format!("sqscan-mcap-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    let Some(python) = python(&["mcap", "mcap_ros2"]) else {
+        return;
+    };
+    let dir = tmpdir("mcap");
     let config = format!(
         "[sim]\nscene = {:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
          [record]\ndir = \"rec\"\nmcap = true\n[watch]\nobjects = [\"cup\"]\n",

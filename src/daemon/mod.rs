@@ -36,6 +36,10 @@ mod server;
 mod simulator;
 mod socket;
 mod state;
+#[cfg(any(feature = "mcap", feature = "foxglove"))]
+mod topics;
+#[cfg(feature = "foxglove")]
+mod view;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -170,6 +174,10 @@ impl Daemon {
             ("server", tokio::spawn(server::serve(shared.clone(), listeners))),
         ];
         let mut tasks = vec![tokio::spawn(supervise(shared.clone(), essential))];
+        #[cfg(feature = "foxglove")]
+        if let Some(listen) = shared.config().foxglove_listen {
+            tasks.push(tokio::spawn(view::run(shared.clone(), listen)));
+        }
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {
                 tracing::warn!("sd_notify READY to {}: {e}", n.socket_name());

@@ -12,33 +12,14 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
-use std::time::{Duration, SystemTime};
 
 use anyhow::{Context, Result};
 
 use super::state::{Detected, SweepEntry};
+use super::topics;
 use crate::atomic::write_atomic;
 use crate::model::Model;
 use crate::ros::{self, Found, Header, Time, schema};
-
-/// Topic of the sweeps' clouds.
-pub const POINTS_TOPIC: &str = "/sqscan/points";
-/// Topic of the PTU's joint angles.
-pub const JOINTS_TOPIC: &str = "/sqscan/joint_states";
-/// Topic of the detections.
-pub const DETECTIONS_TOPIC: &str = "/sqscan/detections";
-/// The joints' names in `JointState`.
-pub const JOINT_NAMES: [&str; 2] = ["ptu_pan", "ptu_tilt"];
-
-/// Unix time (s) of the sweep's last profile: its completion less the time from the last
-/// profile's exposure to completion.
-pub fn last_profile_unix_s(entry: &SweepEntry) -> f64 {
-    let behind = entry.completed.saturating_duration_since(entry.last_profile);
-    let t = entry.completed_wall.checked_sub(behind).unwrap_or(entry.completed_wall);
-    t.duration_since(SystemTime::UNIX_EPOCH)
-        .unwrap_or(Duration::ZERO)
-        .as_secs_f64()
-}
 
 /// Writes `path` (atomically, as the PCD and JSON are) for one sweep and the detections made on
 /// it.
@@ -60,18 +41,21 @@ pub fn write(
             let s = out.add_schema(name, "ros2msg", schema_text.as_bytes())?;
             Ok(out.add_channel(s, topic, "cdr", &none)?)
         };
-        let points = channel(schema::POINT_CLOUD2, schema::point_cloud2(), POINTS_TOPIC)?;
-        let joints = channel(schema::JOINT_STATE, schema::joint_state(), JOINTS_TOPIC)?;
-        let found = channel(schema::DETECTION3D_ARRAY, schema::detection3d_array(), DETECTIONS_TOPIC)?;
+        let points = channel(schema::POINT_CLOUD2, schema::point_cloud2(), topics::POINTS)?;
+        let joints = channel(schema::JOINT_STATE, schema::joint_state(), topics::JOINTS)?;
+        let found = channel(
+            schema::DETECTION3D_ARRAY,
+            schema::detection3d_array(),
+            topics::DETECTIONS,
+        )?;
         let sweep = &entry.sweep;
-        let last = last_profile_unix_s(entry);
-        let last_stamp = sweep.stamp_s.last().copied().unwrap_or(0.0);
+        let last = topics::last_profile_unix_s(entry);
         // The joint states first, in time order, then the cloud and the detections at the end.
-        for (i, (pan, tilt)) in sweep.pan_rad.iter().zip(&sweep.tilt_rad).enumerate() {
-            let at = last - (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp));
-            let stamp = Time::from_unix_s(at);
+        let angles = sweep.pan_rad.iter().zip(&sweep.tilt_rad);
+        for (i, (t, (pan, tilt))) in topics::profile_unix_s(entry).zip(angles).enumerate() {
+            let stamp = Time::from_unix_s(t);
             let h = Header { stamp, frame_id: "" };
-            let data = ros::joint_state(&h, &JOINT_NAMES, &[*pan, *tilt]);
+            let data = ros::joint_state(&h, &topics::JOINT_NAMES, &[*pan, *tilt]);
             out.write_to_known_channel(&message(joints, i as u32, stamp), &data)?;
         }
         let stamp = Time::from_unix_s(last);

@@ -172,6 +172,7 @@ impl SweepEntry {
                 })
                 .await
                 .clone();
+            let model_for_view = model.clone();
             let job = tokio::task::spawn_blocking(move || {
                 scene.map(|scene| detect::detect_in(&scene, &model, &params, plane_ms))
             });
@@ -196,7 +197,10 @@ impl SweepEntry {
             };
             let latency = self.last_profile.elapsed();
             shared.stats.record_detection(started.elapsed(), latency);
-            Arc::new(Detected { latency, report })
+            let detected = Arc::new(Detected { latency, report });
+            // Nobody listening (no live view) is no error.
+            let _ = shared.detected.send((self.clone(), model_for_view, detected.clone()));
+            detected
         })
         .await
         .clone()
@@ -324,7 +328,12 @@ pub struct Shared {
     /// Why a task the daemon cannot run without ended (a panic, or a return before shutdown):
     /// `status` reports it, the systemd watchdog stops, and `sqscand` exits with an error.
     pub failure: watch::Sender<Option<String>>,
+    /// Every detection as it is made, for whoever shows them (the live view).
+    pub detected: tokio::sync::broadcast::Sender<DetectedEvent>,
 }
+
+/// A detection made, on which sweep, of which model.
+pub type DetectedEvent = (Arc<SweepEntry>, Arc<Model>, Arc<Detected>);
 
 impl Shared {
     pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
@@ -351,6 +360,8 @@ impl Shared {
             cloud_slots: Arc::new(Semaphore::new(super::cloud::CLOUD_SLOTS)),
             started: Instant::now(),
             shutdown: watch::channel(false).0,
+            // A viewer that falls this far behind misses detections (it is told it lagged).
+            detected: tokio::sync::broadcast::channel(64).0,
         }
     }
 

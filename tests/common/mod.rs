@@ -58,3 +58,87 @@ pub fn wait_for(what: &str, timeout: std::time::Duration, mut ok: impl FnMut() -
         std::thread::sleep(std::time::Duration::from_millis(50));
     }
 }
+
+/// The repository's root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// The Python `scripts/test.sh` prepares (`SQSCAN_PYTHON`) if it imports `modules`, else `None`:
+/// the test then says it skipped, or fails where `SQSCAN_REQUIRE_PYTHON_TOOLS` is set (as
+/// `scripts/test.sh` sets it).
+pub fn python(modules: &[&str]) -> Option<PathBuf> {
+    let import = format!("import {}", modules.join(", "));
+    let found = std::env::var_os("SQSCAN_PYTHON").map(PathBuf::from).filter(|p| {
+        std::process::Command::new(p)
+            .args(["-c", &import])
+            .status()
+            .is_ok_and(|s| s.success())
+    });
+    if found.is_none() {
+        assert!(
+            std::env::var_os("SQSCAN_REQUIRE_PYTHON_TOOLS").is_none(),
+            "SQSCAN_PYTHON must name a Python that can `{import}`"
+        );
+        eprintln!("SKIPPED: no Python that can `{import}` (set SQSCAN_PYTHON; scripts/test.sh makes one)");
+    }
+    found
+}
+
+/// `sqscand` on `dir/NAME.toml`, its socket `dir/NAME.sock`, its log `dir/NAME.log`, with
+/// `args` more; returns once the socket answers.
+pub fn sqscand(dir: &Path, name: &str, args: &[&std::ffi::OsStr]) -> Proc {
+    use std::process::{Command, Stdio};
+    let socket = dir.join(format!("{name}.sock"));
+    let p = Proc(
+        Command::new(env!("CARGO_BIN_EXE_sqscand"))
+            .arg("--config")
+            .arg(dir.join(format!("{name}.toml")))
+            .arg("--socket")
+            .arg(&socket)
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(dir.join(format!("{name}.log"))).unwrap())
+            .env_remove("NOTIFY_SOCKET")
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .spawn()
+            .unwrap(),
+    );
+    wait_for("the daemon's socket", std::time::Duration::from_secs(30), || {
+        std::os::unix::net::UnixStream::connect(&socket).is_ok()
+    });
+    p
+}
+
+/// One request on a new connection to `socket`, and its reply.
+pub fn ask(socket: &Path, request: serde_json::Value) -> serde_json::Value {
+    use std::io::BufRead;
+    let s = std::os::unix::net::UnixStream::connect(socket).unwrap();
+    s.set_read_timeout(Some(std::time::Duration::from_secs(90))).unwrap();
+    let mut w = s.try_clone().unwrap();
+    let mut r = std::io::BufReader::new(s);
+    let mut line = String::new();
+    r.read_line(&mut line).unwrap(); // the version greeting
+    w.write_all(format!("{request}\n").as_bytes()).unwrap();
+    line.clear();
+    r.read_line(&mut line).unwrap();
+    serde_json::from_str(&line).unwrap()
+}
+
+/// A fresh directory for one test's files, named after the test and the process.
+pub fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sqscan-e2e-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A TCP port on loopback that was free a moment ago.
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}

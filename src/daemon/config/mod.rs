@@ -45,6 +45,7 @@ struct ConfigFile {
     #[serde(default)]
     detect: DetectFile,
     record: Option<RecordFile>,
+    foxglove: Option<FoxgloveFile>,
     #[serde(default)]
     watch: WatchFile,
 }
@@ -156,6 +157,13 @@ struct RecordFile {
     mcap: bool,
 }
 
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FoxgloveFile {
+    /// Where the Foxglove WebSocket server listens: a loopback address and port.
+    listen: String,
+}
+
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct WatchFile {
@@ -225,6 +233,8 @@ pub struct Config {
     pub record_keep: usize,
     /// Record each sweep as MCAP too, with the watched objects' detections.
     pub record_mcap: bool,
+    /// Where the live view (Foxglove WebSocket) listens; `None`: no view.
+    pub foxglove_listen: Option<std::net::SocketAddr>,
     pub watch: Vec<String>,
     /// The frame the sweeps' points and the poses are in, as replies and recordings name it.
     pub frame_id: String,
@@ -352,6 +362,7 @@ impl Config {
             record_dir: None,
             record_keep: 20,
             record_mcap: false,
+            foxglove_listen: None,
             watch: Vec::new(),
             frame_id: "base_link".into(),
         }
@@ -618,6 +629,33 @@ impl Config {
                 ));
             }
             c.record_mcap = r.mcap;
+        }
+        if let Some(f) = &raw.foxglove {
+            let addr: std::net::SocketAddr = f.listen.parse().map_err(|_| {
+                SpecError::invalid(
+                    path,
+                    "foxglove.listen",
+                    format!("{:?}: give an address and port, e.g. \"127.0.0.1:8765\"", f.listen),
+                )
+            })?;
+            if !addr.ip().is_loopback() {
+                return Err(SpecError::invalid(
+                    path,
+                    "foxglove.listen",
+                    format!(
+                        "{addr}: the view has no authentication, so it listens on loopback only \
+                         (reach it from elsewhere through an SSH tunnel)"
+                    ),
+                ));
+            }
+            if !cfg!(feature = "foxglove") {
+                return Err(SpecError::invalid(
+                    path,
+                    "foxglove.listen",
+                    "this sqscand was built without the live view (cargo feature `foxglove`)",
+                ));
+            }
+            c.foxglove_listen = Some(addr);
         }
         c.watch = raw.watch.objects.clone();
         Ok(c)

@@ -279,3 +279,30 @@ fn mcap_recording_is_on_only_where_it_was_built() {
     }
     assert!(!parse("[record]\ndir = \"r\"").unwrap().record_mcap);
 }
+
+/// `[foxglove] listen`: an address and port on loopback (the protocol has no authentication),
+/// in a build with the `foxglove` feature; anything else is refused naming the key.
+#[test]
+fn the_live_view_listens_on_loopback_only() {
+    for bad in [
+        "localhost",
+        "0.0.0.0:8765",
+        "192.168.1.5:8765",
+        "[::]:8765",
+        "127.0.0.1:99999",
+    ] {
+        let e = parse(&format!("[foxglove]\nlisten = \"{bad}\""))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("foxglove.listen"), "{bad}: {e}");
+    }
+    let r = parse("[foxglove]\nlisten = \"127.0.0.1:8765\"");
+    if cfg!(feature = "foxglove") {
+        assert_eq!(r.unwrap().foxglove_listen, Some("127.0.0.1:8765".parse().unwrap()));
+        assert!(parse("[foxglove]\nlisten = \"[::1]:8765\"").is_ok());
+    } else {
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("foxglove.listen") && e.contains("feature"), "{e}");
+    }
+    assert_eq!(parse("").unwrap().foxglove_listen, None);
+}

@@ -1,0 +1,136 @@
+//! The live view (the `foxglove` feature): the daemon serves the Foxglove WebSocket protocol
+//! (`foxglove.websocket.v1`, through Foxglove's SDK) on a loopback address, and publishes, as
+//! ROS 2 messages in CDR (the same encoding as the MCAP recordings, `crate::ros`):
+//! - `/sqscan/points`, `sensor_msgs/msg/PointCloud2`: every completed sweep;
+//! - `/sqscan/joint_states`, `sensor_msgs/msg/JointState`: the PTU's pan and tilt at each of the
+//!   sweep's profiles;
+//! - `/sqscan/detections`, `vision_msgs/msg/Detection3DArray`: every detection as it is made
+//!   (asked by a client or watched), one object a message, an empty array for "not here".
+//!
+//! Foxglove decodes `ros2msg` schemas with CDR itself; nothing of ROS needs to be installed.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+
+use anyhow::{Context as _, Result};
+use foxglove::{ChannelBuilder, PartialMetadata, RawChannel, Schema, WebSocketServer};
+
+use super::state::{Shared, SweepEntry};
+use super::topics;
+use crate::ros::{self, Found, Header, Time, schema};
+
+struct Channels {
+    points: Arc<RawChannel>,
+    joints: Arc<RawChannel>,
+    detections: Arc<RawChannel>,
+}
+
+fn channel(ctx: &Arc<foxglove::Context>, topic: &str, name: &str, text: String) -> Result<Arc<RawChannel>> {
+    ChannelBuilder::new(topic)
+        .context(ctx)
+        .message_encoding("cdr")
+        .schema(Schema::new(name, "ros2msg", text.into_bytes()))
+        .build_raw()
+        .with_context(|| format!("the live view's channel {topic}"))
+}
+
+/// Serves the view on `listen` until the daemon stops. A view that cannot start stops the daemon
+/// (the configuration asked for it).
+pub async fn run(shared: Arc<Shared>, listen: SocketAddr) {
+    if let Err(e) = serve(&shared, listen).await {
+        let msg = format!("the Foxglove view on {listen}: {e:#}");
+        tracing::error!("{msg}");
+        shared.failure.send_replace(Some(msg));
+    }
+}
+
+async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
+    let ctx = foxglove::Context::new();
+    let server = WebSocketServer::new()
+        .name("sqscand")
+        .bind(listen.ip().to_string(), listen.port())
+        .context(&ctx)
+        .start()
+        .await
+        .context("cannot start the server")?;
+    tracing::info!("Foxglove view on ws://{listen}");
+    let channels = Channels {
+        points: channel(&ctx, topics::POINTS, schema::POINT_CLOUD2, schema::point_cloud2())?,
+        joints: channel(&ctx, topics::JOINTS, schema::JOINT_STATE, schema::joint_state())?,
+        detections: channel(
+            &ctx,
+            topics::DETECTIONS,
+            schema::DETECTION3D_ARRAY,
+            schema::detection3d_array(),
+        )?,
+    };
+    let mut sweeps = shared.latest.subscribe();
+    let mut detected = shared.detected.subscribe();
+    let mut shutdown = shared.shutdown.subscribe();
+    loop {
+        tokio::select! {
+            changed = sweeps.changed() => {
+                if changed.is_err() {
+                    break;
+                }
+                let entry = sweeps.borrow_and_update().clone();
+                if let Some(entry) = entry {
+                    let (c, f) = (channels.points.clone(), channels.joints.clone());
+                    let frame = shared.config().frame_id.clone();
+                    // Encoding a 600 000-point cloud takes a few milliseconds: off the runtime.
+                    let _ = tokio::task::spawn_blocking(move || publish_sweep(&c, &f, &entry, &frame)).await;
+                }
+            }
+            event = detected.recv() => match event {
+                Ok((entry, model, d)) => {
+                    let frame = shared.config().frame_id.clone();
+                    let stamp = Time::from_unix_s(topics::last_profile_unix_s(&entry));
+                    let h = Header { stamp, frame_id: &frame };
+                    let bbox = ros::model_bbox(&model);
+                    let found: Vec<Found> = d.report.detections.iter().filter(|x| x.found).map(|x| Found {
+                        object: &model.name,
+                        confidence: x.confidence,
+                        pose: x.pose,
+                        bbox,
+                    }).collect();
+                    channels.detections.log_with_meta(&ros::detection3d_array(&h, &found), at(stamp));
+                }
+                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::warn!("the Foxglove view fell behind and skipped {n} detections");
+                }
+                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+            },
+            r = shutdown.changed() => {
+                if r.is_err() || *shutdown.borrow() {
+                    break;
+                }
+            }
+        }
+    }
+    let _ = server.stop();
+    Ok(())
+}
+
+fn at(stamp: Time) -> PartialMetadata {
+    PartialMetadata {
+        log_time: Some(stamp.nanos()),
+    }
+}
+
+fn publish_sweep(points: &RawChannel, joints: &RawChannel, entry: &SweepEntry, frame: &str) {
+    let sweep = &entry.sweep;
+    let last = topics::last_profile_unix_s(entry);
+    if joints.has_sinks() {
+        let angles = sweep.pan_rad.iter().zip(&sweep.tilt_rad);
+        for (t, (pan, tilt)) in topics::profile_unix_s(entry).zip(angles) {
+            let stamp = Time::from_unix_s(t);
+            let h = Header { stamp, frame_id: "" };
+            joints.log_with_meta(&ros::joint_state(&h, &topics::JOINT_NAMES, &[*pan, *tilt]), at(stamp));
+        }
+    }
+    if points.has_sinks() {
+        let stamp = Time::from_unix_s(last);
+        let h = Header { stamp, frame_id: frame };
+        points.log_with_meta(&ros::point_cloud2(&sweep.cloud, &h), at(stamp));
+    }
+}
