@@ -19,7 +19,7 @@ use super::state::{Detected, SweepEntry};
 use super::topics;
 use crate::atomic::write_atomic;
 use crate::model::Model;
-use crate::ros::{self, Found, Header, Time, schema};
+use crate::ros::{Time, schema};
 
 /// Writes `path` (atomically, as the PCD and JSON are) for one sweep and the detections made on
 /// it.
@@ -48,30 +48,14 @@ pub fn write(
             schema::detection3d_array(),
             topics::DETECTIONS,
         )?;
-        let sweep = &entry.sweep;
-        let last = topics::last_profile_unix_s(entry);
         // The joint states first, in time order, then the cloud and the detections at the end.
-        let angles = sweep.pan_rad.iter().zip(&sweep.tilt_rad);
-        for (i, (t, (pan, tilt))) in topics::profile_unix_s(entry).zip(angles).enumerate() {
-            let stamp = Time::from_unix_s(t);
-            let h = Header { stamp, frame_id: "" };
-            let data = ros::joint_state(&h, &topics::JOINT_NAMES, &[*pan, *tilt]);
+        for (i, (stamp, data)) in topics::joint_states(entry).enumerate() {
             out.write_to_known_channel(&message(joints, i as u32, stamp), &data)?;
         }
-        let stamp = Time::from_unix_s(last);
-        let h = Header { stamp, frame_id: frame };
-        out.write_to_known_channel(&message(points, 0, stamp), &ros::point_cloud2(&sweep.cloud, &h))?;
-        let mut objects: Vec<Found> = Vec::new();
-        for (model, d) in detections {
-            let bbox = ros::model_bbox(model);
-            objects.extend(d.report.detections.iter().filter(|x| x.found).map(|x| Found {
-                object: &model.name,
-                confidence: x.confidence,
-                pose: x.pose,
-                bbox,
-            }));
-        }
-        out.write_to_known_channel(&message(found, 0, stamp), &ros::detection3d_array(&h, &objects))?;
+        let (stamp, data) = topics::cloud(entry, frame);
+        out.write_to_known_channel(&message(points, 0, stamp), &data)?;
+        let (stamp, data) = topics::detections(entry, detections, frame);
+        out.write_to_known_channel(&message(found, 0, stamp), &data)?;
         let mut fields = BTreeMap::new();
         if let Some(m) = meta.as_object() {
             for (k, v) in m {

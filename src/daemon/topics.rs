@@ -1,9 +1,12 @@
-//! The ROS 2 topics sqscand publishes on (the live view) and records (MCAP), and the times
-//! their messages carry.
+//! The ROS 2 topics sqscand publishes on (the live view) and records (MCAP), their messages
+//! and the times they carry: one encoding for both.
 
+use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
-use super::state::SweepEntry;
+use super::state::{Detected, SweepEntry};
+use crate::model::Model;
+use crate::ros::{self, Found, Header, Time};
 
 /// The sweeps' clouds (`sensor_msgs/msg/PointCloud2`).
 pub const POINTS: &str = "/sqscan/points";
@@ -24,11 +27,47 @@ pub fn last_profile_unix_s(entry: &SweepEntry) -> f64 {
         .as_secs_f64()
 }
 
-/// Unix time (s) of each profile's exposure, from the last one's and the sweep's stamps.
-pub fn profile_unix_s(entry: &SweepEntry) -> impl Iterator<Item = f64> + '_ {
+/// Each profile's `JointState` (pan and tilt), in time order, with its stamp.
+pub fn joint_states(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
+    let sweep = &entry.sweep;
     let last = last_profile_unix_s(entry);
-    let stamps = &entry.sweep.stamp_s;
-    let last_stamp = stamps.last().copied().unwrap_or(0.0);
-    (0..entry.sweep.pan_rad.len().min(entry.sweep.tilt_rad.len()))
-        .map(move |i| last - (last_stamp - stamps.get(i).copied().unwrap_or(last_stamp)))
+    let last_stamp = sweep.stamp_s.last().copied().unwrap_or(0.0);
+    sweep
+        .pan_rad
+        .iter()
+        .zip(&sweep.tilt_rad)
+        .enumerate()
+        .map(move |(i, (pan, tilt))| {
+            let stamp = Time::from_unix_s(last - (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp)));
+            let h = Header { stamp, frame_id: "" };
+            (stamp, ros::joint_state(&h, &JOINT_NAMES, &[*pan, *tilt]))
+        })
+}
+
+/// The sweep's `PointCloud2` in `frame`, stamped with the last profile's time.
+pub fn cloud(entry: &SweepEntry, frame: &str) -> (Time, Vec<u8>) {
+    let stamp = Time::from_unix_s(last_profile_unix_s(entry));
+    (
+        stamp,
+        ros::point_cloud2(&entry.sweep.cloud, &Header { stamp, frame_id: frame }),
+    )
+}
+
+/// One `Detection3DArray` of the objects found in `detections` on the sweep, at the sweep's time.
+pub fn detections(entry: &SweepEntry, detections: &[(Arc<Model>, Arc<Detected>)], frame: &str) -> (Time, Vec<u8>) {
+    let stamp = Time::from_unix_s(last_profile_unix_s(entry));
+    let mut found: Vec<Found> = Vec::new();
+    for (model, d) in detections {
+        let bbox = ros::model_bbox(model);
+        found.extend(d.report.detections.iter().filter(|x| x.found).map(|x| Found {
+            object: &model.name,
+            confidence: x.confidence,
+            pose: x.pose,
+            bbox,
+        }));
+    }
+    (
+        stamp,
+        ros::detection3d_array(&Header { stamp, frame_id: frame }, &found),
+    )
 }

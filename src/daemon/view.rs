@@ -1,5 +1,5 @@
 //! The live view (the `foxglove` feature): the daemon serves the Foxglove WebSocket protocol
-//! (`foxglove.websocket.v1`, through Foxglove's SDK) on a loopback address, and publishes, as
+//! (subprotocol `foxglove.sdk.v1`, through Foxglove's SDK) on a loopback address, and publishes, as
 //! ROS 2 messages in CDR (the same encoding as the MCAP recordings, `crate::ros`):
 //! - `/sqscan/points`, `sensor_msgs/msg/PointCloud2`: every completed sweep;
 //! - `/sqscan/joint_states`, `sensor_msgs/msg/JointState`: the PTU's pan and tilt at each of the
@@ -17,7 +17,7 @@ use foxglove::{ChannelBuilder, PartialMetadata, RawChannel, Schema, WebSocketSer
 
 use super::state::{Shared, SweepEntry};
 use super::topics;
-use crate::ros::{self, Found, Header, Time, schema};
+use crate::ros::{Time, schema};
 
 struct Channels {
     points: Arc<RawChannel>,
@@ -84,16 +84,8 @@ async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
             event = detected.recv() => match event {
                 Ok((entry, model, d)) => {
                     let frame = shared.config().frame_id.clone();
-                    let stamp = Time::from_unix_s(topics::last_profile_unix_s(&entry));
-                    let h = Header { stamp, frame_id: &frame };
-                    let bbox = ros::model_bbox(&model);
-                    let found: Vec<Found> = d.report.detections.iter().filter(|x| x.found).map(|x| Found {
-                        object: &model.name,
-                        confidence: x.confidence,
-                        pose: x.pose,
-                        bbox,
-                    }).collect();
-                    channels.detections.log_with_meta(&ros::detection3d_array(&h, &found), at(stamp));
+                    let (stamp, data) = topics::detections(&entry, &[(model, d)], &frame);
+                    channels.detections.log_with_meta(&data, at(stamp));
                 }
                 Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
                     tracing::warn!("the Foxglove view fell behind and skipped {n} detections");
@@ -118,19 +110,13 @@ fn at(stamp: Time) -> PartialMetadata {
 }
 
 fn publish_sweep(points: &RawChannel, joints: &RawChannel, entry: &SweepEntry, frame: &str) {
-    let sweep = &entry.sweep;
-    let last = topics::last_profile_unix_s(entry);
     if joints.has_sinks() {
-        let angles = sweep.pan_rad.iter().zip(&sweep.tilt_rad);
-        for (t, (pan, tilt)) in topics::profile_unix_s(entry).zip(angles) {
-            let stamp = Time::from_unix_s(t);
-            let h = Header { stamp, frame_id: "" };
-            joints.log_with_meta(&ros::joint_state(&h, &topics::JOINT_NAMES, &[*pan, *tilt]), at(stamp));
+        for (stamp, data) in topics::joint_states(entry) {
+            joints.log_with_meta(&data, at(stamp));
         }
     }
     if points.has_sinks() {
-        let stamp = Time::from_unix_s(last);
-        let h = Header { stamp, frame_id: frame };
-        points.log_with_meta(&ros::point_cloud2(&sweep.cloud, &h), at(stamp));
+        let (stamp, data) = topics::cloud(entry, frame);
+        points.log_with_meta(&data, at(stamp));
     }
 }
