@@ -168,7 +168,9 @@ pub fn voxel_subsample(points: &[Point3<f64>], voxel: f64) -> Vec<usize> {
     if points.is_empty() || !(voxel > 0.0) {
         return (0..points.len()).collect();
     }
-    let mut seen: VoxelSet = VoxelSet::with_capacity_and_hasher(points.len() / 4, Default::default());
+    // Room for a key per point: a set that grows rehashes its keys at every doubling, which on a
+    // subsample that keeps most points cost more than the inserts.
+    let mut seen: VoxelSet = VoxelSet::with_capacity_and_hasher(points.len(), Default::default());
     let mut keep = Vec::new();
     let inv = 1.0 / voxel;
     for (i, p) in points.iter().enumerate() {

@@ -202,11 +202,7 @@ pub fn score(
         let g = Grid::new(&explained, reach);
         outside_near
             .iter()
-            .filter(|p| {
-                let mut adjacent = false;
-                g.for_each_within(&explained, p, reach, |_| adjacent = true);
-                adjacent
-            })
+            .filter(|p| g.any_within(&explained, p, reach))
             .count()
     };
     let shell_points = shell_points
@@ -429,9 +425,7 @@ fn coverage(
             continue;
         }
         expected += 1;
-        let mut hit = false;
-        grid.for_each_within(observed, &p, reach, |_| hit = true);
-        if hit {
+        if grid.any_within(observed, &p, reach) {
             covered += 1;
         }
     }
@@ -613,11 +607,7 @@ pub fn visibility(
     let mut vis = Visibility::default();
     let Some(v) = viewpoint else { return vis };
     let reach = 1.2 * samples.spacing;
-    let any_near = |q: &Point3<f64>, r: f64| {
-        let mut hit = false;
-        all_grid.for_each_within(all_points, q, r, |_| hit = true);
-        hit
-    };
+    let any_near = |q: &Point3<f64>, r: f64| all_grid.any_within(all_points, q, r);
     for (q, n) in &samples.local {
         let p = placed.pose.transform_point(&Point3::from(*q));
         let n = placed.pose.rotation * n;

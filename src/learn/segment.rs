@@ -89,11 +89,7 @@ pub(super) fn with_nearby_clusters(
         if k == best || c.len() < 10 {
             continue;
         }
-        let near = c.iter().any(|&i| {
-            let mut hit = false;
-            grid.for_each_within(&main, &flat(&points[i]), gap, |_| hit = true);
-            hit
-        });
+        let near = c.iter().any(|&i| grid.any_within(&main, &flat(&points[i]), gap));
         if near {
             object.extend_from_slice(c);
         }
