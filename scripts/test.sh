@@ -32,19 +32,19 @@ fi
 # The package test fails, instead of skipping, where its tools are missing.
 export SQSCAN_REQUIRE_PACKAGE_TOOLS=1
 
-# The MCAP and live-view tests check the daemon with independent readers from PyPI (mcap,
-# mcap-ros2-support's ROS 2 decoder, and websockets for a Foxglove client), in a venv of their
-# own under target/.
+# The MCAP, live-view and ROS 2 tests check the daemon with independent readers from PyPI (mcap,
+# mcap-ros2-support's ROS 2 decoder, websockets for a Foxglove client, and Eclipse Cyclone DDS,
+# whose wheel carries its C library), in a venv of their own under target/.
 venv=target/py-venv
-if ! "$venv/bin/python" -c "import mcap, mcap_ros2, websockets" >/dev/null 2>&1; then
-    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support, websockets)"
+if ! "$venv/bin/python" -c "import mcap, mcap_ros2, websockets, cyclonedds" >/dev/null 2>&1; then
+    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support, websockets, cyclonedds)"
     python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet --disable-pip-version-check \
-        mcap==1.6.0 mcap-ros2-support==0.6.0 websockets==15.0.1
+        mcap==1.6.0 mcap-ros2-support==0.6.0 websockets==15.0.1 cyclonedds==11.0.1
 fi
 export SQSCAN_PYTHON="$PWD/$venv/bin/python"
 export SQSCAN_REQUIRE_PYTHON_TOOLS=1
 
-# The GigE Vision tests run inside a private network namespace with only loopback (unshare -n,
-# root): they say SKIPPED where none can be had.
+# The GigE Vision and ROS 2 (DDS) tests run inside a private network namespace with only loopback
+# (unshare -n, root): they say SKIPPED where none can be had.
 cargo test --workspace --locked --all-features

@@ -14,7 +14,9 @@ use std::fmt;
 use tracing::{Event, Level, Subscriber};
 use tracing_subscriber::fmt::format::{FormatEvent, FormatFields, Writer};
 use tracing_subscriber::fmt::{FmtContext, FormattedFields};
+use tracing_subscriber::layer::SubscriberExt;
 use tracing_subscriber::registry::LookupSpan;
+use tracing_subscriber::util::SubscriberInitExt;
 
 /// The syslog priority of a level (sd-daemon(3): `<3>` error, `<4>` warning, `<6>` info,
 /// `<7>` debug).
@@ -93,9 +95,35 @@ pub fn init(default: tracing::Level) {
         .with_writer(std::io::stderr)
         .with_max_level(level)
         .with_target(false);
+    let quiet = libraries(level);
     if stderr_is_journal() {
-        builder.with_ansi(false).event_format(JournalLines).init();
+        builder
+            .with_ansi(false)
+            .event_format(JournalLines)
+            .finish()
+            .with(quiet)
+            .init();
     } else {
-        builder.with_ansi(std::io::stderr().is_terminal()).init();
+        builder
+            .with_ansi(std::io::stderr().is_terminal())
+            .finish()
+            .with(quiet)
+            .init();
     }
+}
+
+/// The DDS stack (the `ros2` feature) logs each large datagram and each change of a remote
+/// reader as warnings and information: at our `info` and `warn` only its errors are shown, and
+/// all of it from `debug` on.
+fn libraries(level: Level) -> tracing_subscriber::filter::Targets {
+    use tracing_subscriber::filter::LevelFilter;
+    let dds = if level >= Level::DEBUG {
+        LevelFilter::from_level(level)
+    } else {
+        LevelFilter::ERROR
+    };
+    tracing_subscriber::filter::Targets::new()
+        .with_default(LevelFilter::from_level(level))
+        .with_target("rustdds", dds)
+        .with_target("ros2_client", dds)
 }

@@ -30,6 +30,29 @@ pub trait Backend: Send + 'static {
 
     /// Leaves the devices quiet; bounded in time (the daemon is stopping).
     fn stop(&mut self) -> impl Future<Output = ()> + Send;
+
+    /// Where the PTU and the sensor are mounted (published on ROS 2's `/tf_static`); `None` for
+    /// a backend that knows no rig (a replay).
+    fn mount(&self) -> Option<Mount> {
+        None
+    }
+}
+
+/// The rig's fixed transforms: the PTU frame (pan and tilt axes' intersection) in the base
+/// frame, and the sensor frame in the tilt link's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Mount {
+    pub ptu_in_base: nalgebra::Isometry3<f64>,
+    pub sensor_in_tilt: nalgebra::Isometry3<f64>,
+}
+
+impl Mount {
+    pub fn of(c: &crate::calibration::Calibration) -> Mount {
+        Mount {
+            ptu_in_base: c.ptu_in_base,
+            sensor_in_tilt: c.sensor_in_tilt,
+        }
+    }
 }
 
 /// A sweep as a backend delivers it: the sweep, and when it happened on this host.

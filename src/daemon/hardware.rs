@@ -352,6 +352,10 @@ impl Backend for HardwareBackend {
             let _ = tokio::time::timeout(Duration::from_millis(200), s.stop()).await;
         }
     }
+
+    fn mount(&self) -> Option<super::backend::Mount> {
+        Some(super::backend::Mount::of(&self.calib))
+    }
 }
 
 /// One device path of [`HardwareBackend::check_devices`].

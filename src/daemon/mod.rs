@@ -32,11 +32,13 @@ mod record;
 mod record_mcap;
 mod replay;
 pub mod reply;
+#[cfg(feature = "ros2")]
+mod ros2;
 mod server;
 mod simulator;
 mod socket;
 mod state;
-#[cfg(any(feature = "mcap", feature = "foxglove"))]
+#[cfg(any(feature = "mcap", feature = "foxglove", feature = "ros2"))]
 mod topics;
 #[cfg(feature = "foxglove")]
 mod view;
@@ -168,6 +170,8 @@ impl Daemon {
         let notifier = notifier.map(Arc::new);
         check_watch(&config, &models)?;
         let socket = listeners.socket_path().map(Path::to_owned);
+        #[cfg(feature = "ros2")]
+        let mount = backend.mount();
         let shared = Arc::new(Shared::new(config, models, backend.name()));
         let essential = [
             ("acquisition", tokio::spawn(acquire::run(shared.clone(), backend))),
@@ -177,6 +181,10 @@ impl Daemon {
         #[cfg(feature = "foxglove")]
         if let Some(listen) = shared.config().foxglove_listen {
             tasks.push(tokio::spawn(view::run(shared.clone(), listen)));
+        }
+        #[cfg(feature = "ros2")]
+        if let Some(cfg) = shared.config().ros2.clone() {
+            tasks.push(tokio::spawn(ros2::run(shared.clone(), cfg, mount)));
         }
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {

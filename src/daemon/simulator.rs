@@ -98,4 +98,11 @@ impl Backend for SimBackend {
     }
 
     async fn stop(&mut self) {}
+
+    fn mount(&self) -> Option<super::backend::Mount> {
+        Some(super::backend::Mount {
+            ptu_in_base: self.scene.rig.ptu_in_base,
+            sensor_in_tilt: self.scene.rig.sensor_in_tilt,
+        })
+    }
 }

@@ -1,5 +1,6 @@
-//! The ROS 2 topics sqscand publishes on (the live view) and records (MCAP), their messages
-//! and the times they carry: one encoding for both.
+//! The ROS 2 topics sqscand publishes on (the live view, ROS 2) and records (MCAP), their
+//! messages and the times they carry: one encoding for all. The ROS 2 node's topic names are
+//! configurable (`[ros2]`); these are the defaults, and the names the others use.
 
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
@@ -9,10 +10,13 @@ use crate::model::Model;
 use crate::ros::{self, Found, Header, Time};
 
 /// The sweeps' clouds (`sensor_msgs/msg/PointCloud2`).
+#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const POINTS: &str = "/sqscan/points";
 /// The PTU's joint angles at each profile (`sensor_msgs/msg/JointState`).
+#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const JOINTS: &str = "/sqscan/joint_states";
 /// The detections (`vision_msgs/msg/Detection3DArray`).
+#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const DETECTIONS: &str = "/sqscan/detections";
 /// The joints' names in `JointState`.
 pub const JOINT_NAMES: [&str; 2] = ["ptu_pan", "ptu_tilt"];

@@ -40,7 +40,7 @@ impl Time {
 }
 
 /// `std_msgs/Header`.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct Header<'a> {
     pub stamp: Time,
     pub frame_id: &'a str,
@@ -153,10 +153,17 @@ pub fn point_cloud2(cloud: &PointCloud, h: &Header) -> Vec<u8> {
     w.finish()
 }
 
-/// A `sensor_msgs/PointCloud2` as a cloud: `x`, `y`, `z` (float32 or float64) as the points,
-/// every other scalar field kept with its type, `height x width` kept. Errors name the field that
-/// is wrong; sizes are checked against the bytes present before anything is allocated.
-pub fn read_point_cloud2(msg: &[u8]) -> Result<PointCloud, String> {
+/// A `PointCloud2` up to its `data`, and the `is_dense` after it.
+struct Head<'a> {
+    height: usize,
+    width: usize,
+    /// Name, offset, datatype, count.
+    fields: Vec<(&'a str, usize, u8, usize)>,
+    step: usize,
+    data: &'a [u8],
+}
+
+fn head(msg: &[u8]) -> Result<Head<'_>, String> {
     let mut r = cdr::CdrReader::new(msg)?;
     r.i32("header.stamp.sec")?;
     r.u32("header.stamp.nanosec")?;
@@ -182,6 +189,34 @@ pub fn read_point_cloud2(msg: &[u8]) -> Result<PointCloud, String> {
     r.u32("row_step")?;
     let data = r.bytes("data")?;
     r.bool("is_dense")?;
+    Ok(Head {
+        height,
+        width,
+        fields,
+        step,
+        data,
+    })
+}
+
+/// Where a `PointCloud2`'s `data` lies in the message (after its length), `None` where the
+/// message is not one.
+pub fn point_cloud2_data(msg: &[u8]) -> Option<std::ops::Range<usize>> {
+    let data = head(msg).ok()?.data;
+    let start = data.as_ptr() as usize - msg.as_ptr() as usize;
+    Some(start..start + data.len())
+}
+
+/// A `sensor_msgs/PointCloud2` as a cloud: `x`, `y`, `z` (float32 or float64) as the points,
+/// every other scalar field kept with its type, `height x width` kept. Errors name the field that
+/// is wrong; sizes are checked against the bytes present before anything is allocated.
+pub fn read_point_cloud2(msg: &[u8]) -> Result<PointCloud, String> {
+    let Head {
+        height,
+        width,
+        fields,
+        step,
+        data,
+    } = head(msg)?;
     let n = height
         .checked_mul(width)
         .filter(|&n| n.checked_mul(step) == Some(data.len()))

@@ -11,6 +11,7 @@
 pub mod flir;
 #[cfg(feature = "gige")]
 pub mod gige;
+pub mod netns;
 pub mod powercube;
 pub mod sensor;
 

@@ -46,6 +46,7 @@ struct ConfigFile {
     detect: DetectFile,
     record: Option<RecordFile>,
     foxglove: Option<FoxgloveFile>,
+    ros2: Option<Ros2File>,
     #[serde(default)]
     watch: WatchFile,
 }
@@ -166,6 +167,162 @@ struct FoxgloveFile {
 
 #[derive(Debug, Clone, Deserialize, Default)]
 #[serde(deny_unknown_fields)]
+struct Ros2File {
+    /// The DDS domain, as `ROS_DOMAIN_ID` (default 0).
+    domain_id: Option<u16>,
+    /// The node's name (default `sqscand`) and namespace (default `/`).
+    node: Option<String>,
+    namespace: Option<String>,
+    /// Topic names (defaults `/sqscan/points`, `/sqscan/joint_states`, `/sqscan/detections`).
+    points: Option<String>,
+    joint_states: Option<String>,
+    detections: Option<String>,
+    /// `"reliable"` (default) or `"best_effort"`.
+    reliability: Option<String>,
+    /// `"volatile"` (default) or `"transient_local"`.
+    durability: Option<String>,
+    /// Messages a topic keeps for a subscriber that is behind (keep-last depth, default 5).
+    depth: Option<usize>,
+}
+
+/// The ROS 2 node (`[ros2]`, the `ros2` feature).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ros2Config {
+    pub domain_id: u16,
+    pub node: String,
+    pub namespace: String,
+    pub points: String,
+    pub joint_states: String,
+    pub detections: String,
+    pub reliable: bool,
+    pub transient_local: bool,
+    pub depth: usize,
+}
+
+impl Default for Ros2Config {
+    fn default() -> Self {
+        Ros2Config {
+            domain_id: 0,
+            node: "sqscand".into(),
+            namespace: "/".into(),
+            points: "/sqscan/points".into(),
+            joint_states: "/sqscan/joint_states".into(),
+            detections: "/sqscan/detections".into(),
+            reliable: true,
+            transient_local: false,
+            depth: 5,
+        }
+    }
+}
+
+/// Whether `name` is a ROS 2 name of `/`-separated tokens (letters, digits and single
+/// underscores, not starting with a digit), absolute when it starts with `/`. `/` alone is the
+/// root namespace.
+fn ros_name(name: &str, namespace: bool) -> bool {
+    if namespace && name == "/" {
+        return true;
+    }
+    let body = name.strip_prefix('/').unwrap_or(name);
+    if namespace && body.len() == name.len() {
+        return false;
+    }
+    !body.is_empty()
+        && !name.contains("__")
+        && body.split('/').all(|t| {
+            t.chars().next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                && t.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        })
+}
+
+fn ros2_config(path: &Path, r: &Ros2File) -> Result<Ros2Config, SpecError> {
+    let mut c = Ros2Config::default();
+    if let Some(d) = r.domain_id {
+        // DDS maps a domain to UDP ports 7400 + 250 * domain and up: past 232 they leave the range.
+        if d > limits::ROS_DOMAIN_ID {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.domain_id",
+                format!("{d}: give a domain from 0 to {} (ROS_DOMAIN_ID)", limits::ROS_DOMAIN_ID),
+            ));
+        }
+        c.domain_id = d;
+    }
+    if let Some(n) = &r.node {
+        if n.contains('/') || !ros_name(n, false) {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.node",
+                format!("{n:?}: give a node name like \"sqscand\" (letters, digits and _)"),
+            ));
+        }
+        c.node = n.clone();
+    }
+    if let Some(n) = &r.namespace {
+        if !ros_name(n, true) {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.namespace",
+                format!("{n:?}: give an absolute namespace like \"/\" or \"/robot1\""),
+            ));
+        }
+        c.namespace = n.clone();
+    }
+    for (key, given, to) in [
+        ("ros2.points", &r.points, &mut c.points),
+        ("ros2.joint_states", &r.joint_states, &mut c.joint_states),
+        ("ros2.detections", &r.detections, &mut c.detections),
+    ] {
+        if let Some(t) = given {
+            if !ros_name(t, false) {
+                return Err(SpecError::invalid(
+                    path,
+                    key,
+                    format!(
+                        "{t:?}: give a topic name like \"/sqscan/points\" (tokens of letters, digits and _ \
+                         separated by /, none starting with a digit)"
+                    ),
+                ));
+            }
+            *to = t.clone();
+        }
+    }
+    match r.reliability.as_deref() {
+        None | Some("reliable") => c.reliable = true,
+        Some("best_effort") => c.reliable = false,
+        Some(o) => {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.reliability",
+                format!("{o:?}: give \"reliable\" or \"best_effort\""),
+            ));
+        }
+    }
+    match r.durability.as_deref() {
+        None | Some("volatile") => c.transient_local = false,
+        Some("transient_local") => c.transient_local = true,
+        Some(o) => {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.durability",
+                format!("{o:?}: give \"volatile\" or \"transient_local\""),
+            ));
+        }
+    }
+    if let Some(d) = count_within(path, "ros2.depth", r.depth, limits::ROS_DEPTH)? {
+        c.depth = d;
+    }
+    if !cfg!(feature = "ros2") {
+        return Err(SpecError::invalid(
+            path,
+            "ros2",
+            "this sqscand was built without ROS 2 (cargo feature `ros2`)",
+        ));
+    }
+    Ok(c)
+}
+
+#[derive(Debug, Clone, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
 struct WatchFile {
     /// Objects detected on every sweep whether or not a client asks.
     #[serde(default)]
@@ -235,6 +392,8 @@ pub struct Config {
     pub record_mcap: bool,
     /// Where the live view (Foxglove WebSocket) listens; `None`: no view.
     pub foxglove_listen: Option<std::net::SocketAddr>,
+    /// The ROS 2 node; `None`: none.
+    pub ros2: Option<Ros2Config>,
     pub watch: Vec<String>,
     /// The frame the sweeps' points and the poses are in, as replies and recordings name it.
     pub frame_id: String,
@@ -302,6 +461,10 @@ pub mod limits {
     pub const REPLAY_SPEED: (f64, f64) = (0.0, 1000.0);
     /// Range cut of the detector (m).
     pub const MAX_RANGE_M: (f64, f64) = (0.01, 1000.0);
+    /// The largest DDS domain id whose ports stay below 65 536.
+    pub const ROS_DOMAIN_ID: u16 = 232;
+    /// A ROS 2 topic's keep-last depth: each kept cloud holds a sweep's points.
+    pub const ROS_DEPTH: (usize, usize) = (1, 1000);
 }
 
 /// A number within `range`, or an error naming the field and the range.
@@ -363,6 +526,7 @@ impl Config {
             record_keep: 20,
             record_mcap: false,
             foxglove_listen: None,
+            ros2: None,
             watch: Vec::new(),
             frame_id: "base_link".into(),
         }
@@ -656,6 +820,9 @@ impl Config {
                 ));
             }
             c.foxglove_listen = Some(addr);
+        }
+        if let Some(r) = &raw.ros2 {
+            c.ros2 = Some(ros2_config(path, r)?);
         }
         c.watch = raw.watch.objects.clone();
         Ok(c)

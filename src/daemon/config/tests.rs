@@ -306,3 +306,51 @@ fn the_live_view_listens_on_loopback_only() {
     }
     assert_eq!(parse("").unwrap().foxglove_listen, None);
 }
+
+/// `[ros2]`: names as ROS 2 takes them, a domain whose ports exist, a depth within bounds and
+/// the QoS words ROS 2 uses; each refused value names its key. Without the `ros2` feature the
+/// table itself is refused, naming the feature.
+#[test]
+fn the_ros2_table_is_validated_key_by_key() {
+    for (bad, key) in [
+        ("domain_id = 233", "ros2.domain_id"),
+        ("domain_id = -1", "domain_id"),
+        ("node = \"\"", "ros2.node"),
+        ("node = \"my node\"", "ros2.node"),
+        ("node = \"a/b\"", "ros2.node"),
+        ("node = \"9lives\"", "ros2.node"),
+        ("namespace = \"robot\"", "ros2.namespace"),
+        ("namespace = \"/robot/\"", "ros2.namespace"),
+        ("points = \"/sqscan//points\"", "ros2.points"),
+        ("points = \"/sqscan/points/\"", "ros2.points"),
+        ("joint_states = \"/a__b\"", "ros2.joint_states"),
+        ("detections = \"/sqscan/1st\"", "ros2.detections"),
+        ("detections = \"~/private\"", "ros2.detections"),
+        ("reliability = \"sometimes\"", "ros2.reliability"),
+        ("durability = \"persistent\"", "ros2.durability"),
+        ("depth = 0", "ros2.depth"),
+        ("depth = 100000", "ros2.depth"),
+        ("topic = \"/x\"", "topic"),
+    ] {
+        let e = parse(&format!("[ros2]\n{bad}")).unwrap_err().to_string();
+        assert!(e.contains(key), "{bad}: {e}");
+    }
+    let r = parse(
+        "[ros2]\ndomain_id = 42\nnode = \"scanner_1\"\nnamespace = \"/robot1\"\npoints = \"cloud\"\n\
+         reliability = \"best_effort\"\ndurability = \"transient_local\"\ndepth = 2",
+    );
+    if cfg!(feature = "ros2") {
+        let c = r.unwrap().ros2.unwrap();
+        assert_eq!(c.domain_id, 42);
+        assert_eq!((c.node.as_str(), c.namespace.as_str()), ("scanner_1", "/robot1"));
+        assert_eq!(c.points, "cloud");
+        assert_eq!(c.detections, "/sqscan/detections");
+        assert!(!c.reliable && c.transient_local);
+        assert_eq!(c.depth, 2);
+        assert_eq!(parse("[ros2]").unwrap().ros2, Some(super::Ros2Config::default()));
+    } else {
+        let e = r.unwrap_err().to_string();
+        assert!(e.contains("ros2") && e.contains("feature"), "{e}");
+    }
+    assert_eq!(parse("").unwrap().ros2, None);
+}

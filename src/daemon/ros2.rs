@@ -1,0 +1,368 @@
+//! ROS 2 over DDS (the `ros2` feature): sqscand is a ROS 2 node, through `ros2-client` on
+//! RustDDS, that ROS 2's own nodes discover and subscribe to, with no ROS installed here. It
+//! publishes, in the configured namespace, QoS and frame (`[ros2]`, `docs/ROS2.md`):
+//! - the points topic (default `/sqscan/points`, `sensor_msgs/msg/PointCloud2`): every
+//!   completed sweep, organized, stamped with its last profile's time;
+//! - the joint states (`/sqscan/joint_states`, `sensor_msgs/msg/JointState`): the PTU's pan and
+//!   tilt at each profile, for `robot_state_publisher`;
+//! - the detections (`/sqscan/detections`, `vision_msgs/msg/Detection3DArray`): every
+//!   detection as it is made, one object a message, an empty array for "not here";
+//! - `/tf_static` (`tf2_msgs/msg/TFMessage`, transient local): the PTU's mount in the base frame
+//!   and the sensor's on the tilt link, from the rig's calibration.
+//!
+//! The messages are encoded once, by `crate::ros` (as the MCAP recordings and the live view
+//! carry them), and handed to RustDDS's serializer as they are ([`Encoded`]).
+//!
+//! Publishing runs on a thread of its own: a reliable writer may wait for a slow subscriber's
+//! acknowledgements, and that must not hold up the daemon's runtime.
+
+use std::ops::Range;
+use std::sync::Arc;
+use std::time::SystemTime;
+
+use anyhow::{Context as _, Result, anyhow};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
+    qos::{Durability, History, Reliability, WhenFull},
+};
+use serde::ser::{Serialize, SerializeTuple, Serializer};
+use tokio::sync::mpsc;
+
+use super::backend::Mount;
+use super::config::Ros2Config;
+use super::state::{DetectedEvent, Shared, SweepEntry};
+use super::topics;
+use crate::ros::{self, Header, Time, Transform};
+
+/// The PTU frame's name on `/tf_static` (the pan and tilt axes' intersection).
+pub const PTU_FRAME: &str = "ptu_base_link";
+/// The tilt link's frame, which `robot_state_publisher` places from the joint states.
+pub const TILT_FRAME: &str = "ptu_tilt_link";
+/// The sensor's frame.
+pub const SENSOR_FRAME: &str = "sqscan_sensor";
+
+/// How long a reliable writer waits for room in its window before the message is dropped: a
+/// subscriber that does not acknowledge must not stall the sweeps.
+const WAIT_WHEN_FULL: std::time::Duration = std::time::Duration::from_millis(200);
+
+/// Joint states a sweep's worth of history holds: a message a profile, 150 at the rig's pace;
+/// kept for `depth` sweeps, as the other topics keep `depth` messages.
+const JOINT_STATES_PER_SWEEP: usize = 1000;
+
+/// A message in CDR as `crate::ros` encodes it (with its 4-byte encapsulation header), given to
+/// RustDDS's CDR serializer, which writes the body as it is: byte by byte, but for `blob`, the
+/// contents of one `uint8[]` (a cloud's `data`), which goes through the serializer's bulk byte
+/// sequence (its length, then the bytes). The serializer aligns from the body's start, as
+/// `crate::ros` does, so the bytes come out the same.
+pub struct Encoded {
+    cdr: Vec<u8>,
+    blob: Option<Range<usize>>,
+}
+
+impl Encoded {
+    pub fn new(cdr: Vec<u8>) -> Encoded {
+        Encoded { cdr, blob: None }
+    }
+
+    /// A `PointCloud2`: its `data` is the `uint8[]` before the last byte (`is_dense`).
+    pub fn point_cloud2(cdr: Vec<u8>) -> Encoded {
+        let blob = ros::point_cloud2_data(&cdr);
+        Encoded { cdr, blob }
+    }
+}
+
+/// A failed write hands the message back in its error: shown by its size, not its bytes.
+impl std::fmt::Debug for Encoded {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "a message of {} bytes", self.cdr.len())
+    }
+}
+
+struct Bytes<'a>(&'a [u8]);
+
+impl Serialize for Bytes<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(self.0)
+    }
+}
+
+impl Serialize for Encoded {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let body = &self.cdr[4.min(self.cdr.len())..];
+        let mut t = s.serialize_tuple(body.len())?;
+        match &self.blob {
+            // The blob's length prefix (4 bytes) is written by the bulk sequence itself.
+            Some(r) if r.start >= 8 && r.end <= self.cdr.len() => {
+                for b in &self.cdr[4..r.start - 4] {
+                    t.serialize_element(b)?;
+                }
+                t.serialize_element(&Bytes(&self.cdr[r.clone()]))?;
+                for b in &self.cdr[r.end..] {
+                    t.serialize_element(b)?;
+                }
+            }
+            _ => {
+                for b in body {
+                    t.serialize_element(b)?;
+                }
+            }
+        }
+        t.end()
+    }
+}
+
+/// What the publishing thread is handed.
+enum Out {
+    Sweep(Arc<SweepEntry>),
+    Detection(DetectedEvent),
+}
+
+/// Messages waiting for the publishing thread; past this the newest is dropped with a warning.
+const QUEUE: usize = 16;
+
+/// Runs the node until the daemon stops. A node that cannot start stops the daemon (the
+/// configuration asked for it).
+pub async fn run(shared: Arc<Shared>, cfg: Ros2Config, mount: Option<Mount>) {
+    if let Err(e) = serve(&shared, &cfg, mount).await {
+        let msg = format!("the ROS 2 node: {e:#}");
+        tracing::error!("{msg}");
+        shared.failure.send_replace(Some(msg));
+    }
+}
+
+async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, mount: Option<Mount>) -> Result<()> {
+    let frame = shared.config().frame_id.clone();
+    let (context, mut node, pubs) = start(cfg)?;
+    let spinner = node
+        .spinner()
+        .map_err(|e| anyhow!("{e:?}"))
+        .context("the node's spinner")?;
+    let spin = tokio::spawn(async move {
+        if let Err(e) = spinner.spin().await {
+            tracing::warn!("the ROS 2 node's spinner stopped: {e:?}");
+        }
+    });
+    if let Some(m) = mount {
+        let data = static_transforms(&frame, &m, Time::from_unix_s(unix_now()));
+        if let Err(e) = pubs.tf_static.publish(Encoded::new(data)) {
+            tracing::warn!("/tf_static: {e:?}");
+        }
+    }
+    let (tx, rx) = mpsc::channel::<Out>(QUEUE);
+    let publisher = std::thread::Builder::new()
+        .name("ros2".into())
+        .spawn(move || publish_loop(rx, pubs, frame))
+        .context("the ROS 2 publishing thread")?;
+    tracing::info!(
+        "ROS 2 node {}{}{} on domain {}",
+        cfg.namespace,
+        if cfg.namespace.ends_with('/') { "" } else { "/" },
+        cfg.node,
+        cfg.domain_id
+    );
+    let mut sweeps = shared.latest.subscribe();
+    let mut detected = shared.detected.subscribe();
+    let mut shutdown = shared.shutdown.subscribe();
+    let send = |out: Out| {
+        if tx.try_send(out).is_err() {
+            tracing::warn!("ROS 2 publishing is behind: a message was dropped");
+        }
+    };
+    loop {
+        tokio::select! {
+            changed = sweeps.changed() => {
+                if changed.is_err() {
+                    break;
+                }
+                let entry = sweeps.borrow_and_update().clone();
+                if let Some(entry) = entry {
+                    send(Out::Sweep(entry));
+                }
+            }
+            event = detected.recv() => match event {
+                Ok(event) => send(Out::Detection(event)),
+                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
+                    tracing::warn!("ROS 2 publishing fell behind and skipped {n} detections");
+                }
+                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
+            },
+            r = shutdown.changed() => {
+                if r.is_err() || *shutdown.borrow() {
+                    break;
+                }
+            }
+        }
+    }
+    drop(tx);
+    let _ = tokio::task::spawn_blocking(move || publisher.join()).await;
+    // The node's entities, and the spinner's (its parameter services), leave the participant
+    // as they are dropped, which needs the participant still there: the node tells the spinner
+    // to stop as it goes, the spinner is awaited, and the context goes last.
+    drop(node);
+    if tokio::time::timeout(std::time::Duration::from_millis(500), spin)
+        .await
+        .is_err()
+    {
+        tracing::warn!("the ROS 2 node's spinner did not stop in time");
+    }
+    drop(context);
+    Ok(())
+}
+
+struct Publishers {
+    points: Publisher<Encoded>,
+    joints: Publisher<Encoded>,
+    detections: Publisher<Encoded>,
+    tf_static: Publisher<Encoded>,
+}
+
+fn qos(cfg: &Ros2Config) -> QosProfile {
+    let reliability = if cfg.reliable {
+        Reliability::Reliable {
+            when_full: WhenFull::Wait(WAIT_WHEN_FULL),
+        }
+    } else {
+        Reliability::BestEffort
+    };
+    QosProfile::publisher_default()
+        .reliability(reliability)
+        .durability(if cfg.transient_local {
+            Durability::TransientLocal
+        } else {
+            Durability::Volatile
+        })
+        .history(History::KeepLast { depth: cfg.depth })
+}
+
+fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
+    let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
+        .map_err(|e| anyhow!("{e:?}"))
+        .with_context(|| format!("cannot join DDS domain {}", cfg.domain_id))?;
+    let name = NodeName::new(&cfg.namespace, &cfg.node).map_err(|e| anyhow!("node name: {e:?}"))?;
+    let mut node = context
+        .new_node(name, NodeOptions::new().enable_rosout(false))
+        .map_err(|e| anyhow!("{e:?}"))
+        .context("cannot make the node")?;
+    let qos = qos(cfg);
+    // `/tf_static` as tf2's static broadcaster publishes it: reliable, transient local, the
+    // latest message kept for subscribers that come later.
+    let latched = QosProfile::publisher_default()
+        .reliability(Reliability::Reliable {
+            when_full: WhenFull::Wait(WAIT_WHEN_FULL),
+        })
+        .durability(Durability::TransientLocal)
+        .history(History::KeepLast { depth: 1 });
+    let mut publisher = |topic: &str, ty: &str, qos: &QosProfile| -> Result<Publisher<Encoded>> {
+        let (package, name) = ty.split_once("/msg/").ok_or_else(|| anyhow!("message type {ty}"))?;
+        let t = node
+            .create_topic(
+                &Name::parse(topic).map_err(|e| anyhow!("topic {topic}: {e:?}"))?,
+                MessageTypeName::new(package, name),
+                qos,
+            )
+            .map_err(|e| anyhow!("{e:?}"))
+            .with_context(|| format!("topic {topic}"))?;
+        node.create_publisher::<Encoded>(&t, Some(qos.clone()))
+            .map_err(|e| anyhow!("{e:?}"))
+            .with_context(|| format!("publisher on {topic}"))
+    };
+    let pubs = Publishers {
+        points: publisher(&cfg.points, ros::schema::POINT_CLOUD2, &qos)?,
+        joints: publisher(
+            &cfg.joint_states,
+            ros::schema::JOINT_STATE,
+            &qos.clone().history(History::KeepLast {
+                depth: cfg.depth.saturating_mul(JOINT_STATES_PER_SWEEP),
+            }),
+        )?,
+        detections: publisher(&cfg.detections, ros::schema::DETECTION3D_ARRAY, &qos)?,
+        tf_static: publisher("/tf_static", ros::schema::TF_MESSAGE, &latched)?,
+    };
+    Ok((context, node, pubs))
+}
+
+fn publish_loop(mut rx: mpsc::Receiver<Out>, pubs: Publishers, frame: String) {
+    while let Some(out) = rx.blocking_recv() {
+        match out {
+            Out::Sweep(entry) => {
+                for (_, data) in topics::joint_states(&entry) {
+                    if let Err(e) = pubs.joints.publish(Encoded::new(data)) {
+                        tracing::warn!("ROS 2 joint states of sweep {}: {e:?}", entry.id);
+                        break;
+                    }
+                }
+                let (_, data) = topics::cloud(&entry, &frame);
+                if let Err(e) = pubs.points.publish(Encoded::point_cloud2(data)) {
+                    tracing::warn!("ROS 2 cloud of sweep {}: {e:?}", entry.id);
+                }
+            }
+            Out::Detection((entry, model, d)) => {
+                let (_, data) = topics::detections(&entry, &[(model.clone(), d)], &frame);
+                if let Err(e) = pubs.detections.publish(Encoded::new(data)) {
+                    tracing::warn!("ROS 2 detection of {} on sweep {}: {e:?}", model.name, entry.id);
+                }
+            }
+        }
+    }
+}
+
+/// The rig's two fixed transforms: the PTU in the base frame, the sensor on the tilt link.
+pub fn static_transforms(frame: &str, m: &Mount, stamp: Time) -> Vec<u8> {
+    ros::tf_message(&[
+        Transform {
+            header: Header { stamp, frame_id: frame },
+            child: PTU_FRAME,
+            transform: m.ptu_in_base,
+        },
+        Transform {
+            header: Header {
+                stamp,
+                frame_id: TILT_FRAME,
+            },
+            child: SENSOR_FRAME,
+            transform: m.sensor_in_tilt,
+        },
+    ])
+}
+
+fn unix_now() -> f64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map(|d| d.as_secs_f64())
+        .unwrap_or(0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use byteorder::LittleEndian;
+    use ros2_client::dds::rustdds::{CDRSerializerAdapter, no_key::SerializerAdapter};
+
+    /// RustDDS's CDR serializer writes an [`Encoded`] message as the bytes `crate::ros` made,
+    /// with its bulk path for the cloud's data.
+    #[test]
+    fn an_encoded_message_serializes_to_its_own_bytes() {
+        use crate::cloud::PointCloud;
+        let mut cloud = PointCloud::default();
+        for i in 0..7 {
+            cloud.points.push([i as f32, 0.5, f32::NAN]);
+        }
+        cloud.width = 7;
+        cloud.height = 1;
+        let cdr = ros::point_cloud2(
+            &cloud,
+            &Header {
+                stamp: Time { sec: 5, nanosec: 6 },
+                frame_id: "base",
+            },
+        );
+        let e = Encoded::point_cloud2(cdr.clone());
+        assert!(e.blob.is_some());
+        let bytes = |e: &Encoded| {
+            <CDRSerializerAdapter<Encoded, LittleEndian> as SerializerAdapter<Encoded>>::to_bytes(e).unwrap()
+        };
+        assert_eq!(&bytes(&e)[..], &cdr[4..]);
+        let j = ros::joint_state(&Header::default(), &topics::JOINT_NAMES, &[0.1, -0.2]);
+        assert_eq!(&bytes(&Encoded::new(j.clone()))[..], &j[4..]);
+    }
+}

@@ -1,0 +1,299 @@
+"""A ROS 2 subscriber that is not sqscan: Eclipse Cyclone DDS (PyPI `cyclonedds`) with its own
+IDL definitions of the messages, as ROS 2 maps them to DDS (topic `rt/<name>`, type
+`<package>::msg::dds_::<Type>_`, plain CDR). Used by tests/ros2.rs, inside a private network
+namespace with only loopback.
+
+Usage: dds_sub.py SOCKET OBJECT SECONDS [DOMAIN]
+
+Waits until the daemon's four topics have matched, asks the daemon (its socket) to find
+OBJECT, then prints one JSON object: the reply, and what arrived on each topic.
+"""
+
+import json
+import math
+import socket
+import sys
+import time
+from dataclasses import dataclass
+
+import cyclonedds.idl.annotations as annotate
+from cyclonedds.core import Policy, Qos
+from cyclonedds.domain import DomainParticipant
+from cyclonedds.idl import IdlStruct
+from cyclonedds.idl.types import array, float32, float64, int32, sequence, uint8, uint32
+from cyclonedds.sub import DataReader
+from cyclonedds.topic import Topic
+from cyclonedds.util import duration
+
+
+def ros(package, name):
+    return f"{package}::msg::dds_::{name}_"
+
+
+@dataclass
+@annotate.final
+class Time(IdlStruct, typename=ros("builtin_interfaces", "Time")):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+@annotate.final
+class Header(IdlStruct, typename=ros("std_msgs", "Header")):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+@annotate.final
+class PointField(IdlStruct, typename=ros("sensor_msgs", "PointField")):
+    name: str
+    offset: uint32
+    datatype: uint8
+    count: uint32
+
+
+@dataclass
+@annotate.final
+class PointCloud2(IdlStruct, typename=ros("sensor_msgs", "PointCloud2")):
+    header: Header
+    height: uint32
+    width: uint32
+    fields: sequence[PointField]
+    is_bigendian: bool
+    point_step: uint32
+    row_step: uint32
+    data: sequence[uint8]
+    is_dense: bool
+
+
+@dataclass
+@annotate.final
+class JointState(IdlStruct, typename=ros("sensor_msgs", "JointState")):
+    header: Header
+    name: sequence[str]
+    position: sequence[float64]
+    velocity: sequence[float64]
+    effort: sequence[float64]
+
+
+@dataclass
+@annotate.final
+class Vector3(IdlStruct, typename=ros("geometry_msgs", "Vector3")):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+@annotate.final
+class Point(IdlStruct, typename=ros("geometry_msgs", "Point")):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+@annotate.final
+class Quaternion(IdlStruct, typename=ros("geometry_msgs", "Quaternion")):
+    x: float64
+    y: float64
+    z: float64
+    w: float64
+
+
+@dataclass
+@annotate.final
+class Pose(IdlStruct, typename=ros("geometry_msgs", "Pose")):
+    position: Point
+    orientation: Quaternion
+
+
+@dataclass
+@annotate.final
+class Transform(IdlStruct, typename=ros("geometry_msgs", "Transform")):
+    translation: Vector3
+    rotation: Quaternion
+
+
+@dataclass
+@annotate.final
+class TransformStamped(IdlStruct, typename=ros("geometry_msgs", "TransformStamped")):
+    header: Header
+    child_frame_id: str
+    transform: Transform
+
+
+@dataclass
+@annotate.final
+class TFMessage(IdlStruct, typename=ros("tf2_msgs", "TFMessage")):
+    transforms: sequence[TransformStamped]
+
+
+@dataclass
+@annotate.final
+class PoseWithCovariance(IdlStruct, typename=ros("geometry_msgs", "PoseWithCovariance")):
+    pose: Pose
+    covariance: array[float64, 36]
+
+
+@dataclass
+@annotate.final
+class ObjectHypothesis(IdlStruct, typename=ros("vision_msgs", "ObjectHypothesis")):
+    class_id: str
+    score: float64
+
+
+@dataclass
+@annotate.final
+class ObjectHypothesisWithPose(IdlStruct, typename=ros("vision_msgs", "ObjectHypothesisWithPose")):
+    hypothesis: ObjectHypothesis
+    pose: PoseWithCovariance
+
+
+@dataclass
+@annotate.final
+class BoundingBox3D(IdlStruct, typename=ros("vision_msgs", "BoundingBox3D")):
+    center: Pose
+    size: Vector3
+
+
+@dataclass
+@annotate.final
+class Detection3D(IdlStruct, typename=ros("vision_msgs", "Detection3D")):
+    header: Header
+    results: sequence[ObjectHypothesisWithPose]
+    bbox: BoundingBox3D
+    id: str
+
+
+@dataclass
+@annotate.final
+class Detection3DArray(IdlStruct, typename=ros("vision_msgs", "Detection3DArray")):
+    header: Header
+    detections: sequence[Detection3D]
+
+
+def ask(path, request):
+    """One request on the daemon's socket, after its greeting line."""
+    with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+        s.connect(path)
+        f = s.makefile("rwb")
+        f.readline()
+        f.write((json.dumps(request) + "\n").encode())
+        f.flush()
+        return json.loads(f.readline())
+
+
+def stamp(h):
+    return h.stamp.sec + 1e-9 * h.stamp.nanosec
+
+
+def cloud_summary(m):
+    import struct
+
+    fields = [{"name": f.name, "offset": f.offset, "datatype": f.datatype, "count": f.count} for f in m.fields]
+    data = bytes(m.data)
+    n = m.height * m.width
+    finite = 0
+    samples = []
+    # Every 97th point, and its coordinates, to compare with the recording.
+    for i in range(n):
+        x, y, z = struct.unpack_from("<fff", data, i * m.point_step)
+        if not math.isnan(x):
+            finite += 1
+            if i % 97 == 0:
+                samples.append([i, x, y, z])
+    return {
+        "frame_id": m.header.frame_id,
+        "stamp": stamp(m.header),
+        "height": m.height,
+        "width": m.width,
+        "fields": fields,
+        "is_bigendian": m.is_bigendian,
+        "is_dense": m.is_dense,
+        "point_step": m.point_step,
+        "row_step": m.row_step,
+        "bytes": len(data),
+        "finite": finite,
+        "samples": samples,
+    }
+
+
+def main():
+    path, obj, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
+    domain = int(sys.argv[4]) if len(sys.argv) > 4 else 0
+    dp = DomainParticipant(domain)
+    reliable = Policy.Reliability.Reliable(duration(seconds=1))
+    readers = {
+        "points": DataReader(dp, Topic(dp, "rt/sqscan/points", PointCloud2), qos=Qos(reliable, Policy.History.KeepLast(2))),
+        "joints": DataReader(dp, Topic(dp, "rt/sqscan/joint_states", JointState), qos=Qos(reliable, Policy.History.KeepLast(1000))),
+        "detections": DataReader(dp, Topic(dp, "rt/sqscan/detections", Detection3DArray), qos=Qos(reliable, Policy.History.KeepLast(10))),
+        "tf_static": DataReader(
+            dp,
+            Topic(dp, "rt/tf_static", TFMessage),
+            qos=Qos(reliable, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
+        ),
+    }
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        if all(r.get_subscription_matched_status().current_count > 0 for r in readers.values()):
+            break
+        time.sleep(0.05)
+    matched = {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
+    out = {"matched": matched, "match_s": time.monotonic() - t0}
+    print(json.dumps({"progress": "matched", **matched}), file=sys.stderr, flush=True)
+    out["reply"] = ask(path, {"cmd": "find", "object": obj, "timeout_s": 60})
+    got = {"points": [], "joints": [], "detections": [], "tf_static": []}
+    while time.monotonic() - t0 < seconds:
+        for k, r in readers.items():
+            got[k].extend(r.take(N=1000))
+        if got["points"] and got["detections"] and got["tf_static"] and len(got["joints"]) >= out["reply"].get("sweep", {}).get("profiles", 150):
+            break
+        time.sleep(0.05)
+    # A moment more for joint states of the same sweep still on their way.
+    time.sleep(0.3)
+    for k, r in readers.items():
+        got[k].extend(r.take(N=1000))
+    out["clouds"] = [cloud_summary(m) for m in got["points"]]
+    out["joints"] = [
+        {"stamp": stamp(m.header), "name": list(m.name), "position": list(m.position)} for m in got["joints"]
+    ]
+    out["detections"] = [
+        {
+            "frame_id": m.header.frame_id,
+            "stamp": stamp(m.header),
+            "detections": [
+                {
+                    "id": d.id,
+                    "class_id": d.results[0].hypothesis.class_id if d.results else None,
+                    "score": d.results[0].hypothesis.score if d.results else None,
+                    "position": [d.results[0].pose.pose.position.x, d.results[0].pose.pose.position.y, d.results[0].pose.pose.position.z],
+                    "orientation": [
+                        d.results[0].pose.pose.orientation.x,
+                        d.results[0].pose.pose.orientation.y,
+                        d.results[0].pose.pose.orientation.z,
+                        d.results[0].pose.pose.orientation.w,
+                    ],
+                    "bbox_size": [d.bbox.size.x, d.bbox.size.y, d.bbox.size.z],
+                }
+                for d in m.detections
+            ],
+        }
+        for m in got["detections"]
+    ]
+    out["tf_static"] = [
+        {
+            "parent": t.header.frame_id,
+            "child": t.child_frame_id,
+            "translation": [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+            "rotation": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z, t.transform.rotation.w],
+        }
+        for m in got["tf_static"]
+        for t in m.transforms
+    ]
+    print(json.dumps(out))
+
+
+if __name__ == "__main__":
+    main()
