@@ -30,8 +30,8 @@ use tokio::sync::mpsc;
 
 use super::backend::Mount;
 use super::config::Ros2Config;
-use super::state::{DetectedEvent, Shared, SweepEntry};
-use super::topics;
+use super::state::Shared;
+use super::topics::{self, Event};
 use crate::ros::{self, Header, Time, Transform};
 
 /// The PTU frame's name on `/tf_static` (the pan and tilt axes' intersection).
@@ -111,12 +111,6 @@ impl Serialize for Encoded {
     }
 }
 
-/// What the publishing thread is handed.
-enum Out {
-    Sweep(Arc<SweepEntry>),
-    Detection(DetectedEvent),
-}
-
 /// Messages waiting for the publishing thread; past this the newest is dropped with a warning.
 const QUEUE: usize = 16;
 
@@ -148,7 +142,7 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, mount: Option<Mount>) -> 
             tracing::warn!("/tf_static: {e:?}");
         }
     }
-    let (tx, rx) = mpsc::channel::<Out>(QUEUE);
+    let (tx, rx) = mpsc::channel::<Event>(QUEUE);
     let publisher = std::thread::Builder::new()
         .name("ros2".into())
         .spawn(move || publish_loop(rx, pubs, frame))
@@ -160,37 +154,10 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, mount: Option<Mount>) -> 
         cfg.node,
         cfg.domain_id
     );
-    let mut sweeps = shared.latest.subscribe();
-    let mut detected = shared.detected.subscribe();
-    let mut shutdown = shared.shutdown.subscribe();
-    let send = |out: Out| {
-        if tx.try_send(out).is_err() {
+    let mut follow = topics::Follow::new(shared, "ROS 2 publishing");
+    while let Some(event) = follow.next().await {
+        if tx.try_send(event).is_err() {
             tracing::warn!("ROS 2 publishing is behind: a message was dropped");
-        }
-    };
-    loop {
-        tokio::select! {
-            changed = sweeps.changed() => {
-                if changed.is_err() {
-                    break;
-                }
-                let entry = sweeps.borrow_and_update().clone();
-                if let Some(entry) = entry {
-                    send(Out::Sweep(entry));
-                }
-            }
-            event = detected.recv() => match event {
-                Ok(event) => send(Out::Detection(event)),
-                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
-                    tracing::warn!("ROS 2 publishing fell behind and skipped {n} detections");
-                }
-                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
-            },
-            r = shutdown.changed() => {
-                if r.is_err() || *shutdown.borrow() {
-                    break;
-                }
-            }
         }
     }
     drop(tx);
@@ -281,10 +248,10 @@ fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
     Ok((context, node, pubs))
 }
 
-fn publish_loop(mut rx: mpsc::Receiver<Out>, pubs: Publishers, frame: String) {
+fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) {
     while let Some(out) = rx.blocking_recv() {
         match out {
-            Out::Sweep(entry) => {
+            Event::Sweep(entry) => {
                 for (_, data) in topics::joint_states(&entry) {
                     if let Err(e) = pubs.joints.publish(Encoded::new(data)) {
                         tracing::warn!("ROS 2 joint states of sweep {}: {e:?}", entry.id);
@@ -296,7 +263,7 @@ fn publish_loop(mut rx: mpsc::Receiver<Out>, pubs: Publishers, frame: String) {
                     tracing::warn!("ROS 2 cloud of sweep {}: {e:?}", entry.id);
                 }
             }
-            Out::Detection((entry, model, d)) => {
+            Event::Detection((entry, model, d)) => {
                 let (_, data) = topics::detections(&entry, &[(model.clone(), d)], &frame);
                 if let Err(e) = pubs.detections.publish(Encoded::new(data)) {
                     tracing::warn!("ROS 2 detection of {} on sweep {}: {e:?}", model.name, entry.id);

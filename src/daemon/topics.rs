@@ -5,7 +5,7 @@
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
-use super::state::{Detected, SweepEntry};
+use super::state::{Detected, DetectedEvent, Shared, SweepEntry};
 use crate::model::Model;
 use crate::ros::{self, Found, Header, Time};
 
@@ -74,4 +74,55 @@ pub fn detections(entry: &SweepEntry, detections: &[(Arc<Model>, Arc<Detected>)]
         stamp,
         ros::detection3d_array(&Header { stamp, frame_id: frame }, &found),
     )
+}
+
+/// What a publisher of the daemon's topics (the live view, ROS 2) is handed.
+pub enum Event {
+    Sweep(Arc<SweepEntry>),
+    Detection(DetectedEvent),
+}
+
+/// The daemon's sweeps and detections as they come, until it stops.
+pub struct Follow {
+    sweeps: tokio::sync::watch::Receiver<Option<Arc<SweepEntry>>>,
+    detected: tokio::sync::broadcast::Receiver<DetectedEvent>,
+    shutdown: tokio::sync::watch::Receiver<bool>,
+    /// Who follows, for the warning when detections were skipped.
+    who: &'static str,
+}
+
+impl Follow {
+    pub fn new(shared: &Shared, who: &'static str) -> Follow {
+        Follow {
+            sweeps: shared.latest.subscribe(),
+            detected: shared.detected.subscribe(),
+            shutdown: shared.shutdown.subscribe(),
+            who,
+        }
+    }
+
+    /// The next sweep or detection; `None` once the daemon is stopping.
+    pub async fn next(&mut self) -> Option<Event> {
+        use tokio::sync::broadcast::error::RecvError;
+        loop {
+            tokio::select! {
+                changed = self.sweeps.changed() => {
+                    changed.ok()?;
+                    if let Some(entry) = self.sweeps.borrow_and_update().clone() {
+                        return Some(Event::Sweep(entry));
+                    }
+                }
+                event = self.detected.recv() => match event {
+                    Ok(event) => return Some(Event::Detection(event)),
+                    Err(RecvError::Lagged(n)) => tracing::warn!("{} fell behind and skipped {n} detections", self.who),
+                    Err(RecvError::Closed) => return None,
+                },
+                r = self.shutdown.changed() => {
+                    if r.is_err() || *self.shutdown.borrow() {
+                        return None;
+                    }
+                }
+            }
+        }
+    }
 }

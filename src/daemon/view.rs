@@ -64,38 +64,19 @@ async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
             schema::detection3d_array(),
         )?,
     };
-    let mut sweeps = shared.latest.subscribe();
-    let mut detected = shared.detected.subscribe();
-    let mut shutdown = shared.shutdown.subscribe();
-    loop {
-        tokio::select! {
-            changed = sweeps.changed() => {
-                if changed.is_err() {
-                    break;
-                }
-                let entry = sweeps.borrow_and_update().clone();
-                if let Some(entry) = entry {
-                    let (c, f) = (channels.points.clone(), channels.joints.clone());
-                    let frame = shared.config().frame_id.clone();
-                    // Encoding a 600 000-point cloud takes a few milliseconds: off the runtime.
-                    let _ = tokio::task::spawn_blocking(move || publish_sweep(&c, &f, &entry, &frame)).await;
-                }
+    let mut follow = topics::Follow::new(shared, "the Foxglove view");
+    while let Some(event) = follow.next().await {
+        match event {
+            topics::Event::Sweep(entry) => {
+                let (c, f) = (channels.points.clone(), channels.joints.clone());
+                let frame = shared.config().frame_id.clone();
+                // Encoding a 600 000-point cloud takes a few milliseconds: off the runtime.
+                let _ = tokio::task::spawn_blocking(move || publish_sweep(&c, &f, &entry, &frame)).await;
             }
-            event = detected.recv() => match event {
-                Ok((entry, model, d)) => {
-                    let frame = shared.config().frame_id.clone();
-                    let (stamp, data) = topics::detections(&entry, &[(model, d)], &frame);
-                    channels.detections.log_with_meta(&data, at(stamp));
-                }
-                Err(tokio::sync::broadcast::error::RecvError::Lagged(n)) => {
-                    tracing::warn!("the Foxglove view fell behind and skipped {n} detections");
-                }
-                Err(tokio::sync::broadcast::error::RecvError::Closed) => break,
-            },
-            r = shutdown.changed() => {
-                if r.is_err() || *shutdown.borrow() {
-                    break;
-                }
+            topics::Event::Detection((entry, model, d)) => {
+                let frame = shared.config().frame_id.clone();
+                let (stamp, data) = topics::detections(&entry, &[(model, d)], &frame);
+                channels.detections.log_with_meta(&data, at(stamp));
             }
         }
     }
