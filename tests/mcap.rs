@@ -119,6 +119,33 @@ fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     let size: Vec<f64> = (0..3).map(|k| det["bbox_size"][k].as_f64().unwrap()).collect();
     assert!(size.iter().all(|&s| s > 0.05 && s < 0.2), "{size:?}");
 
+    // The range image, the joints as transforms, the rig's mount, and the cup drawn.
+    let range = &m["range"];
+    assert_eq!(
+        (range["height"].as_u64(), range["width"].as_u64()),
+        (Some(pcd.height as u64), Some(pcd.width as u64))
+    );
+    assert_eq!(range["encoding"], "32FC1");
+    assert_eq!(range["finite"].as_u64().unwrap() as usize, pcd.points.len() - holes);
+    assert_eq!(m["tf"].as_array().unwrap().len(), pcd.height);
+    assert_eq!(m["tf"][0][1]["child"], "ptu_tilt_link");
+    let tf_static = &m["tf_static"];
+    assert_eq!(tf_static.as_array().unwrap().len(), 1);
+    assert_eq!(tf_static[0][0]["parent"], "base_link");
+    assert_eq!(tf_static[0][0]["child"], "ptu_base_link");
+    assert_eq!(tf_static[0][1]["child"], "sqscan_sensor");
+    let markers = m["markers"].as_array().unwrap();
+    assert_eq!(markers[0]["action"], 3);
+    assert_eq!(
+        markers
+            .iter()
+            .filter(|k| k["ns"] == "cup" && k["type"] == 8 && k["points"].as_u64() > Some(50))
+            .count(),
+        2,
+        "{markers:?}"
+    );
+    assert_eq!(markers.iter().filter(|k| k["ns"] == "plane").count(), 1);
+
     let sweep = &m["metadata"]["sqscan.sweep"];
     assert_eq!(sweep["id"], "1");
     assert_eq!(sweep["frame"], "base_link");

@@ -92,7 +92,16 @@ fn a_foxglove_client_sees_the_sweep_and_the_detection() {
                 "ros2msg"
             ),
             ("/sqscan/joint_states", "sensor_msgs/msg/JointState", "cdr", "ros2msg"),
+            (
+                "/sqscan/markers",
+                "visualization_msgs/msg/MarkerArray",
+                "cdr",
+                "ros2msg"
+            ),
             ("/sqscan/points", "sensor_msgs/msg/PointCloud2", "cdr", "ros2msg"),
+            ("/sqscan/range", "sensor_msgs/msg/Image", "cdr", "ros2msg"),
+            ("/tf", "tf2_msgs/msg/TFMessage", "cdr", "ros2msg"),
+            ("/tf_static", "tf2_msgs/msg/TFMessage", "cdr", "ros2msg"),
         ]
     );
     let points = &seen["points"];
@@ -112,5 +121,88 @@ fn a_foxglove_client_sees_the_sweep_and_the_detection() {
             "{cup} {found}"
         );
     }
+
+    // The range image: a row a profile, a value where the cloud has a point.
+    let range = &seen["range"];
+    assert_eq!(range["frame"], "sqscan_sensor");
+    assert_eq!(
+        (range["height"].as_u64(), range["width"].as_u64()),
+        (Some(150), Some(256))
+    );
+    assert_eq!(range["encoding"], "32FC1");
+    assert_eq!(range["step"], 4 * 256);
+    assert_eq!(range["bytes"], 4 * 256 * 150);
+    assert_eq!(range["finite"], points["finite"], "{range}");
+    assert!(
+        range["min"].as_f64().unwrap() > 0.3 && range["max"].as_f64().unwrap() < 3.0,
+        "{range}"
+    );
+
+    // The rig: its mount as the scene gives it, and the joints at each profile as transforms
+    // that agree with the joint states.
+    let rig = sqscan::sim::Scene::from_file(&root().join("scenes/fig3_table.toml"), &root().join("models"))
+        .unwrap()
+        .rig;
+    let tf_static = seen["tf_static"].as_array().unwrap();
+    assert_eq!(tf_static.len(), 2);
+    for (t, parent, child, iso) in [
+        (&tf_static[0], "robot_base", "ptu_base_link", rig.ptu_in_base),
+        (&tf_static[1], "ptu_tilt_link", "sqscan_sensor", rig.sensor_in_tilt),
+    ] {
+        assert_eq!((t["parent"].as_str(), t["child"].as_str()), (Some(parent), Some(child)));
+        for k in 0..3 {
+            assert!((t["translation"][k].as_f64().unwrap() - iso.translation.vector[k]).abs() < 1e-12);
+        }
+    }
+    assert_eq!(seen["tf"], 150);
+    let last_tf = seen["last_tf"].as_array().unwrap();
+    let joint = &seen["last_joint_state"];
+    assert_eq!(
+        (last_tf[0]["parent"].as_str(), last_tf[0]["child"].as_str()),
+        (Some("ptu_base_link"), Some("ptu_pan_link"))
+    );
+    assert_eq!(
+        (last_tf[1]["parent"].as_str(), last_tf[1]["child"].as_str()),
+        (Some("ptu_pan_link"), Some("ptu_tilt_link"))
+    );
+    let (pan, tilt) = (
+        joint["position"][0].as_f64().unwrap(),
+        joint["position"][1].as_f64().unwrap(),
+    );
+    assert!(
+        (last_tf[0]["rotation"][2].as_f64().unwrap() - (pan / 2.0).sin()).abs() < 1e-9,
+        "{last_tf:?}"
+    );
+    assert!(
+        (last_tf[1]["rotation"][1].as_f64().unwrap() - (tilt / 2.0).sin()).abs() < 1e-9,
+        "{last_tf:?}"
+    );
+    assert!((last_tf[1]["stamp"].as_f64().unwrap() - joint["stamp"].as_f64().unwrap()).abs() < 1e-6);
+
+    // The markers: what was drawn cleared, the cup's two parts as points on their surfaces
+    // around the pose found, each its own colour, and the table under it.
+    let markers = seen["markers"].as_array().unwrap();
+    assert_eq!(markers[0]["action"], 3, "DELETEALL first: {:?}", markers[0]);
+    let parts: Vec<&Value> = markers.iter().filter(|m| m["ns"] == "cup" && m["type"] == 8).collect();
+    assert_eq!(parts.len(), 2, "{markers:?}");
+    assert_ne!(parts[0]["color"], parts[1]["color"]);
+    let at: Vec<f64> = (0..3).map(|k| found["pose"]["position"][k].as_f64().unwrap()).collect();
+    for part in &parts {
+        assert_eq!(part["frame"], "robot_base");
+        let pts = part["points"].as_array().unwrap();
+        assert!(pts.len() > 50, "{}", pts.len());
+        for p in pts {
+            let d: f64 = (0..3)
+                .map(|k| (p[k].as_f64().unwrap() - at[k]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(d < 0.12, "a point of the cup's part {d:.3} m from its pose");
+        }
+    }
+    let plane = markers.iter().find(|m| m["ns"] == "plane").expect("the table");
+    assert_eq!(plane["type"], 1);
+    let z = plane["pose"]["position"][2].as_f64().unwrap();
+    let table = -found["plane"][3].as_f64().unwrap() / found["plane"][2].as_f64().unwrap();
+    assert!((z - table).abs() < 0.01, "plane at {z}, the table at {table}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -103,6 +103,7 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
             }
         }
         extras.mcap = Some(found);
+        extras.mount = shared.mount;
     }
     let (keep, frame) = (config.record_keep, config.frame_id.clone());
     let e = entry.clone();

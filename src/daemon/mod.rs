@@ -170,9 +170,7 @@ impl Daemon {
         let notifier = notifier.map(Arc::new);
         check_watch(&config, &models)?;
         let socket = listeners.socket_path().map(Path::to_owned);
-        #[cfg(feature = "ros2")]
-        let mount = backend.mount();
-        let shared = Arc::new(Shared::new(config, models, backend.name()));
+        let shared = Arc::new(Shared::new(config, models, backend.name()).with_mount(backend.mount()));
         let essential = [
             ("acquisition", tokio::spawn(acquire::run(shared.clone(), backend))),
             ("server", tokio::spawn(server::serve(shared.clone(), listeners))),
@@ -184,7 +182,7 @@ impl Daemon {
         }
         #[cfg(feature = "ros2")]
         if let Some(cfg) = shared.config().ros2.clone() {
-            tasks.push(tokio::spawn(ros2::run(shared.clone(), cfg, mount)));
+            tasks.push(tokio::spawn(ros2::run(shared.clone(), cfg)));
         }
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {

@@ -32,6 +32,8 @@ pub struct Extras {
             std::sync::Arc<super::state::Detected>,
         )>,
     >,
+    /// The rig's fixed transforms, for the MCAP file's `/tf_static`.
+    pub mount: Option<super::backend::Mount>,
 }
 
 /// Records one sweep and prunes the directory to the newest `keep` (0 keeps all).
@@ -58,7 +60,7 @@ pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str, ext
     #[cfg(feature = "mcap")]
     if let Some(detections) = &extras.mcap {
         let name = format!("{stem}.mcap");
-        super::record_mcap::write(&dir.join(&name), entry, detections, frame, &meta)?;
+        super::record_mcap::write(&dir.join(&name), entry, detections, extras.mount.as_ref(), frame, &meta)?;
         meta["mcap"] = json!(name);
     }
     #[cfg(not(feature = "mcap"))]

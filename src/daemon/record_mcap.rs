@@ -4,8 +4,13 @@
 //!   last profile's time;
 //! - `/sqscan/joint_states` (`sensor_msgs/msg/JointState`): the PTU's pan and tilt at each
 //!   profile's time;
+//! - `/sqscan/range` (`sensor_msgs/msg/Image`): its range image;
+//! - `/tf` (`tf2_msgs/msg/TFMessage`): the pan and tilt joints as transforms at each profile's
+//!   time, and `/tf_static` the rig's mount, where the backend knows it (not a replay);
 //! - `/sqscan/detections` (`vision_msgs/msg/Detection3DArray`): the watched objects'
 //!   detections on this sweep, at the sweep's time; an empty array where none was found;
+//! - `/sqscan/markers` (`visualization_msgs/msg/MarkerArray`): their fitted parts and the
+//!   support plane, drawn;
 //! - a metadata record `sqscan.sweep`: the sweep's id, time, frame, size, viewpoint and the
 //!   assembler's report, as the JSON beside it has them.
 
@@ -15,6 +20,7 @@ use std::sync::Arc;
 
 use anyhow::{Context, Result};
 
+use super::backend::Mount;
 use super::state::{Detected, SweepEntry};
 use super::topics;
 use crate::atomic::write_atomic;
@@ -27,6 +33,7 @@ pub fn write(
     path: &Path,
     entry: &SweepEntry,
     detections: &[(Arc<Model>, Arc<Detected>)],
+    mount: Option<&Mount>,
     frame: &str,
     meta: &serde_json::Value,
 ) -> Result<()> {
@@ -49,13 +56,29 @@ pub fn write(
             topics::DETECTIONS,
         )?;
         // The joint states first, in time order, then the cloud and the detections at the end.
+        let range = channel(schema::IMAGE, schema::image(), topics::RANGE)?;
+        let tf = channel(schema::TF_MESSAGE, schema::tf_message(), "/tf")?;
+        let drawn = channel(schema::MARKER_ARRAY, schema::marker_array(), topics::MARKERS)?;
+        if let Some(m) = mount {
+            let tf_static = channel(schema::TF_MESSAGE, schema::tf_message(), "/tf_static")?;
+            // Stamped with the first profile's time: every message of the file finds it.
+            let first = topics::joint_states(entry).next().map_or(Time::default(), |(t, _)| t);
+            out.write_to_known_channel(&message(tf_static, 0, first), &topics::tf_static(frame, m, first))?;
+        }
         for (i, (stamp, data)) in topics::joint_states(entry).enumerate() {
             out.write_to_known_channel(&message(joints, i as u32, stamp), &data)?;
         }
+        for (i, (stamp, data)) in topics::tf_joints(entry).enumerate() {
+            out.write_to_known_channel(&message(tf, i as u32, stamp), &data)?;
+        }
         let (stamp, data) = topics::cloud(entry, frame);
         out.write_to_known_channel(&message(points, 0, stamp), &data)?;
+        let (stamp, data) = topics::range_image(entry);
+        out.write_to_known_channel(&message(range, 0, stamp), &data)?;
         let (stamp, data) = topics::detections(entry, detections, frame);
         out.write_to_known_channel(&message(found, 0, stamp), &data)?;
+        let (stamp, data) = topics::markers(entry, detections, frame);
+        out.write_to_known_channel(&message(drawn, 0, stamp), &data)?;
         let mut fields = BTreeMap::new();
         if let Some(m) = meta.as_object() {
             for (k, v) in m {

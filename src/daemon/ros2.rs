@@ -28,18 +28,10 @@ use ros2_client::{
 use serde::ser::{Serialize, SerializeTuple, Serializer};
 use tokio::sync::mpsc;
 
-use super::backend::Mount;
 use super::config::Ros2Config;
 use super::state::Shared;
 use super::topics::{self, Event};
-use crate::ros::{self, Header, Time, Transform};
-
-/// The PTU frame's name on `/tf_static` (the pan and tilt axes' intersection).
-pub const PTU_FRAME: &str = "ptu_base_link";
-/// The tilt link's frame, which `robot_state_publisher` places from the joint states.
-pub const TILT_FRAME: &str = "ptu_tilt_link";
-/// The sensor's frame.
-pub const SENSOR_FRAME: &str = "sqscan_sensor";
+use crate::ros::{self, Time};
 
 /// How long a reliable writer waits for room in its window before the message is dropped: a
 /// subscriber that does not acknowledge must not stall the sweeps.
@@ -116,15 +108,15 @@ const QUEUE: usize = 16;
 
 /// Runs the node until the daemon stops. A node that cannot start stops the daemon (the
 /// configuration asked for it).
-pub async fn run(shared: Arc<Shared>, cfg: Ros2Config, mount: Option<Mount>) {
-    if let Err(e) = serve(&shared, &cfg, mount).await {
+pub async fn run(shared: Arc<Shared>, cfg: Ros2Config) {
+    if let Err(e) = serve(&shared, &cfg).await {
         let msg = format!("the ROS 2 node: {e:#}");
         tracing::error!("{msg}");
         shared.failure.send_replace(Some(msg));
     }
 }
 
-async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, mount: Option<Mount>) -> Result<()> {
+async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config) -> Result<()> {
     let frame = shared.config().frame_id.clone();
     let (context, mut node, pubs) = start(cfg)?;
     let spinner = node
@@ -136,8 +128,8 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, mount: Option<Mount>) -> 
             tracing::warn!("the ROS 2 node's spinner stopped: {e:?}");
         }
     });
-    if let Some(m) = mount {
-        let data = static_transforms(&frame, &m, Time::from_unix_s(unix_now()));
+    if let Some(m) = shared.mount {
+        let data = topics::tf_static(&frame, &m, Time::from_unix_s(unix_now()));
         if let Err(e) = pubs.tf_static.publish(Encoded::new(data)) {
             tracing::warn!("/tf_static: {e:?}");
         }
@@ -273,25 +265,6 @@ fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) 
     }
 }
 
-/// The rig's two fixed transforms: the PTU in the base frame, the sensor on the tilt link.
-pub fn static_transforms(frame: &str, m: &Mount, stamp: Time) -> Vec<u8> {
-    ros::tf_message(&[
-        Transform {
-            header: Header { stamp, frame_id: frame },
-            child: PTU_FRAME,
-            transform: m.ptu_in_base,
-        },
-        Transform {
-            header: Header {
-                stamp,
-                frame_id: TILT_FRAME,
-            },
-            child: SENSOR_FRAME,
-            transform: m.sensor_in_tilt,
-        },
-    ])
-}
-
 fn unix_now() -> f64 {
     SystemTime::now()
         .duration_since(SystemTime::UNIX_EPOCH)
@@ -302,6 +275,7 @@ fn unix_now() -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ros::Header;
     use byteorder::LittleEndian;
     use ros2_client::dds::rustdds::{CDRSerializerAdapter, no_key::SerializerAdapter};
 

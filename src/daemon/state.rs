@@ -315,6 +315,9 @@ pub struct Shared {
     pub sweep_wanted: Notify,
     /// What the backend calls itself (`status` shows it).
     pub backend: &'static str,
+    /// The rig's fixed transforms, where the backend knows them (published and recorded as
+    /// `/tf_static`).
+    pub mount: Option<super::backend::Mount>,
     pub devices: Devices,
     pub stats: Stats,
     /// Objects watched by clients, with how many watch each.
@@ -336,6 +339,12 @@ pub struct Shared {
 pub type DetectedEvent = (Arc<SweepEntry>, Arc<Model>, Arc<Detected>);
 
 impl Shared {
+    /// With the rig's fixed transforms.
+    pub fn with_mount(mut self, mount: Option<super::backend::Mount>) -> Shared {
+        self.mount = mount;
+        self
+    }
+
     pub fn new(config: Config, models: BTreeMap<String, Arc<Model>>, backend: &'static str) -> Shared {
         let workers = config.detect_workers;
         Shared {
@@ -353,6 +362,7 @@ impl Shared {
             failure: watch::channel(None).0,
             sweep_wanted: Notify::new(),
             backend,
+            mount: None,
             devices: Devices::default(),
             stats: Stats::default(),
             watched: Mutex::new(BTreeMap::new()),

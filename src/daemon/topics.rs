@@ -2,22 +2,30 @@
 //! messages and the times they carry: one encoding for all. The ROS 2 node's topic names are
 //! configurable (`[ros2]`); these are the defaults, and the names the others use.
 
+// Each of the three features publishes or records a different part of these.
+#![cfg_attr(not(all(feature = "mcap", feature = "foxglove", feature = "ros2")), allow(dead_code))]
+
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::{Duration, SystemTime};
 
+use nalgebra::{Isometry3, Vector3};
+
+use super::backend::Mount;
 use super::state::{Detected, DetectedEvent, Shared, SweepEntry};
 use crate::model::Model;
-use crate::ros::{self, Found, Header, Time};
+use crate::ros::{self, Found, Header, Time, Transform};
 
 /// The sweeps' clouds (`sensor_msgs/msg/PointCloud2`).
-#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const POINTS: &str = "/sqscan/points";
 /// The PTU's joint angles at each profile (`sensor_msgs/msg/JointState`).
-#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const JOINTS: &str = "/sqscan/joint_states";
 /// The detections (`vision_msgs/msg/Detection3DArray`).
-#[cfg_attr(not(any(feature = "mcap", feature = "foxglove")), allow(dead_code))]
 pub const DETECTIONS: &str = "/sqscan/detections";
+/// The sweeps' range images (`sensor_msgs/msg/Image`).
+pub const RANGE: &str = "/sqscan/range";
+/// The detections drawn (`visualization_msgs/msg/MarkerArray`).
+pub const MARKERS: &str = "/sqscan/markers";
 /// The joints' names in `JointState`.
 pub const JOINT_NAMES: [&str; 2] = ["ptu_pan", "ptu_tilt"];
 
@@ -31,8 +39,8 @@ pub fn last_profile_unix_s(entry: &SweepEntry) -> f64 {
         .as_secs_f64()
 }
 
-/// Each profile's `JointState` (pan and tilt), in time order, with its stamp.
-pub fn joint_states(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
+/// Each profile's time, pan and tilt (rad), in time order.
+fn profiles(entry: &SweepEntry) -> impl Iterator<Item = (Time, f64, f64)> + '_ {
     let sweep = &entry.sweep;
     let last = last_profile_unix_s(entry);
     let last_stamp = sweep.stamp_s.last().copied().unwrap_or(0.0);
@@ -43,9 +51,164 @@ pub fn joint_states(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)>
         .enumerate()
         .map(move |(i, (pan, tilt))| {
             let stamp = Time::from_unix_s(last - (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp)));
-            let h = Header { stamp, frame_id: "" };
-            (stamp, ros::joint_state(&h, &JOINT_NAMES, &[*pan, *tilt]))
+            (stamp, *pan, *tilt)
         })
+}
+
+/// Each profile's `JointState` (pan and tilt), in time order, with its stamp.
+pub fn joint_states(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
+    profiles(entry).map(|(stamp, pan, tilt)| {
+        let h = Header { stamp, frame_id: "" };
+        (stamp, ros::joint_state(&h, &JOINT_NAMES, &[pan, tilt]))
+    })
+}
+
+/// The PTU frame (where the pan and tilt axes meet).
+pub const PTU_FRAME: &str = "ptu_base_link";
+/// The pan link: the PTU frame turned by the pan angle about its z axis.
+pub const PAN_FRAME: &str = "ptu_pan_link";
+/// The tilt link: the pan link turned by the tilt angle about its y axis.
+pub const TILT_FRAME: &str = "ptu_tilt_link";
+/// The sensor's frame.
+pub const SENSOR_FRAME: &str = "sqscan_sensor";
+
+/// The rig's two fixed transforms (`/tf_static`): the PTU in `frame`, the sensor on the tilt link.
+pub fn tf_static(frame: &str, m: &Mount, stamp: Time) -> Vec<u8> {
+    ros::tf_message(&[
+        Transform {
+            header: Header { stamp, frame_id: frame },
+            child: PTU_FRAME,
+            transform: m.ptu_in_base,
+        },
+        Transform {
+            header: Header {
+                stamp,
+                frame_id: TILT_FRAME,
+            },
+            child: SENSOR_FRAME,
+            transform: m.sensor_in_tilt,
+        },
+    ])
+}
+
+/// Each profile's joints as transforms (`/tf`): the pan link in the PTU frame, the tilt link
+/// in the pan link, as the calibration chains them.
+pub fn tf_joints(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
+    profiles(entry).map(|(stamp, pan, tilt)| {
+        let data = ros::tf_message(&[
+            Transform {
+                header: Header {
+                    stamp,
+                    frame_id: PTU_FRAME,
+                },
+                child: PAN_FRAME,
+                transform: Isometry3::rotation(Vector3::z() * pan),
+            },
+            Transform {
+                header: Header {
+                    stamp,
+                    frame_id: PAN_FRAME,
+                },
+                child: TILT_FRAME,
+                transform: Isometry3::rotation(Vector3::y() * tilt),
+            },
+        ]);
+        (stamp, data)
+    })
+}
+
+/// The sweep's range image (`sensor_msgs/Image`, `32FC1`): a row a profile, a column a sensor
+/// column, the distance from the sensor (m), NaN for no return; in the sensor's frame, at the
+/// last profile's time.
+pub fn range_image(entry: &SweepEntry) -> (Time, Vec<u8>) {
+    let stamp = Time::from_unix_s(last_profile_unix_s(entry));
+    let s = &entry.sweep;
+    let h = Header {
+        stamp,
+        frame_id: SENSOR_FRAME,
+    };
+    (stamp, ros::image_32fc1(&h, s.profiles, s.columns, &s.range_m))
+}
+
+/// Each part's colour in the markers: the first part red, the second blue, the third green.
+const PART_COLORS: [ros::Rgba; 3] = [[0.9, 0.25, 0.2, 1.0], [0.2, 0.55, 0.95, 1.0], [0.3, 0.8, 0.3, 1.0]];
+
+/// Spacing (m) of the points that draw a fitted part.
+const PART_SPACING: f64 = 0.005;
+
+/// Detections on one sweep as markers (`visualization_msgs/MarkerArray`): what was drawn before
+/// is cleared, then every fitted part of each instance found is drawn as points on its surface,
+/// a colour a part (namespace: the object), and the support plane as a thin square under the
+/// first object found (namespace `plane`). Objects not found leave only the plane.
+pub fn markers(entry: &SweepEntry, detections: &[(Arc<Model>, Arc<Detected>)], frame: &str) -> (Time, Vec<u8>) {
+    use ros::{Marker, Shape};
+    let stamp = Time::from_unix_s(last_profile_unix_s(entry));
+    // Each object's name, and each instance found, its parts' surfaces.
+    let surfaces: Vec<(&str, Vec<Vec<nalgebra::Point3<f64>>>)> = detections
+        .iter()
+        .flat_map(|(model, d)| {
+            d.report.detections.iter().filter(|x| x.found).map(|x| {
+                let parts = x
+                    .parts
+                    .iter()
+                    .map(|p| {
+                        p.placed
+                            .as_ref()
+                            .map_or_else(Vec::new, |q| q.sample_surface(PART_SPACING))
+                    })
+                    .collect();
+                (model.name.as_str(), parts)
+            })
+        })
+        .collect();
+    let mut markers = vec![Marker {
+        ns: "",
+        id: 0,
+        shape: Shape::DeleteAll,
+        color: [0.0; 4],
+    }];
+    let mut instance: BTreeMap<&str, usize> = BTreeMap::new();
+    for (name, parts) in &surfaces {
+        let i = instance.entry(name).or_default();
+        for (k, points) in parts.iter().enumerate().filter(|(_, p)| !p.is_empty()) {
+            markers.push(Marker {
+                ns: name,
+                id: (16 * *i + k) as i32,
+                shape: Shape::Points { points, size: 0.004 },
+                color: PART_COLORS[k % PART_COLORS.len()],
+            });
+        }
+        *i += 1;
+    }
+    let found = detections
+        .iter()
+        .flat_map(|(_, d)| d.report.detections.iter().filter(|x| x.found))
+        .collect::<Vec<_>>();
+    if let Some(plane) = detections.iter().find_map(|(_, d)| d.report.plane.as_ref()) {
+        // Centred under the object found, else under the sensor's view of the sweep.
+        let at = found
+            .first()
+            .map(|x| nalgebra::Point3::from(x.pose.translation.vector))
+            .or(entry
+                .sweep
+                .cloud
+                .viewpoint
+                .map(|v| nalgebra::Point3::new(v[0], v[1], v[2])))
+            .unwrap_or_else(nalgebra::Point3::origin);
+        let on = at - plane.normal * plane.signed_distance(&at);
+        let rotation = nalgebra::UnitQuaternion::rotation_between(&Vector3::z(), &plane.normal)
+            .unwrap_or_else(|| nalgebra::UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI));
+        markers.push(Marker {
+            ns: "plane",
+            id: 0,
+            shape: Shape::Cube {
+                pose: Isometry3::from_parts(on.into(), rotation),
+                size: Vector3::new(0.6, 0.6, 0.002),
+            },
+            color: [0.6, 0.6, 0.6, 0.35],
+        });
+    }
+    (stamp, ros::marker_array(&Header { stamp, frame_id: frame }, &markers))
 }
 
 /// The sweep's `PointCloud2` in `frame`, stamped with the last profile's time.

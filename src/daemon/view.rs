@@ -1,11 +1,18 @@
 //! The live view (the `foxglove` feature): the daemon serves the Foxglove WebSocket protocol
 //! (subprotocol `foxglove.sdk.v1`, through Foxglove's SDK) on a loopback address, and publishes, as
-//! ROS 2 messages in CDR (the same encoding as the MCAP recordings, `crate::ros`):
+//! ROS 2 messages in CDR (the same encoding as the MCAP recordings and the ROS 2 node,
+//! `crate::ros`):
 //! - `/sqscan/points`, `sensor_msgs/msg/PointCloud2`: every completed sweep;
+//! - `/sqscan/range`, `sensor_msgs/msg/Image`: its range image (`32FC1`, m);
 //! - `/sqscan/joint_states`, `sensor_msgs/msg/JointState`: the PTU's pan and tilt at each of the
 //!   sweep's profiles;
+//! - `/tf`, `tf2_msgs/msg/TFMessage`: the same joints as transforms at each profile, and
+//!   `/tf_static` with the rig's mount (again with each sweep: the view keeps nothing for a
+//!   client that connects later);
 //! - `/sqscan/detections`, `vision_msgs/msg/Detection3DArray`: every detection as it is made
-//!   (asked by a client or watched), one object a message, an empty array for "not here".
+//!   (asked by a client or watched), one object a message, an empty array for "not here";
+//! - `/sqscan/markers`, `visualization_msgs/msg/MarkerArray`: the latest detection's fitted
+//!   parts as points on their surfaces, a colour a part, and the support plane.
 //!
 //! Foxglove decodes `ros2msg` schemas with CDR itself; nothing of ROS needs to be installed.
 
@@ -15,14 +22,19 @@ use std::sync::Arc;
 use anyhow::{Context as _, Result};
 use foxglove::{ChannelBuilder, PartialMetadata, RawChannel, Schema, WebSocketServer};
 
+use super::backend::Mount;
 use super::state::{Shared, SweepEntry};
 use super::topics;
 use crate::ros::{Time, schema};
 
 struct Channels {
     points: Arc<RawChannel>,
+    range: Arc<RawChannel>,
     joints: Arc<RawChannel>,
+    tf: Arc<RawChannel>,
+    tf_static: Arc<RawChannel>,
     detections: Arc<RawChannel>,
+    markers: Arc<RawChannel>,
 }
 
 fn channel(ctx: &Arc<foxglove::Context>, topic: &str, name: &str, text: String) -> Result<Arc<RawChannel>> {
@@ -45,6 +57,7 @@ pub async fn run(shared: Arc<Shared>, listen: SocketAddr) {
 }
 
 async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
+    let mount = shared.mount;
     let ctx = foxglove::Context::new();
     let server = WebSocketServer::new()
         .name("sqscand")
@@ -56,27 +69,42 @@ async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
     tracing::info!("Foxglove view on ws://{listen}");
     let channels = Channels {
         points: channel(&ctx, topics::POINTS, schema::POINT_CLOUD2, schema::point_cloud2())?,
+        range: channel(&ctx, topics::RANGE, schema::IMAGE, schema::image())?,
         joints: channel(&ctx, topics::JOINTS, schema::JOINT_STATE, schema::joint_state())?,
+        tf: channel(&ctx, "/tf", schema::TF_MESSAGE, schema::tf_message())?,
+        tf_static: channel(&ctx, "/tf_static", schema::TF_MESSAGE, schema::tf_message())?,
         detections: channel(
             &ctx,
             topics::DETECTIONS,
             schema::DETECTION3D_ARRAY,
             schema::detection3d_array(),
         )?,
+        markers: channel(&ctx, topics::MARKERS, schema::MARKER_ARRAY, schema::marker_array())?,
     };
+    let channels = Arc::new(channels);
     let mut follow = topics::Follow::new(shared, "the Foxglove view");
     while let Some(event) = follow.next().await {
         match event {
             topics::Event::Sweep(entry) => {
-                let (c, f) = (channels.points.clone(), channels.joints.clone());
+                let c = channels.clone();
                 let frame = shared.config().frame_id.clone();
                 // Encoding a 600 000-point cloud takes a few milliseconds: off the runtime.
-                let _ = tokio::task::spawn_blocking(move || publish_sweep(&c, &f, &entry, &frame)).await;
+                let _ = tokio::task::spawn_blocking(move || publish_sweep(&c, &entry, &frame, mount.as_ref())).await;
             }
             topics::Event::Detection((entry, model, d)) => {
                 let frame = shared.config().frame_id.clone();
-                let (stamp, data) = topics::detections(&entry, &[(model, d)], &frame);
-                channels.detections.log_with_meta(&data, at(stamp));
+                let c = channels.clone();
+                // Sampling the parts' surfaces for the markers: off the runtime too.
+                let _ = tokio::task::spawn_blocking(move || {
+                    let one = [(model, d)];
+                    let (stamp, data) = topics::detections(&entry, &one, &frame);
+                    c.detections.log_with_meta(&data, at(stamp));
+                    if c.markers.has_sinks() {
+                        let (stamp, data) = topics::markers(&entry, &one, &frame);
+                        c.markers.log_with_meta(&data, at(stamp));
+                    }
+                })
+                .await;
             }
         }
     }
@@ -90,14 +118,28 @@ fn at(stamp: Time) -> PartialMetadata {
     }
 }
 
-fn publish_sweep(points: &RawChannel, joints: &RawChannel, entry: &SweepEntry, frame: &str) {
-    if joints.has_sinks() {
+fn publish_sweep(c: &Channels, entry: &SweepEntry, frame: &str, mount: Option<&Mount>) {
+    if let Some(m) = mount {
+        let stamp = Time::from_unix_s(topics::last_profile_unix_s(entry));
+        c.tf_static
+            .log_with_meta(&topics::tf_static(frame, m, stamp), at(stamp));
+    }
+    if c.joints.has_sinks() {
         for (stamp, data) in topics::joint_states(entry) {
-            joints.log_with_meta(&data, at(stamp));
+            c.joints.log_with_meta(&data, at(stamp));
         }
     }
-    if points.has_sinks() {
+    if c.tf.has_sinks() {
+        for (stamp, data) in topics::tf_joints(entry) {
+            c.tf.log_with_meta(&data, at(stamp));
+        }
+    }
+    if c.range.has_sinks() {
+        let (stamp, data) = topics::range_image(entry);
+        c.range.log_with_meta(&data, at(stamp));
+    }
+    if c.points.has_sinks() {
         let (stamp, data) = topics::cloud(entry, frame);
-        points.log_with_meta(&data, at(stamp));
+        c.points.log_with_meta(&data, at(stamp));
     }
 }

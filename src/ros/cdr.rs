@@ -58,6 +58,11 @@ impl CdrWriter {
         self.buf.extend_from_slice(&v.to_le_bytes());
     }
 
+    pub fn f32(&mut self, v: f32) {
+        self.align(4);
+        self.buf.extend_from_slice(&v.to_le_bytes());
+    }
+
     pub fn f64(&mut self, v: f64) {
         self.align(8);
         self.buf.extend_from_slice(&v.to_le_bytes());

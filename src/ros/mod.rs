@@ -369,6 +369,90 @@ pub fn detection3d_array(h: &Header, found: &[Found]) -> Vec<u8> {
     w.finish()
 }
 
+/// `sensor_msgs/Image` of one float32 channel (`32FC1`), row-major, little-endian: a sweep's
+/// range image (a row a profile, m, NaN for no return).
+pub fn image_32fc1(h: &Header, height: usize, width: usize, values: &[f32]) -> Vec<u8> {
+    let mut w = CdrWriter::with_capacity(4 * values.len() + 128);
+    header(&mut w, h);
+    w.count(height);
+    w.count(width);
+    w.string("32FC1");
+    w.u8(0);
+    w.count(4 * width);
+    let mut data = Vec::with_capacity(4 * values.len());
+    for v in values {
+        data.extend_from_slice(&v.to_le_bytes());
+    }
+    w.bytes(&data);
+    w.finish()
+}
+
+/// An RGBA colour, each component 0 to 1 (`std_msgs/ColorRGBA`).
+pub type Rgba = [f32; 4];
+
+/// What a `visualization_msgs/Marker` draws.
+pub enum Shape<'a> {
+    /// `POINTS` at the given positions (in the header's frame), `size` (m) across.
+    Points { points: &'a [Point3<f64>], size: f64 },
+    /// A `CUBE` of the given size at the pose.
+    Cube { pose: Isometry3<f64>, size: Vector3<f64> },
+    /// `DELETEALL`: clears what was drawn before.
+    DeleteAll,
+}
+
+/// One `visualization_msgs/Marker` (ROS 2 Humble's definition).
+pub struct Marker<'a> {
+    pub ns: &'a str,
+    pub id: i32,
+    pub shape: Shape<'a>,
+    pub color: Rgba,
+}
+
+/// `visualization_msgs/MarkerArray`, every marker with the header `h`, lasting until replaced.
+pub fn marker_array(h: &Header, markers: &[Marker]) -> Vec<u8> {
+    let mut w = CdrWriter::new();
+    w.count(markers.len());
+    for m in markers {
+        header(&mut w, h);
+        w.string(m.ns);
+        w.i32(m.id);
+        let (kind, action, pose_of, scale, points): (i32, i32, Isometry3<f64>, Vector3<f64>, &[Point3<f64>]) = match &m
+            .shape
+        {
+            Shape::Points { points, size } => (8, 0, Isometry3::identity(), Vector3::new(*size, *size, 0.0), points),
+            Shape::Cube { pose, size } => (1, 0, *pose, *size, &[]),
+            Shape::DeleteAll => (0, 3, Isometry3::identity(), Vector3::zeros(), &[]),
+        };
+        w.i32(kind);
+        w.i32(action);
+        pose(&mut w, &pose_of);
+        vector3(&mut w, &scale);
+        for c in m.color {
+            w.f32(c);
+        }
+        // lifetime 0: until replaced; frame_locked false.
+        w.i32(0);
+        w.u32(0);
+        w.bool(false);
+        w.count(points.len());
+        for p in points {
+            vector3(&mut w, &p.coords);
+        }
+        w.count(0); // colors
+        w.string(""); // texture_resource
+        header(&mut w, &Header::default()); // texture: a CompressedImage, empty
+        w.string("");
+        w.bytes(&[]);
+        w.count(0); // uv_coordinates
+        w.string(""); // text
+        w.string(""); // mesh_resource
+        w.string(""); // mesh_file: filename, data
+        w.bytes(&[]);
+        w.bool(false); // mesh_use_embedded_materials
+    }
+    w.finish()
+}
+
 /// A model's bounding box in its own frame (centre, size): the box around every part's box.
 pub fn model_bbox(model: &Model) -> (Point3<f64>, Vector3<f64>) {
     let mut lo = Vector3::repeat(f64::INFINITY);
@@ -463,6 +547,53 @@ pub mod schema {
                 ),
                 VECTOR3,
                 QUATERNION,
+            ],
+        )
+    }
+
+    const COLOR: (&str, &str) = ("std_msgs/ColorRGBA", "float32 r\nfloat32 g\nfloat32 b\nfloat32 a\n");
+
+    pub const IMAGE: &str = "sensor_msgs/msg/Image";
+    pub fn image() -> String {
+        with(
+            "std_msgs/Header header\nuint32 height\nuint32 width\nstring encoding\nuint8 is_bigendian\n\
+             uint32 step\nuint8[] data\n",
+            &[HEADER, TIME],
+        )
+    }
+
+    pub const MARKER_ARRAY: &str = "visualization_msgs/msg/MarkerArray";
+    pub fn marker_array() -> String {
+        with(
+            "visualization_msgs/Marker[] markers\n",
+            &[
+                (
+                    "visualization_msgs/Marker",
+                    "int32 ARROW=0\nint32 CUBE=1\nint32 SPHERE=2\nint32 CYLINDER=3\nint32 LINE_STRIP=4\n\
+                     int32 LINE_LIST=5\nint32 CUBE_LIST=6\nint32 SPHERE_LIST=7\nint32 POINTS=8\n\
+                     int32 TEXT_VIEW_FACING=9\nint32 MESH_RESOURCE=10\nint32 TRIANGLE_LIST=11\n\
+                     int32 ADD=0\nint32 MODIFY=0\nint32 DELETE=2\nint32 DELETEALL=3\n\
+                     std_msgs/Header header\nstring ns\nint32 id\nint32 type\nint32 action\n\
+                     geometry_msgs/Pose pose\ngeometry_msgs/Vector3 scale\nstd_msgs/ColorRGBA color\n\
+                     builtin_interfaces/Duration lifetime\nbool frame_locked\ngeometry_msgs/Point[] points\n\
+                     std_msgs/ColorRGBA[] colors\nstring texture_resource\nsensor_msgs/CompressedImage texture\n\
+                     visualization_msgs/UVCoordinate[] uv_coordinates\nstring text\nstring mesh_resource\n\
+                     visualization_msgs/MeshFile mesh_file\nbool mesh_use_embedded_materials\n",
+                ),
+                HEADER,
+                TIME,
+                POSE,
+                POINT,
+                QUATERNION,
+                VECTOR3,
+                COLOR,
+                ("builtin_interfaces/Duration", "int32 sec\nuint32 nanosec\n"),
+                (
+                    "sensor_msgs/CompressedImage",
+                    "std_msgs/Header header\nstring format\nuint8[] data\n",
+                ),
+                ("visualization_msgs/UVCoordinate", "float32 u\nfloat32 v\n"),
+                ("visualization_msgs/MeshFile", "string filename\nuint8[] data\n"),
             ],
         )
     }

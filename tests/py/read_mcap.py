@@ -13,7 +13,8 @@ def stamp(h):
 
 
 def main(path):
-    out = {"topics": {}, "joint_states": [], "clouds": [], "detections": [], "metadata": {}}
+    out = {"topics": {}, "joint_states": [], "clouds": [], "detections": [], "metadata": {},
+           "tf": [], "tf_static": [], "range": None, "markers": []}
     with open(path, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         header = reader.get_header()
@@ -50,6 +51,21 @@ def main(path):
                         "frame": d.header.frame_id,
                     })
                 out["detections"].append({"frame": msg.header.frame_id, "stamp": stamp(msg.header), "detections": dets})
+            elif channel.topic in ("/tf", "/tf_static"):
+                out[channel.topic[1:]].append([
+                    {"parent": t.header.frame_id, "child": t.child_frame_id,
+                     "translation": [t.transform.translation.x, t.transform.translation.y, t.transform.translation.z],
+                     "rotation": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+                                  t.transform.rotation.w]}
+                    for t in msg.transforms])
+            elif channel.topic == "/sqscan/range":
+                import struct
+                values = struct.unpack_from(f"<{msg.height * msg.width}f", bytes(msg.data))
+                out["range"] = {"frame": msg.header.frame_id, "height": msg.height, "width": msg.width,
+                                "encoding": msg.encoding, "finite": sum(1 for v in values if not math.isnan(v))}
+            elif channel.topic == "/sqscan/markers":
+                out["markers"] = [{"ns": m.ns, "id": m.id, "type": m.type, "action": m.action,
+                                   "points": len(m.points), "z": m.pose.position.z} for m in msg.markers]
         for m in reader.iter_metadata():
             out["metadata"][m.name] = dict(m.metadata)
     json.dump(out, sys.stdout)
