@@ -7,8 +7,9 @@ cd "$(dirname "$0")/.."
 
 # gige: aravis (its library, and its camera emulator the tests serve on loopback); libusb is a
 # build dependency of aravis-sys that libaravis-dev does not pull in. lintian: the package test
-# (tests/package.rs) checks the Debian package with it.
-packages=(pkg-config libaravis-dev libusb-1.0-0-dev lintian)
+# (tests/package.rs) checks the Debian package with it. python3-seccomp: the ROS 2 test refuses
+# netlink sockets to the daemon as systemd's RestrictAddressFamilies does.
+packages=(pkg-config libaravis-dev libusb-1.0-0-dev lintian python3-seccomp)
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

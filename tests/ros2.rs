@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 use sqscan_drivers::mock::netns::in_private_network;
 
 mod common;
-use common::{python, root, sqscand, tmpdir, wait_for};
+use common::{Proc, python, root, sqscand, tmpdir, wait_for};
 
 /// A Cyclone DDS subscriber sees the sweep a `find` asked for on `/sqscan/points` (organized,
 /// NaN kept, in the configured frame, the same points as the PCD recording of that sweep), a
@@ -145,4 +145,57 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
             assert!((t["rotation"][k].as_f64().unwrap() - want).abs() < 1e-12, "{t}");
         }
     }
+}
+
+/// Under systemd's `RestrictAddressFamilies` without `AF_NETLINK`, RustDDS listed no network
+/// interface and the node was never discovered, with nothing in the log. The daemon now refuses
+/// to start its node there, and says what to add. (Netlink is refused here with a seccomp filter,
+/// as systemd refuses it, through Debian's `python3-seccomp`.)
+#[test]
+fn a_node_that_cannot_list_the_interfaces_refuses_to_start() {
+    let python = std::path::Path::new("/usr/bin/python3");
+    let has_seccomp = Command::new(python)
+        .args(["-c", "import seccomp"])
+        .status()
+        .is_ok_and(|s| s.success());
+    if !has_seccomp {
+        assert!(
+            std::env::var_os("SQSCAN_REQUIRE_PYTHON_TOOLS").is_none(),
+            "/usr/bin/python3 cannot import seccomp (Debian python3-seccomp), which scripts/test.sh installs"
+        );
+        eprintln!("a_node_that_cannot_list_the_interfaces_refuses_to_start: skipped: no python3-seccomp");
+        return;
+    }
+    if !in_private_network("a_node_that_cannot_list_the_interfaces_refuses_to_start") {
+        return;
+    }
+    let dir = tmpdir("ros2-netlink");
+    let config = format!(
+        "[sim]\nscene = {:?}\nrealtime = false\n[ros2]\n",
+        root().join("scenes/fig3_table.toml")
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let log = dir.join("sqscand.log");
+    let mut daemon = Proc(
+        Command::new(python)
+            .arg(root().join("tests/py/no_netlink.py"))
+            .arg(env!("CARGO_BIN_EXE_sqscand"))
+            .arg("--config")
+            .arg(dir.join("sqscand.toml"))
+            .arg("--socket")
+            .arg(dir.join("sqscand.sock"))
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let mut status = None;
+    wait_for("sqscand to stop", Duration::from_secs(30), || {
+        status = daemon.0.try_wait().unwrap();
+        status.is_some()
+    });
+    let err = std::fs::read_to_string(&log).unwrap();
+    assert!(!status.unwrap().success(), "{err}");
+    assert!(err.contains("netlink") && err.contains("AF_NETLINK"), "{err}");
 }

@@ -193,7 +193,27 @@ fn qos(cfg: &Ros2Config) -> QosProfile {
         .history(History::KeepLast { depth: cfg.depth })
 }
 
+/// DDS finds its peers on the network interfaces, which Linux lists over netlink. Where netlink
+/// sockets are refused (systemd's `RestrictAddressFamilies` without `AF_NETLINK`), RustDDS sees
+/// no interface and no peer ever finds the node, without an error: refuse to start instead.
+#[cfg(target_os = "linux")]
+fn interfaces_listable() -> Result<()> {
+    const AF_NETLINK: i32 = 16;
+    socket2::Socket::new(socket2::Domain::from(AF_NETLINK), socket2::Type::RAW, None)
+        .map(drop)
+        .context(
+            "cannot open a netlink socket to list the network interfaces, so DDS would find no \
+             peers (under systemd, add AF_NETLINK to RestrictAddressFamilies)",
+        )
+}
+
+#[cfg(not(target_os = "linux"))]
+fn interfaces_listable() -> Result<()> {
+    Ok(())
+}
+
 fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
+    interfaces_listable()?;
     let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
         .map_err(|e| anyhow!("{e:?}"))
         .with_context(|| format!("cannot join DDS domain {}", cfg.domain_id))?;
