@@ -463,8 +463,10 @@ pub mod limits {
     pub const MAX_RANGE_M: (f64, f64) = (0.01, 1000.0);
     /// The largest DDS domain id whose ports stay below 65 536.
     pub const ROS_DOMAIN_ID: u16 = 232;
-    /// A ROS 2 topic's keep-last depth: each kept cloud holds a sweep's points.
-    pub const ROS_DEPTH: (usize, usize) = (1, 1000);
+    /// A ROS 2 topic's keep-last depth. The writer keeps that many clouds for subscribers that
+    /// are behind, each a whole sweep (0.8 MB at 256 columns, 10 MB at 4096): 20 is ample for a
+    /// topic that changes every few seconds, and bounds that memory.
+    pub const ROS_DEPTH: (usize, usize) = (1, 20);
 }
 
 /// A number within `range`, or an error naming the field and the range.

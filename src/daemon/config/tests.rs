@@ -329,6 +329,7 @@ fn the_ros2_table_is_validated_key_by_key() {
         ("reliability = \"sometimes\"", "ros2.reliability"),
         ("durability = \"persistent\"", "ros2.durability"),
         ("depth = 0", "ros2.depth"),
+        ("depth = 21", "ros2.depth"),
         ("depth = 100000", "ros2.depth"),
         ("topic = \"/x\"", "topic"),
     ] {
