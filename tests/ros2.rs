@@ -50,7 +50,7 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
         log()
     );
     let m: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for topic in ["points", "joints", "detections", "tf_static"] {
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
         assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
     }
     let found = &m["reply"];
@@ -124,6 +124,33 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
             "{det} {found}"
         );
     }
+
+    // The range image: a value wherever the cloud has a point.
+    let range = &m["ranges"][0];
+    assert_eq!(range["frame_id"], "sqscan_sensor");
+    assert_eq!(range["height"].as_u64().unwrap() as usize, pcd.height);
+    assert_eq!(range["width"].as_u64().unwrap() as usize, pcd.width);
+    assert_eq!(range["encoding"], "32FC1");
+    assert_eq!(range["finite"].as_u64().unwrap() as usize, finite);
+
+    // The markers: cleared, then the cup's two parts around the pose found, and the table.
+    let markers = m["markers"][0].as_array().unwrap();
+    assert_eq!(markers[0]["action"], 3);
+    let parts: Vec<&Value> = markers.iter().filter(|k| k["ns"] == "cup" && k["type"] == 8).collect();
+    assert_eq!(parts.len(), 2, "{markers:?}");
+    for part in parts {
+        assert_eq!(part["frame_id"], "robot_base");
+        for p in part["points"].as_array().unwrap() {
+            let d: f64 = (0..3)
+                .map(|k| (p[k].as_f64().unwrap() - found["pose"]["position"][k].as_f64().unwrap()).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(d < 0.12, "{d}");
+        }
+    }
+    let table = -found["plane"][3].as_f64().unwrap() / found["plane"][2].as_f64().unwrap();
+    let plane = markers.iter().find(|k| k["ns"] == "plane").expect("the table");
+    assert!((plane["z"].as_f64().unwrap() - table).abs() < 0.01, "{plane}");
 
     // The mount: the PTU in the base frame, the sensor on the tilt link, as the scene has them.
     let rig = sqscan::sim::Scene::from_file(&scene, &root().join("models"))

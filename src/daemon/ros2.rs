@@ -7,6 +7,9 @@
 //!   tilt at each profile, for `robot_state_publisher`;
 //! - the detections (`/sqscan/detections`, `vision_msgs/msg/Detection3DArray`): every
 //!   detection as it is made, one object a message, an empty array for "not here";
+//! - the markers (`/sqscan/markers`, `visualization_msgs/msg/MarkerArray`): each detection's
+//!   fitted parts and the support plane, drawn (for rviz);
+//! - the range image (`/sqscan/range`, `sensor_msgs/msg/Image`, `32FC1`): every sweep's;
 //! - `/tf_static` (`tf2_msgs/msg/TFMessage`, transient local): the PTU's mount in the base frame
 //!   and the sensor's on the tilt link, from the rig's calibration.
 //!
@@ -59,6 +62,12 @@ impl Encoded {
     /// A `PointCloud2`: its `data` is the `uint8[]` before the last byte (`is_dense`).
     pub fn point_cloud2(cdr: Vec<u8>) -> Encoded {
         let blob = ros::point_cloud2_data(&cdr);
+        Encoded { cdr, blob }
+    }
+
+    /// An `Image`: its `data` is the `uint8[]` that ends the message.
+    pub fn image(cdr: Vec<u8>) -> Encoded {
+        let blob = ros::image_data(&cdr);
         Encoded { cdr, blob }
     }
 }
@@ -170,8 +179,10 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config) -> Result<()> {
 
 struct Publishers {
     points: Publisher<Encoded>,
+    range: Publisher<Encoded>,
     joints: Publisher<Encoded>,
     detections: Publisher<Encoded>,
+    markers: Publisher<Encoded>,
     tf_static: Publisher<Encoded>,
 }
 
@@ -247,6 +258,8 @@ fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
     };
     let pubs = Publishers {
         points: publisher(&cfg.points, ros::schema::POINT_CLOUD2, &qos)?,
+        range: publisher(&cfg.range, ros::schema::IMAGE, &qos)?,
+        markers: publisher(&cfg.markers, ros::schema::MARKER_ARRAY, &qos)?,
         joints: publisher(
             &cfg.joint_states,
             ros::schema::JOINT_STATE,
@@ -274,11 +287,20 @@ fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) 
                 if let Err(e) = pubs.points.publish(Encoded::point_cloud2(data)) {
                     tracing::warn!("ROS 2 cloud of sweep {}: {e:?}", entry.id);
                 }
+                let (_, data) = topics::range_image(&entry);
+                if let Err(e) = pubs.range.publish(Encoded::image(data)) {
+                    tracing::warn!("ROS 2 range image of sweep {}: {e:?}", entry.id);
+                }
             }
             Event::Detection((entry, model, d)) => {
-                let (_, data) = topics::detections(&entry, &[(model.clone(), d)], &frame);
+                let one = [(model, d)];
+                let (_, data) = topics::detections(&entry, &one, &frame);
                 if let Err(e) = pubs.detections.publish(Encoded::new(data)) {
-                    tracing::warn!("ROS 2 detection of {} on sweep {}: {e:?}", model.name, entry.id);
+                    tracing::warn!("ROS 2 detection of {} on sweep {}: {e:?}", one[0].0.name, entry.id);
+                }
+                let (_, data) = topics::markers(&entry, &one, &frame);
+                if let Err(e) = pubs.markers.publish(Encoded::new(data)) {
+                    tracing::warn!("ROS 2 markers of {} on sweep {}: {e:?}", one[0].0.name, entry.id);
                 }
             }
         }
@@ -325,5 +347,9 @@ mod tests {
         assert_eq!(&bytes(&e)[..], &cdr[4..]);
         let j = ros::joint_state(&Header::default(), &topics::JOINT_NAMES, &[0.1, -0.2]);
         assert_eq!(&bytes(&Encoded::new(j.clone()))[..], &j[4..]);
+        let i = ros::image_32fc1(&Header::default(), 2, 3, &[1.0, f32::NAN, 2.0, 3.0, 4.0, 5.0]);
+        let e = Encoded::image(i.clone());
+        assert!(e.blob.is_some());
+        assert_eq!(&bytes(&e)[..], &i[4..]);
     }
 }

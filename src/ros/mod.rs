@@ -387,6 +387,23 @@ pub fn image_32fc1(h: &Header, height: usize, width: usize, values: &[f32]) -> V
     w.finish()
 }
 
+/// Where an `Image`'s `data` lies in the message (after its length): the message ends with it.
+/// `None` where the message is not one.
+pub fn image_data(msg: &[u8]) -> Option<std::ops::Range<usize>> {
+    let mut r = cdr::CdrReader::new(msg).ok()?;
+    r.i32("header.stamp.sec").ok()?;
+    r.u32("header.stamp.nanosec").ok()?;
+    r.string("header.frame_id").ok()?;
+    r.u32("height").ok()?;
+    r.u32("width").ok()?;
+    r.string("encoding").ok()?;
+    r.u8("is_bigendian").ok()?;
+    r.u32("step").ok()?;
+    let data = r.bytes("data").ok()?;
+    let start = data.as_ptr() as usize - msg.as_ptr() as usize;
+    (start + data.len() == msg.len()).then_some(start..msg.len())
+}
+
 /// An RGBA colour, each component 0 to 1 (`std_msgs/ColorRGBA`).
 pub type Rgba = [f32; 4];
 

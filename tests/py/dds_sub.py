@@ -169,6 +169,86 @@ class Detection3D(IdlStruct, typename=ros("vision_msgs", "Detection3D")):
 
 @dataclass
 @annotate.final
+class Image(IdlStruct, typename=ros("sensor_msgs", "Image")):
+    header: Header
+    height: uint32
+    width: uint32
+    encoding: str
+    is_bigendian: uint8
+    step: uint32
+    data: sequence[uint8]
+
+
+@dataclass
+@annotate.final
+class ColorRGBA(IdlStruct, typename=ros("std_msgs", "ColorRGBA")):
+    r: float32
+    g: float32
+    b: float32
+    a: float32
+
+
+@dataclass
+@annotate.final
+class Duration(IdlStruct, typename=ros("builtin_interfaces", "Duration")):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+@annotate.final
+class CompressedImage(IdlStruct, typename=ros("sensor_msgs", "CompressedImage")):
+    header: Header
+    format: str
+    data: sequence[uint8]
+
+
+@dataclass
+@annotate.final
+class UVCoordinate(IdlStruct, typename=ros("visualization_msgs", "UVCoordinate")):
+    u: float32
+    v: float32
+
+
+@dataclass
+@annotate.final
+class MeshFile(IdlStruct, typename=ros("visualization_msgs", "MeshFile")):
+    filename: str
+    data: sequence[uint8]
+
+
+@dataclass
+@annotate.final
+class Marker(IdlStruct, typename=ros("visualization_msgs", "Marker")):
+    header: Header
+    ns: str
+    id: int32
+    type: int32
+    action: int32
+    pose: Pose
+    scale: Vector3
+    color: ColorRGBA
+    lifetime: Duration
+    frame_locked: bool
+    points: sequence[Point]
+    colors: sequence[ColorRGBA]
+    texture_resource: str
+    texture: CompressedImage
+    uv_coordinates: sequence[UVCoordinate]
+    text: str
+    mesh_resource: str
+    mesh_file: MeshFile
+    mesh_use_embedded_materials: bool
+
+
+@dataclass
+@annotate.final
+class MarkerArray(IdlStruct, typename=ros("visualization_msgs", "MarkerArray")):
+    markers: sequence[Marker]
+
+
+@dataclass
+@annotate.final
 class Detection3DArray(IdlStruct, typename=ros("vision_msgs", "Detection3DArray")):
     header: Header
     detections: sequence[Detection3D]
@@ -229,6 +309,8 @@ def main():
         "points": DataReader(dp, Topic(dp, "rt/sqscan/points", PointCloud2), qos=Qos(reliable, Policy.History.KeepLast(2))),
         "joints": DataReader(dp, Topic(dp, "rt/sqscan/joint_states", JointState), qos=Qos(reliable, Policy.History.KeepLast(1000))),
         "detections": DataReader(dp, Topic(dp, "rt/sqscan/detections", Detection3DArray), qos=Qos(reliable, Policy.History.KeepLast(10))),
+        "markers": DataReader(dp, Topic(dp, "rt/sqscan/markers", MarkerArray), qos=Qos(reliable, Policy.History.KeepLast(10))),
+        "range": DataReader(dp, Topic(dp, "rt/sqscan/range", Image), qos=Qos(reliable, Policy.History.KeepLast(2))),
         "tf_static": DataReader(
             dp,
             Topic(dp, "rt/tf_static", TFMessage),
@@ -244,11 +326,12 @@ def main():
     out = {"matched": matched, "match_s": time.monotonic() - t0}
     print(json.dumps({"progress": "matched", **matched}), file=sys.stderr, flush=True)
     out["reply"] = ask(path, {"cmd": "find", "object": obj, "timeout_s": 60})
-    got = {"points": [], "joints": [], "detections": [], "tf_static": []}
+    got = {k: [] for k in readers}
     while time.monotonic() - t0 < seconds:
         for k, r in readers.items():
             got[k].extend(r.take(N=1000))
-        if got["points"] and got["detections"] and got["tf_static"] and len(got["joints"]) >= out["reply"].get("sweep", {}).get("profiles", 150):
+        if (got["points"] and got["detections"] and got["tf_static"] and got["markers"] and got["range"]
+                and len(got["joints"]) >= out["reply"].get("sweep", {}).get("profiles", 150)):
             break
         time.sleep(0.05)
     # A moment more for joint states of the same sweep still on their way.
@@ -281,6 +364,19 @@ def main():
             ],
         }
         for m in got["detections"]
+    ]
+    out["ranges"] = []
+    for m in got["range"]:
+        import struct
+        values = struct.unpack_from(f"<{m.height * m.width}f", bytes(m.data))
+        out["ranges"].append({"frame_id": m.header.frame_id, "height": m.height, "width": m.width,
+                              "encoding": m.encoding, "step": m.step,
+                              "finite": sum(1 for v in values if not math.isnan(v))})
+    out["markers"] = [
+        [{"ns": k.ns, "id": k.id, "type": k.type, "action": k.action, "frame_id": k.header.frame_id,
+          "points": [[p.x, p.y, p.z] for p in k.points], "z": k.pose.position.z,
+          "color": [k.color.r, k.color.g, k.color.b, k.color.a]} for k in m.markers]
+        for m in got["markers"]
     ]
     out["tf_static"] = [
         {

@@ -173,10 +173,13 @@ struct Ros2File {
     /// The node's name (default `sqscand`) and namespace (default `/`).
     node: Option<String>,
     namespace: Option<String>,
-    /// Topic names (defaults `/sqscan/points`, `/sqscan/joint_states`, `/sqscan/detections`).
+    /// Topic names (defaults `/sqscan/points`, `/sqscan/joint_states`, `/sqscan/detections`,
+    /// `/sqscan/markers`, `/sqscan/range`).
     points: Option<String>,
     joint_states: Option<String>,
     detections: Option<String>,
+    markers: Option<String>,
+    range: Option<String>,
     /// `"reliable"` (default) or `"best_effort"`.
     reliability: Option<String>,
     /// `"volatile"` (default) or `"transient_local"`.
@@ -194,6 +197,8 @@ pub struct Ros2Config {
     pub points: String,
     pub joint_states: String,
     pub detections: String,
+    pub markers: String,
+    pub range: String,
     pub reliable: bool,
     pub transient_local: bool,
     pub depth: usize,
@@ -208,6 +213,8 @@ impl Default for Ros2Config {
             points: "/sqscan/points".into(),
             joint_states: "/sqscan/joint_states".into(),
             detections: "/sqscan/detections".into(),
+            markers: "/sqscan/markers".into(),
+            range: "/sqscan/range".into(),
             reliable: true,
             transient_local: false,
             depth: 5,
@@ -271,6 +278,8 @@ fn ros2_config(path: &Path, r: &Ros2File) -> Result<Ros2Config, SpecError> {
         ("ros2.points", &r.points, &mut c.points),
         ("ros2.joint_states", &r.joint_states, &mut c.joint_states),
         ("ros2.detections", &r.detections, &mut c.detections),
+        ("ros2.markers", &r.markers, &mut c.markers),
+        ("ros2.range", &r.range, &mut c.range),
     ] {
         if let Some(t) = given {
             if !ros_name(t, false) {

@@ -326,6 +326,8 @@ fn the_ros2_table_is_validated_key_by_key() {
         ("joint_states = \"/a__b\"", "ros2.joint_states"),
         ("detections = \"/sqscan/1st\"", "ros2.detections"),
         ("detections = \"~/private\"", "ros2.detections"),
+        ("markers = \"/sqscan/markers!\"", "ros2.markers"),
+        ("range = \"\"", "ros2.range"),
         ("reliability = \"sometimes\"", "ros2.reliability"),
         ("durability = \"persistent\"", "ros2.durability"),
         ("depth = 0", "ros2.depth"),
