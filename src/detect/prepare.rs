@@ -92,6 +92,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     let origin = params.viewpoint.unwrap_or(Point3::origin());
     let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
     // x - x is 0 for a finite x and NaN otherwise: a count without branches.
+    #[allow(clippy::eq_op)]
     let input_points = cloud
         .iter()
         .filter(|p| (p[0] - p[0]) + (p[1] - p[1]) + (p[2] - p[2]) == 0.0)

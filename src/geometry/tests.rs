@@ -379,7 +379,7 @@ fn lowest_z_matches_dense_sampling() {
         for (r, p, y) in [
             (0.0, 0.0, 0.0),
             (0.4, 1.2, -0.3),
-            (1.5707963, 0.0, 0.7),
+            (std::f64::consts::FRAC_PI_2, 0.0, 0.7),
             (2.8, -0.5, 2.0),
         ] {
             let placed = PlacedSuperquadric::new(
