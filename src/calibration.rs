@@ -164,6 +164,16 @@ pub struct Calibration {
 /// `|det H|` relative to the cube of its largest entry below this is a singular homography.
 const SINGULAR: f64 = 1e-12;
 
+/// The pan link in the PTU frame: turned by the pan angle (rad) about the PTU's z axis.
+pub fn pan_link(pan_rad: f64) -> Isometry3<f64> {
+    Isometry3::rotation(Vector3::z() * pan_rad)
+}
+
+/// The tilt link in the pan link: turned by the tilt angle (rad) about its y axis.
+pub fn tilt_link(tilt_rad: f64) -> Isometry3<f64> {
+    Isometry3::rotation(Vector3::y() * tilt_rad)
+}
+
 impl Calibration {
     /// Reads and validates a calibration file.
     pub fn from_file(path: &Path) -> Result<Calibration, SpecError> {
@@ -283,9 +293,7 @@ impl Calibration {
 
     /// The sensor frame in the base frame at the given joint angles (rad).
     pub fn sensor_in_base(&self, pan_rad: f64, tilt_rad: f64) -> Isometry3<f64> {
-        let pan = Isometry3::rotation(Vector3::z() * pan_rad);
-        let tilt = Isometry3::rotation(Vector3::y() * tilt_rad);
-        self.ptu_in_base * pan * tilt * self.sensor_in_tilt
+        self.ptu_in_base * pan_link(pan_rad) * tilt_link(tilt_rad) * self.sensor_in_tilt
     }
 
     /// The point in the base frame that column `col` measured with raw value `raw` at the

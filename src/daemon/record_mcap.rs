@@ -62,7 +62,7 @@ pub fn write(
         if let Some(m) = mount {
             let tf_static = channel(schema::TF_MESSAGE, schema::tf_message(), "/tf_static")?;
             // Stamped with the first profile's time: every message of the file finds it.
-            let first = topics::joint_states(entry).next().map_or(Time::default(), |(t, _)| t);
+            let first = topics::first_profile_time(entry);
             out.write_to_known_channel(&message(tf_static, 0, first), &topics::tf_static(frame, m, first))?;
         }
         for (i, (stamp, data)) in topics::joint_states(entry).enumerate() {

@@ -13,6 +13,7 @@ use nalgebra::{Isometry3, Vector3};
 
 use super::backend::Mount;
 use super::state::{Detected, DetectedEvent, Shared, SweepEntry};
+use crate::calibration;
 use crate::model::Model;
 use crate::ros::{self, Found, Header, Time, Transform};
 
@@ -53,6 +54,11 @@ fn profiles(entry: &SweepEntry) -> impl Iterator<Item = (Time, f64, f64)> + '_ {
             let stamp = Time::from_unix_s(last - (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp)));
             (stamp, *pan, *tilt)
         })
+}
+
+/// The first profile's time.
+pub fn first_profile_time(entry: &SweepEntry) -> Time {
+    profiles(entry).next().map_or(Time::default(), |(t, _, _)| t)
 }
 
 /// Each profile's `JointState` (pan and tilt), in time order, with its stamp.
@@ -102,7 +108,7 @@ pub fn tf_joints(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + 
                     frame_id: PTU_FRAME,
                 },
                 child: PAN_FRAME,
-                transform: Isometry3::rotation(Vector3::z() * pan),
+                transform: calibration::pan_link(pan),
             },
             Transform {
                 header: Header {
@@ -110,7 +116,7 @@ pub fn tf_joints(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + 
                     frame_id: PAN_FRAME,
                 },
                 child: TILT_FRAME,
-                transform: Isometry3::rotation(Vector3::y() * tilt),
+                transform: calibration::tilt_link(tilt),
             },
         ]);
         (stamp, data)

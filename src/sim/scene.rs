@@ -1,12 +1,12 @@
 //! Scene files (`scenes/*.toml`, format in `scenes/README.md`): a table, objects placed by model
 //! and pose, free superquadric parts for clutter, and the scanning rig.
 
-use crate::calibration::Calibration;
+use crate::calibration::{self, Calibration};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::{Model, resolve};
 use crate::pose::PoseSpec;
 use crate::spec::{SpecError, read_toml};
-use nalgebra::{Isometry3, Translation3, Vector3};
+use nalgebra::{Isometry3, Translation3};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -173,9 +173,7 @@ impl Rig {
 
     /// The sensor frame in the base frame at the given joint angles.
     pub fn sensor_in_base(&self, pan: f64, tilt: f64) -> Isometry3<f64> {
-        let pan_rot = Isometry3::rotation(Vector3::z() * pan);
-        let tilt_rot = Isometry3::rotation(Vector3::y() * tilt);
-        self.ptu_in_base * pan_rot * tilt_rot * self.sensor_in_tilt
+        self.ptu_in_base * calibration::pan_link(pan) * calibration::tilt_link(tilt) * self.sensor_in_tilt
     }
 
     /// Duration of one sweep (s).

@@ -12,6 +12,7 @@ OBJECT, then prints one JSON object: the reply, and what arrived on each topic.
 import json
 import math
 import socket
+import struct
 import sys
 import time
 from dataclasses import dataclass
@@ -269,9 +270,21 @@ def stamp(h):
     return h.stamp.sec + 1e-9 * h.stamp.nanosec
 
 
-def cloud_summary(m):
-    import struct
+def detection(d):
+    """A Detection3D's one result: the object, its score and pose, and the box's size."""
+    r = d.results[0]
+    p, q = r.pose.pose.position, r.pose.pose.orientation
+    return {
+        "id": d.id,
+        "class_id": r.hypothesis.class_id,
+        "score": r.hypothesis.score,
+        "position": [p.x, p.y, p.z],
+        "orientation": [q.x, q.y, q.z, q.w],
+        "bbox_size": [d.bbox.size.x, d.bbox.size.y, d.bbox.size.z],
+    }
 
+
+def cloud_summary(m):
     fields = [{"name": f.name, "offset": f.offset, "datatype": f.datatype, "count": f.count} for f in m.fields]
     data = bytes(m.data)
     n = m.height * m.width
@@ -347,27 +360,13 @@ def main():
             "frame_id": m.header.frame_id,
             "stamp": stamp(m.header),
             "detections": [
-                {
-                    "id": d.id,
-                    "class_id": d.results[0].hypothesis.class_id if d.results else None,
-                    "score": d.results[0].hypothesis.score if d.results else None,
-                    "position": [d.results[0].pose.pose.position.x, d.results[0].pose.pose.position.y, d.results[0].pose.pose.position.z],
-                    "orientation": [
-                        d.results[0].pose.pose.orientation.x,
-                        d.results[0].pose.pose.orientation.y,
-                        d.results[0].pose.pose.orientation.z,
-                        d.results[0].pose.pose.orientation.w,
-                    ],
-                    "bbox_size": [d.bbox.size.x, d.bbox.size.y, d.bbox.size.z],
-                }
-                for d in m.detections
+                detection(d) for d in m.detections
             ],
         }
         for m in got["detections"]
     ]
     out["ranges"] = []
     for m in got["range"]:
-        import struct
         values = struct.unpack_from(f"<{m.height * m.width}f", bytes(m.data))
         out["ranges"].append({"frame_id": m.header.frame_id, "height": m.height, "width": m.width,
                               "encoding": m.encoding, "step": m.step,
