@@ -440,6 +440,89 @@ fn systemd_hears_ready_watchdog_and_a_clean_stop() {
     assert!(stopping, "{got:?}");
 }
 
+/// CI once saw a client's connection closed at SIGTERM without the "stopping" line: the clients'
+/// tasks were detached, so the process could exit before they wrote it. Every client, idle or
+/// with a request in flight, hears why.
+#[test]
+fn sigterm_tells_every_connected_client_why_before_exiting() {
+    let dir = tmpdir("goodbye");
+    let (mut d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    let mut clients: Vec<Client> = (0..24).map(|_| Client::connect(&socket)).collect();
+    // Half of them wait on a find that the shutdown cuts short.
+    for (i, c) in clients.iter_mut().enumerate().filter(|(i, _)| i % 2 == 0) {
+        c.send(&json!({"cmd":"find","object":"cup","max_age_s":0.0,"timeout_s":30,"id":i}));
+    }
+    unsafe_kill(d.0.id(), 15);
+    for (i, c) in clients.iter_mut().enumerate() {
+        // A reply that beat the signal may come first; the goodbye must follow it.
+        let bye = loop {
+            let m = c.read();
+            if m["code"] == "stopping" {
+                break m;
+            }
+            assert_ne!(m["class"], "error", "client {i}: {m}");
+        };
+        assert_eq!(bye["class"], "error", "client {i}: {bye}");
+    }
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = d.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(5), "still running 5 s after SIGTERM");
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}: {}", log(&dir));
+}
+
+/// A sweep completed just before SIGTERM is still recorded: the recording was a detached task,
+/// which the process's exit could cut short (most often with MCAP, whose recording first waits
+/// for the watched objects' detections).
+#[test]
+fn a_sweep_completed_just_before_sigterm_is_still_recorded() {
+    let mcap = if cfg!(feature = "mcap") {
+        "mcap = true\n[watch]\nobjects = [\"cup\"]\n"
+    } else {
+        ""
+    };
+    for round in 0..3 {
+        let dir = tmpdir(&format!("lastrec{round}"));
+        let config = format!(
+            "{}\n[acquisition]\nmode = \"on_demand\"\n[record]\ndir = \"rec\"\n{mcap}",
+            sim_config()
+        );
+        let (mut d, socket) = start_daemon(&dir, &config, &[]);
+        let mut c = Client::connect(&socket);
+        let s = c.ask(json!({"cmd":"scan","timeout_s":30}));
+        assert_eq!(s["class"], "sweep", "{s}");
+        let id = s["sweep"]["id"].as_u64().unwrap();
+        unsafe_kill(d.0.id(), 15);
+        let t = Instant::now();
+        let status = loop {
+            if let Some(s) = d.0.try_wait().unwrap() {
+                break s;
+            }
+            assert!(t.elapsed() < Duration::from_secs(5), "still running 5 s after SIGTERM");
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        assert!(status.success(), "{status:?}: {}", log(&dir));
+        let stem = format!("sweep-{id:08}");
+        let rec = dir.join("rec");
+        let exts: &[&str] = if mcap.is_empty() {
+            &["pcd", "json"]
+        } else {
+            &["pcd", "json", "mcap"]
+        };
+        for ext in exts {
+            assert!(
+                rec.join(format!("{stem}.{ext}")).exists(),
+                "round {round}: no {stem}.{ext}: {}",
+                log(&dir)
+            );
+        }
+    }
+}
+
 /// SIGHUP re-reads the configuration and the models while clients stay connected (a watcher
 /// keeps its updates); a broken configuration, or one naming an unknown object, is refused and
 /// the old one stays in use; a setting that needs a restart keeps its old value; systemd hears

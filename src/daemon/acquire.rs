@@ -6,6 +6,8 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
+use tokio::task::JoinSet;
+
 use super::backend::Backend;
 use super::record;
 use super::state::{Shared, SweepEntry, lock, stopped};
@@ -17,7 +19,10 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
     let mut next_id = 1u64;
     let mut forward = true;
     let mut last_completed: Option<Instant> = None;
+    // Held, not detached: a sweep completed just before a stop is still written out.
+    let mut recordings: JoinSet<()> = JoinSet::new();
     loop {
+        while recordings.try_join_next().is_some() {}
         if shared.is_stopping() {
             break;
         }
@@ -49,7 +54,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 shared.latest.send_replace(Some(entry.clone()));
                 warm_detections(&shared, &entry);
                 if let Some(dir) = shared.config().record_dir.clone() {
-                    tokio::spawn(record_sweep(shared.clone(), entry.clone(), dir));
+                    recordings.spawn(record_sweep(shared.clone(), entry.clone(), dir));
                 }
                 if shared.config().sweep.back_and_forth {
                     forward = !forward;
@@ -76,6 +81,9 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
         }
     }
     backend.stop().await;
+    // The daemon's stop bounds this wait; a write already on the blocking pool finishes even
+    // past it, as the runtime waits for its blocking threads.
+    while recordings.join_next().await.is_some() {}
 }
 
 /// Starts the detections that someone is bound to want on a new sweep: the configured watch

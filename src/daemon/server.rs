@@ -109,12 +109,15 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
         None => (None, PathBuf::new()),
     };
     let tcp = listeners.tcp;
+    // Held, not detached: on shutdown each client is told why before the process exits, and
+    // the runtime's end would otherwise drop a goodbye still in its queue.
+    let mut clients: JoinSet<()> = JoinSet::new();
     loop {
         tokio::select! {
             r = accept_unix(unix.as_ref()) => match r {
                 Ok(stream) => {
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&shared, &slots, &idle, rd, wr);
+                    spawn_client(&mut clients, &shared, &slots, &idle, rd, wr);
                 }
                 Err(e) => {
                     tracing::warn!("accept on {}: {e}", socket_path.display());
@@ -125,16 +128,20 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                 Ok(stream) => {
                     let _ = stream.set_nodelay(true);
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&shared, &slots, &idle, rd, wr);
+                    spawn_client(&mut clients, &shared, &slots, &idle, rd, wr);
                 }
                 Err(e) => {
                     tracing::warn!("accept on tcp: {e}");
                     tokio::time::sleep(Duration::from_millis(50)).await;
                 }
             },
+            Some(_) = clients.join_next(), if !clients.is_empty() => {}
             () = stopped(&mut shutdown) => break,
         }
     }
+    // Each client sees the shutdown itself, says so and flushes (bounded by its writer's
+    // timeout; the daemon's stop bounds the whole wait).
+    while clients.join_next().await.is_some() {}
 }
 
 /// The next client on the Unix socket; never, without one.
@@ -153,14 +160,20 @@ async fn accept_tcp(l: Option<&TcpListener>) -> std::io::Result<tokio::net::TcpS
     }
 }
 
-fn spawn_client<R, W>(shared: &Arc<Shared>, slots: &Arc<Semaphore>, idle: &Idle, rd: R, mut wr: W)
-where
+fn spawn_client<R, W>(
+    clients: &mut JoinSet<()>,
+    shared: &Arc<Shared>,
+    slots: &Arc<Semaphore>,
+    idle: &Idle,
+    rd: R,
+    mut wr: W,
+) where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
     let shared = shared.clone();
     let (slots, idle) = (slots.clone(), idle.clone());
-    tokio::spawn(async move {
+    clients.spawn(async move {
         let permit = match slots.clone().try_acquire_owned() {
             Ok(p) => Ok(p),
             // Every slot taken: close the longest-idle client and take its slot.
