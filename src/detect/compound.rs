@@ -5,9 +5,10 @@
 
 use super::accept::{self, object_pose};
 use super::anchor::Anchors;
+use super::fit::Fit;
 use super::prepare::Prepared;
 use super::report::{ConnectionText, Detection, PartResult};
-use super::search::{self, SearchSettings, search_part};
+use super::search::{self, SearchSettings};
 use super::verify::{Scores, paper_criteria, rank_sums, score};
 use super::{Params, box_volume, fit, rigid};
 use crate::model::{Connection, Model, axis_angle};
@@ -124,53 +125,82 @@ pub fn combinations(
     for (step, &(part, parent, ci)) in visit.iter().enumerate() {
         let conn = &model.connections[ci];
         let shape = model.parts[part].shape;
+        // The trials of each partial combination, side by side (each on its own stream): seeds
+        // are the subsampled points in the shell where this part's surface can be, that are not
+        // on the parent part's own surface.
+        let trials: Vec<Option<Vec<Fit>>> = partial
+            .par_iter()
+            .enumerate()
+            .map(|(pi, (_, combo))| {
+                let parent_placed = combo[parent].placed?;
+                let pc = Point3::from(parent_placed.pose.translation.vector);
+                let reach = shape.bounding_radius();
+                let band = search::refine_band(&parent_placed.shape, space.noise.at(&pc));
+                let mut seeds = Vec::new();
+                space
+                    .sub_grid
+                    .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
+                        let p = &space.sub[i];
+                        if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
+                            seeds.push(i);
+                        }
+                    });
+                let m = params.local_hypotheses.max(1);
+                let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
+                let fits = search::region_fits(&space, &shape, &seeds, m, &settings, &prep.checks[part], stream);
+                Some(search::distinct(fits, &[]))
+            })
+            .collect();
+        // The anchor candidates' shells overlap, and their trials find the same placements of
+        // this part over and over: each placement is refined and scored once, for all of them.
+        let mut pool: Vec<Fit> = Vec::new();
+        let members: Vec<Option<Vec<usize>>> = trials
+            .into_iter()
+            .map(|fits| {
+                fits.map(|fits| {
+                    fits.into_iter()
+                        .map(
+                            |f| match pool.iter().position(|p| search::same_pose(&p.placed, &f.placed)) {
+                                Some(j) => j,
+                                None => {
+                                    pool.push(f);
+                                    pool.len() - 1
+                                }
+                            },
+                        )
+                        .collect()
+                })
+            })
+            .collect();
+        let (hyps, stands_for) = search::refine_fits(
+            &space,
+            &pool,
+            &settings,
+            model.parts[part].open,
+            &prep.checks[part],
+            &[],
+        );
+        let scores: Vec<Scores> = hyps
+            .par_iter()
+            .map(|h| score(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
+            .collect();
         let mut next = Vec::new();
-        for (pi, (origin, combo)) in partial.iter().enumerate() {
-            let Some(parent_placed) = combo[parent].placed else {
-                next.push((*origin, combo.clone()));
-                continue;
-            };
-            // Seeds: subsampled points in the shell where this part's surface can be, that are
-            // not on the parent part's own surface.
-            let pc = Point3::from(parent_placed.pose.translation.vector);
-            let reach = shape.bounding_radius();
-            let band = search::refine_band(&parent_placed.shape, space.noise.at(&pc));
-            let mut seeds = Vec::new();
-            space
-                .sub_grid
-                .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
-                    let p = &space.sub[i];
-                    if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
-                        seeds.push(i);
-                    }
-                });
-            let m = params.local_hypotheses.max(1);
-            let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
-            let hyps = search_part(
-                &space,
-                &shape,
-                &seeds,
-                m,
-                &settings,
-                model.parts[part].open,
-                &prep.checks[part],
-                stream,
-                &[],
-            );
-            if hyps.is_empty() {
-                next.push((*origin, combo.clone()));
-                continue;
+        for ((origin, combo), members) in partial.iter().zip(members) {
+            let mut found: Vec<usize> = Vec::new();
+            for k in members.unwrap_or_default().into_iter().filter_map(|j| stands_for[j]) {
+                if !found.contains(&k) {
+                    found.push(k);
+                }
             }
-            let scores: Vec<Scores> = hyps
-                .par_iter()
-                .map(|h| score(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
-                .collect();
-            for (h, s) in hyps.iter().zip(scores) {
+            if found.is_empty() {
+                next.push((*origin, combo.clone()));
+            }
+            for k in found {
                 let mut c = combo.clone();
                 c[part] = PartResult {
                     name: model.parts[part].name.clone(),
-                    placed: Some(h.placed),
-                    scores: s,
+                    placed: Some(hyps[k].placed),
+                    scores: scores[k],
                 };
                 next.push((*origin, c));
             }

@@ -335,36 +335,72 @@ pub fn search_part(
     seed: u64,
     known: &[PlacedSuperquadric],
 ) -> Vec<Hypothesis> {
+    let fits = region_fits(space, shape, seeds, m, settings, check, seed);
+    refine_fits(space, &distinct(fits, known), settings, open, check, known).0
+}
+
+/// The best trial fit (with its consensus) of each of `m` compact regions of the seed points, in
+/// parallel, each region from its own stream; unrefined.
+pub fn region_fits(
+    space: &SearchSpace<'_>,
+    shape: &Superquadric,
+    seeds: &[usize],
+    m: usize,
+    settings: &SearchSettings,
+    check: &PlaneCheck,
+    seed: u64,
+) -> Vec<(usize, Fit)> {
     let regions = spatial_regions(space.sub, seeds, m);
-    let fits: Vec<(usize, Fit)> = (0..m)
+    (0..m)
         .into_par_iter()
         .filter_map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
             ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
         })
-        .collect();
+        .collect()
+}
+
+/// The refined hypotheses of `fits` (distinct, best first), and for each fit the index of the
+/// hypothesis that stands for it: its own, or that of an earlier fit it met in the coarse
+/// rounds; none where it met a `known` pose or cannot stand on the support plane.
+pub fn refine_fits(
+    space: &SearchSpace<'_>,
+    fits: &[Fit],
+    settings: &SearchSettings,
+    open: bool,
+    check: &PlaneCheck,
+    known: &[PlacedSuperquadric],
+) -> (Vec<Hypothesis>, Vec<Option<usize>>) {
     let rest_axis = check.rest_axis(space);
-    let coarse: Vec<Result<Coarse, Hypothesis>> = distinct(fits, known)
+    let coarse: Vec<Result<Coarse, Hypothesis>> = fits
         .par_iter()
         .map(|f| refine_coarse(space, f, settings.fit_iterations, rest_axis))
         .collect();
     // Copies of one object that the trials left apart (a few centimetres, a turned axis) meet
     // in the coarse rounds: the fine rounds, the scores and the vote need only the first (the
     // trials' best consensus).
-    let mut seen: Vec<PlacedSuperquadric> = known.to_vec();
-    let kept: Vec<Result<Coarse, Hypothesis>> = coarse
-        .into_iter()
-        .filter(|c| {
-            let Ok(c) = c else { return true };
-            if seen.iter().any(|k| same_pose(k, c.placed())) {
-                return false;
+    let mut kept: Vec<Result<Coarse, Hypothesis>> = Vec::with_capacity(coarse.len());
+    let mut stands_for: Vec<Option<usize>> = Vec::with_capacity(coarse.len());
+    for c in coarse {
+        if let Ok(cc) = &c {
+            if known.iter().any(|k| same_pose(k, cc.placed())) {
+                stands_for.push(None);
+                continue;
             }
-            seen.push(*c.placed());
-            true
-        })
-        .collect();
-    kept.into_par_iter()
-        .filter_map(|c| {
+            let met = kept
+                .iter()
+                .position(|k| matches!(k, Ok(k) if same_pose(k.placed(), cc.placed())));
+            if met.is_some() {
+                stands_for.push(met);
+                continue;
+            }
+        }
+        stands_for.push(Some(kept.len()));
+        kept.push(c);
+    }
+    let refined: Vec<Option<Hypothesis>> = kept
+        .into_par_iter()
+        .map(|c| {
             let mut h = match c {
                 Ok(c) => refine_fine(space, &c),
                 Err(h) => h,
@@ -388,7 +424,17 @@ pub fn search_part(
             }
             allowed.then_some(h)
         })
-        .collect()
+        .collect();
+    let mut index = vec![None; refined.len()];
+    let mut hypotheses = Vec::with_capacity(refined.len());
+    for (j, h) in refined.into_iter().enumerate() {
+        if let Some(h) = h {
+            index[j] = Some(hypotheses.len());
+            hypotheses.push(h);
+        }
+    }
+    let stands_for = stands_for.into_iter().map(|k| k.and_then(|j| index[j])).collect();
+    (hypotheses, stands_for)
 }
 
 /// Lift a refined pose that reaches through the support plane by more than the check allows
