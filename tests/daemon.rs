@@ -475,6 +475,44 @@ fn sigterm_tells_every_connected_client_why_before_exiting() {
     assert!(status.success(), "{status:?}: {}", log(&dir));
 }
 
+/// The stop waits for each client's goodbye, but not for a client that does not read: clients
+/// that asked for clouds and never read them (their writers stuck on full sockets, for up to 10 s
+/// each) do not hold the daemon up past its stop bound.
+#[test]
+fn clients_that_never_read_do_not_hold_up_a_stop() {
+    let dir = tmpdir("stuckstop");
+    let (mut d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    let mut c = Client::connect(&socket);
+    assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
+    let silent: Vec<UnixStream> = (0..6)
+        .map(|_| {
+            let mut s = UnixStream::connect(&socket).unwrap();
+            for _ in 0..3 {
+                s.write_all(b"{\"cmd\":\"cloud\",\"max_age_s\":3600}\n").unwrap();
+            }
+            s
+        })
+        .collect();
+    std::thread::sleep(Duration::from_millis(500));
+    unsafe_kill(d.0.id(), 15);
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = d.0.try_wait().unwrap() {
+            break s;
+        }
+        // The daemon's bound is 1.5 s; the margin is for a loaded machine.
+        assert!(
+            t.elapsed() < Duration::from_secs(5),
+            "still running 5 s after SIGTERM: {}",
+            log(&dir)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}: {}", log(&dir));
+    assert!(!socket.exists());
+    drop(silent);
+}
+
 /// A sweep completed just before SIGTERM is still recorded: the recording was a detached task,
 /// which the process's exit could cut short (most often with MCAP, whose recording first waits
 /// for the watched objects' detections).
