@@ -9,9 +9,11 @@
 //!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), the best of
 //!    each hypothesis refined on a denser subsample), its hypotheses scored and ranked by the
 //!    paper's voting over M, S and I ([`verify`]) -> `Anchors`;
-//! 3. `compound`: every other part searched only where its connection to an already-found part
-//!    puts it, the combinations ranked by the connection errors A and D together with the parts'
-//!    M, S and I, the best of each anchor candidate refined as one rigid object ([`rigid`]);
+//! 3. `compound`: every other part placed where the model puts it against an already-found part
+//!    (at every spin about that part's axis) and searched by a few RANSAC trials in the shell its
+//!    connection leaves, the combinations ranked by the connection errors A and D together with
+//!    the parts' M, S and I, the best of each anchor candidate refined as one rigid object
+//!    ([`rigid`]);
 //! 4. `accept`: coverage of the visible surface, interior points and fit decide whether a
 //!    candidate is the object at all ("not here"), with a confidence in [0, 1]; the candidates
 //!    that may be reported are checked against the free space the sensor saw through;

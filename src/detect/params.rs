@@ -18,7 +18,9 @@ pub struct Params {
     pub gamma: f64,
     /// Hypotheses for the (first) part; `None`: the model's m, else derived from the scene.
     pub hypotheses: Option<usize>,
-    /// Hypotheses searched for each further part of a compound around each candidate.
+    /// RANSAC hypotheses (each in its own region of the shell) searched for each further part of
+    /// a compound around each candidate, beside the placements the model's connection gives; 0
+    /// keeps only those.
     pub local_hypotheses: usize,
     /// Candidates of the first part a compound search continues from.
     pub compound_candidates: usize,
@@ -76,7 +78,7 @@ impl Default for Params {
             fit_iterations: 20,
             gamma: 0.2,
             hypotheses: None,
-            local_hypotheses: 8,
+            local_hypotheses: 4,
             compound_candidates: 6,
             remove_plane: true,
             max_range: None,

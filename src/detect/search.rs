@@ -301,7 +301,7 @@ pub fn ransac(
 
 widened! {
 /// Points of the coarse subsample within `band` of the placed surface.
-fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
+pub(super) fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
     let centre = Point3::from(placed.pose.translation.vector);
     let kernel = PlacedKernel::new(placed);
     let mut n = 0;
