@@ -464,15 +464,7 @@ fn sigterm_tells_every_connected_client_why_before_exiting() {
         };
         assert_eq!(bye["class"], "error", "client {i}: {bye}");
     }
-    let t = Instant::now();
-    let status = loop {
-        if let Some(s) = d.0.try_wait().unwrap() {
-            break s;
-        }
-        assert!(t.elapsed() < Duration::from_secs(5), "still running 5 s after SIGTERM");
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    assert!(status.success(), "{status:?}: {}", log(&dir));
+    exits_cleanly_within(&mut d, &dir, Duration::from_secs(5));
 }
 
 /// The stop waits for each client's goodbye, but not for a client that does not read: clients
@@ -495,20 +487,8 @@ fn clients_that_never_read_do_not_hold_up_a_stop() {
         .collect();
     std::thread::sleep(Duration::from_millis(500));
     unsafe_kill(d.0.id(), 15);
-    let t = Instant::now();
-    let status = loop {
-        if let Some(s) = d.0.try_wait().unwrap() {
-            break s;
-        }
-        // The daemon's bound is 1.5 s; the margin is for a loaded machine.
-        assert!(
-            t.elapsed() < Duration::from_secs(5),
-            "still running 5 s after SIGTERM: {}",
-            log(&dir)
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    assert!(status.success(), "{status:?}: {}", log(&dir));
+    // The daemon's bound is 1.5 s; the margin is for a loaded machine.
+    exits_cleanly_within(&mut d, &dir, Duration::from_secs(5));
     assert!(!socket.exists());
     drop(silent);
 }
@@ -535,15 +515,7 @@ fn a_sweep_completed_just_before_sigterm_is_still_recorded() {
         assert_eq!(s["class"], "sweep", "{s}");
         let id = s["sweep"]["id"].as_u64().unwrap();
         unsafe_kill(d.0.id(), 15);
-        let t = Instant::now();
-        let status = loop {
-            if let Some(s) = d.0.try_wait().unwrap() {
-                break s;
-            }
-            assert!(t.elapsed() < Duration::from_secs(5), "still running 5 s after SIGTERM");
-            std::thread::sleep(Duration::from_millis(20));
-        };
-        assert!(status.success(), "{status:?}: {}", log(&dir));
+        exits_cleanly_within(&mut d, &dir, Duration::from_secs(5));
         let stem = format!("sweep-{id:08}");
         let rec = dir.join("rec");
         let exts: &[&str] = if mcap.is_empty() {
@@ -676,6 +648,24 @@ fn sighup_reloads_models_and_configuration_without_dropping_clients() {
     let u = watcher.read();
     assert_eq!((&u["class"], &u["object"]), (&json!("detection"), &json!("cup")), "{u}");
     assert_eq!(c.ask(json!({"cmd":"status"}))["clients"]["connected"], 2);
+}
+
+/// Waits for the daemon to exit after a signal, at most `within`, and asserts it exited cleanly.
+fn exits_cleanly_within(d: &mut Proc, dir: &Path, within: Duration) {
+    let t = Instant::now();
+    let status = loop {
+        if let Some(s) = d.0.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t.elapsed() < within,
+            "still running {} s after the signal: {}",
+            within.as_secs_f64(),
+            log(dir)
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(status.success(), "{status:?}: {}", log(dir));
 }
 
 fn unsafe_kill(pid: u32, sig: i32) {
