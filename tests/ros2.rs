@@ -176,8 +176,8 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
 
 /// Under systemd's `RestrictAddressFamilies` without `AF_NETLINK`, RustDDS listed no network
 /// interface and the node was never discovered, with nothing in the log. The daemon now refuses
-/// to start its node there, and says what to add. (Netlink is refused here with a seccomp filter,
-/// as systemd refuses it, through Debian's `python3-seccomp`.)
+/// to start there, before it says it is listening, and says what to add. (Netlink is refused
+/// here with a seccomp filter, as systemd refuses it, through Debian's `python3-seccomp`.)
 #[test]
 fn a_node_that_cannot_list_the_interfaces_refuses_to_start() {
     let python = std::path::Path::new("/usr/bin/python3");
@@ -225,4 +225,7 @@ fn a_node_that_cannot_list_the_interfaces_refuses_to_start() {
     let err = std::fs::read_to_string(&log).unwrap();
     assert!(!status.unwrap().success(), "{err}");
     assert!(err.contains("netlink") && err.contains("AF_NETLINK"), "{err}");
+    // Refused at start-up: it never said where to ask, and left no socket behind.
+    assert!(!err.contains("listening"), "{err}");
+    assert!(!dir.join("sqscand.sock").exists());
 }

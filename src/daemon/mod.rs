@@ -170,6 +170,21 @@ impl Daemon {
         let notifier = notifier.map(Arc::new);
         check_watch(&config, &models)?;
         let socket = listeners.socket_path().map(Path::to_owned);
+        // The ROS 2 node before anything runs: one that cannot start refuses the configuration
+        // here, before systemd hears READY and clients are told where to ask.
+        #[cfg(feature = "ros2")]
+        let ros2_node = match config.ros2.clone() {
+            Some(cfg) => match ros2::Started::new(&cfg) {
+                Ok(node) => Some((cfg, node)),
+                Err(e) => {
+                    if let Some(s) = &socket {
+                        let _ = std::fs::remove_file(s);
+                    }
+                    return Err(e.context("the ROS 2 node"));
+                }
+            },
+            None => None,
+        };
         let shared = Arc::new(Shared::new(config, models, backend.name()).with_mount(backend.mount()));
         let essential = [
             ("acquisition", tokio::spawn(acquire::run(shared.clone(), backend))),
@@ -181,8 +196,8 @@ impl Daemon {
             tasks.push(tokio::spawn(view::run(shared.clone(), listen)));
         }
         #[cfg(feature = "ros2")]
-        if let Some(cfg) = shared.config().ros2.clone() {
-            tasks.push(tokio::spawn(ros2::run(shared.clone(), cfg)));
+        if let Some((cfg, node)) = ros2_node {
+            tasks.push(tokio::spawn(ros2::run(shared.clone(), cfg, node)));
         }
         if let Some(n) = &notifier {
             if let Err(e) = n.ready() {

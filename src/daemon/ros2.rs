@@ -115,19 +115,38 @@ impl Serialize for Encoded {
 /// Messages waiting for the publishing thread; past this the newest is dropped with a warning.
 const QUEUE: usize = 16;
 
-/// Runs the node until the daemon stops. A node that cannot start stops the daemon (the
+/// The node, made and with its publishers, before the daemon says it is ready: a configuration
+/// that asks for a node that cannot start is refused at start-up, not after "listening".
+pub struct Started {
+    context: Context,
+    node: Node,
+    pubs: Publishers,
+}
+
+impl Started {
+    pub fn new(cfg: &Ros2Config) -> Result<Started> {
+        let (context, node, pubs) = start(cfg)?;
+        Ok(Started { context, node, pubs })
+    }
+}
+
+/// Runs the started node until the daemon stops. A node that fails later stops the daemon (the
 /// configuration asked for it).
-pub async fn run(shared: Arc<Shared>, cfg: Ros2Config) {
-    if let Err(e) = serve(&shared, &cfg).await {
+pub async fn run(shared: Arc<Shared>, cfg: Ros2Config, started: Started) {
+    if let Err(e) = serve(&shared, &cfg, started).await {
         let msg = format!("the ROS 2 node: {e:#}");
         tracing::error!("{msg}");
         shared.failure.send_replace(Some(msg));
     }
 }
 
-async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config) -> Result<()> {
+async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, started: Started) -> Result<()> {
     let frame = shared.config().frame_id.clone();
-    let (context, mut node, pubs) = start(cfg)?;
+    let Started {
+        context,
+        mut node,
+        pubs,
+    } = started;
     let spinner = node
         .spinner()
         .map_err(|e| anyhow!("{e:?}"))
