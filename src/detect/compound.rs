@@ -129,26 +129,12 @@ pub fn combinations(
     for (step, &(part, parent, ci)) in visit.iter().enumerate() {
         let conn = &model.connections[ci];
         let shape = model.parts[part].shape;
-        // The trials of each partial combination, side by side (each on its own stream): seeds
-        // are the subsampled points in the shell where this part's surface can be, that are not
-        // on the parent part's own surface.
+        // The trials of each partial combination, side by side (each on its own stream).
         let trials: Vec<Option<Vec<Fit>>> = partial
             .par_iter()
             .enumerate()
             .map(|(pi, (_, combo))| {
                 let parent_placed = combo[parent].placed?;
-                let pc = Point3::from(parent_placed.pose.translation.vector);
-                let reach = shape.bounding_radius();
-                let band = search::refine_band(&parent_placed.shape, space.noise.at(&pc));
-                let mut seeds = Vec::new();
-                space
-                    .sub_grid
-                    .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
-                        let p = &space.sub[i];
-                        if (p - pc).norm() >= conn.distance - reach && parent_placed.surface_distance(p).abs() > band {
-                            seeds.push(i);
-                        }
-                    });
                 // Where the model puts the part against this placement of its parent, and beside
                 // that a few RANSAC regions of the shell: they find the part when the parent's fit
                 // is off by more than the part's own width (a head's centre slid along its axis
@@ -156,6 +142,7 @@ pub fn combinations(
                 let mut fits = spun_placements(&space, model, parent, part, &parent_placed, &prep.checks[part]);
                 let m = params.local_hypotheses;
                 if m > 0 {
+                    let seeds = shell_seeds(&space, conn, &shape, &parent_placed);
                     let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
                     fits.extend(search::region_fits(
                         &space,
@@ -175,21 +162,7 @@ pub fn combinations(
         let mut pool: Vec<Fit> = Vec::new();
         let members: Vec<Option<Vec<usize>>> = trials
             .into_iter()
-            .map(|fits| {
-                fits.map(|fits| {
-                    fits.into_iter()
-                        .map(
-                            |f| match pool.iter().position(|p| search::same_pose(&p.placed, &f.placed)) {
-                                Some(j) => j,
-                                None => {
-                                    pool.push(f);
-                                    pool.len() - 1
-                                }
-                            },
-                        )
-                        .collect()
-                })
-            })
+            .map(|fits| fits.map(|fits| fits.into_iter().map(|f| pooled(&mut pool, f)).collect()))
             .collect();
         let (hyps, stands_for) = search::refine_fits(
             &space,
@@ -237,6 +210,41 @@ pub fn combinations(
             Combination { anchor, parts, errors }
         })
         .collect()
+}
+
+/// Subsampled points in the shell around a parent placement where the part's surface can be
+/// (its connection's distance, give or take the part's reach), that are not on the parent's own
+/// surface: where the part's RANSAC trials seed.
+fn shell_seeds(
+    space: &search::SearchSpace<'_>,
+    conn: &Connection,
+    shape: &crate::geometry::Superquadric,
+    parent: &PlacedSuperquadric,
+) -> Vec<usize> {
+    let pc = Point3::from(parent.pose.translation.vector);
+    let reach = shape.bounding_radius();
+    let band = search::refine_band(&parent.shape, space.noise.at(&pc));
+    let mut seeds = Vec::new();
+    space
+        .sub_grid
+        .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
+            let p = &space.sub[i];
+            if (p - pc).norm() >= conn.distance - reach && parent.surface_distance(p).abs() > band {
+                seeds.push(i);
+            }
+        });
+    seeds
+}
+
+/// The index in `pool` of the placement `fit` repeats (the same pose), added when new.
+fn pooled(pool: &mut Vec<Fit>, fit: Fit) -> usize {
+    match pool.iter().position(|p| search::same_pose(&p.placed, &fit.placed)) {
+        Some(j) => j,
+        None => {
+            pool.push(fit);
+            pool.len() - 1
+        }
+    }
 }
 
 /// Bounds on the steps of the spin about the parent's axis at which the part is tried where the

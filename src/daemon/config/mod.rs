@@ -329,6 +329,26 @@ fn within(path: &Path, field: &str, v: Option<f64>, range: (f64, f64), unit: &st
     }
 }
 
+/// The value of the named choice, the first when none is given, or an error naming the field
+/// and every choice.
+fn one_of<T: Copy>(path: &Path, field: &str, v: Option<&str>, choices: &[(&str, T)]) -> Result<T, SpecError> {
+    let Some(name) = v else { return Ok(choices[0].1) };
+    choices
+        .iter()
+        .find(|(n, _)| *n == name)
+        .map(|&(_, t)| t)
+        .ok_or_else(|| {
+            let quoted: Vec<String> = choices.iter().map(|(n, _)| format!("{n:?}")).collect();
+            let (last, rest) = quoted.split_last().expect("choices");
+            let list = if rest.is_empty() {
+                last.clone()
+            } else {
+                format!("{} or {last}", rest.join(", "))
+            };
+            SpecError::invalid(path, field, format!("{name:?}: give {list}"))
+        })
+}
+
 /// A count within `range`, or an error naming the field and the range.
 fn count_within(path: &Path, field: &str, v: Option<usize>, range: (usize, usize)) -> Result<Option<usize>, SpecError> {
     match v {
@@ -556,17 +576,12 @@ impl Config {
                 ));
             }
         };
-        c.continuous = match raw.acquisition.mode.as_deref() {
-            None | Some("continuous") => true,
-            Some("on_demand") => false,
-            Some(other) => {
-                return Err(SpecError::invalid(
-                    path,
-                    "acquisition.mode",
-                    format!("{other:?}: give \"continuous\" or \"on_demand\""),
-                ));
-            }
-        };
+        c.continuous = one_of(
+            path,
+            "acquisition.mode",
+            raw.acquisition.mode.as_deref(),
+            &[("continuous", true), ("on_demand", false)],
+        )?;
 
         let w = &raw.sweep;
         c.sweep.pan_rad = within(path, "sweep.pan_rad", w.pan_rad, limits::ANGLE_RAD, "rad")?;

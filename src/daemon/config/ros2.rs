@@ -4,7 +4,7 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use super::{count_within, limits};
+use super::{count_within, limits, one_of};
 use crate::spec::SpecError;
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -137,28 +137,18 @@ pub(super) fn ros2_config(path: &Path, r: &Ros2File) -> Result<Ros2Config, SpecE
             *to = t.clone();
         }
     }
-    match r.reliability.as_deref() {
-        None | Some("reliable") => c.reliable = true,
-        Some("best_effort") => c.reliable = false,
-        Some(o) => {
-            return Err(SpecError::invalid(
-                path,
-                "ros2.reliability",
-                format!("{o:?}: give \"reliable\" or \"best_effort\""),
-            ));
-        }
-    }
-    match r.durability.as_deref() {
-        None | Some("volatile") => c.transient_local = false,
-        Some("transient_local") => c.transient_local = true,
-        Some(o) => {
-            return Err(SpecError::invalid(
-                path,
-                "ros2.durability",
-                format!("{o:?}: give \"volatile\" or \"transient_local\""),
-            ));
-        }
-    }
+    c.reliable = one_of(
+        path,
+        "ros2.reliability",
+        r.reliability.as_deref(),
+        &[("reliable", true), ("best_effort", false)],
+    )?;
+    c.transient_local = one_of(
+        path,
+        "ros2.durability",
+        r.durability.as_deref(),
+        &[("volatile", false), ("transient_local", true)],
+    )?;
     if let Some(d) = count_within(path, "ros2.depth", r.depth, limits::ROS_DEPTH)? {
         c.depth = d;
     }

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use sqscan_drivers::gige::FeatureValue;
 
+use super::one_of;
 use crate::spec::SpecError;
 
 #[derive(Debug, Clone, Deserialize)]
@@ -128,17 +129,12 @@ fn gige(path: &Path, s: &SensorFile) -> Result<SensorEndpoint, SpecError> {
             format!("{n}: give 1 to {MAX_ROWS_PER_FRAME}"),
         ));
     }
-    let stamp_last_row = match s.stamp.as_deref() {
-        None | Some("first_row") => false,
-        Some("last_row") => true,
-        Some(other) => {
-            return Err(SpecError::invalid(
-                path,
-                field("stamp"),
-                format!("{other:?}: give \"first_row\" or \"last_row\""),
-            ));
-        }
-    };
+    let stamp_last_row = one_of(
+        path,
+        &field("stamp"),
+        s.stamp.as_deref(),
+        &[("first_row", false), ("last_row", true)],
+    )?;
     Ok(SensorEndpoint::Gige(GigeEndpoint {
         address,
         features,
