@@ -368,26 +368,81 @@ pub struct SurfaceSamples {
     data_spacing: f64,
     /// The part is an open container: its lid is an opening (see `model::Part::open`).
     open: bool,
-    local: Vec<(Vector3<f64>, Vector3<f64>)>,
+    local: std::sync::Arc<LocalSamples>,
 }
+
+/// Surface points with their outward normals, in the shape's frame.
+type LocalSamples = Vec<(Vector3<f64>, Vector3<f64>)>;
 
 impl SurfaceSamples {
     pub fn new(shape: &crate::geometry::Superquadric, data_spacing: f64, open: bool) -> SurfaceSamples {
         let spacing = (2.0 * data_spacing).max(shape.min_size() / 6.0);
-        // An open part's lid is no surface: nothing is expected there.
-        let local = shape
-            .sample_surface(spacing)
-            .into_iter()
-            .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
-            .filter(|(_, n)| !(open && crate::model::is_lid(n)))
-            .collect();
         SurfaceSamples {
             spacing,
             data_spacing,
             open,
-            local,
+            local: SAMPLES.get(shape, spacing, open),
         }
     }
+}
+
+/// The surface samples of the shapes detected lately. They depend on the shape and the spacing
+/// alone, and the spacing is most often set by the shape (a sixth of its smallest size): a
+/// daemon asked for the same objects sweep after sweep would otherwise sample the same surfaces
+/// again on every sweep, which costs as much as a tenth of a single part's detection.
+static SAMPLES: SampleCache = SampleCache(std::sync::Mutex::new(Vec::new()));
+
+/// Shapes at most: a few models' parts, at the spacings their scenes give.
+const CACHED_SHAPES: usize = 32;
+
+struct SampleCache(std::sync::Mutex<Vec<(SampleKey, std::sync::Arc<LocalSamples>)>>);
+
+/// A shape, a spacing and whether the part is open, to the bit.
+type SampleKey = [u64; 9];
+
+impl SampleCache {
+    fn get(&self, shape: &crate::geometry::Superquadric, spacing: f64, open: bool) -> std::sync::Arc<LocalSamples> {
+        let key: SampleKey = [
+            shape.a[0].to_bits(),
+            shape.a[1].to_bits(),
+            shape.a[2].to_bits(),
+            shape.e1.to_bits(),
+            shape.e2.to_bits(),
+            shape.kx.to_bits(),
+            shape.ky.to_bits(),
+            spacing.to_bits(),
+            open as u64,
+        ];
+        // A poisoned lock only means another detection panicked while holding it: the list is
+        // still a list of finished entries.
+        let lookup = |cache: &Vec<(SampleKey, std::sync::Arc<LocalSamples>)>| {
+            cache.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone())
+        };
+        if let Some(hit) = lookup(&self.0.lock().unwrap_or_else(|e| e.into_inner())) {
+            return hit;
+        }
+        // Sampled without the lock held: detections of other shapes need not wait.
+        let local = std::sync::Arc::new(sample_local(shape, spacing, open));
+        let mut cache = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(hit) = lookup(&cache) {
+            return hit;
+        }
+        if cache.len() >= CACHED_SHAPES {
+            cache.remove(0);
+        }
+        cache.push((key, local.clone()));
+        local
+    }
+}
+
+fn sample_local(shape: &crate::geometry::Superquadric, spacing: f64, open: bool) -> LocalSamples {
+    // An open part's lid is no surface: nothing is expected there.
+    shape
+        .sample_surface(spacing)
+        .into_iter()
+        .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
+        .filter(|(_, n)| !(open && crate::model::is_lid(n)))
+        .collect()
 }
 
 /// Share of the visible model surface that has a measured point within reach. With
@@ -410,7 +465,7 @@ fn coverage(
     let reach = 1.2 * samples.spacing;
     let grid = Grid::new(observed, reach);
     let (mut expected, mut covered) = (0usize, 0usize);
-    for (q, n) in &samples.local {
+    for (q, n) in samples.local.iter() {
         let p = placed.pose.transform_point(&Point3::from(*q));
         let n = placed.pose.rotation * n;
         let view = match viewpoint {
@@ -532,6 +587,34 @@ pub fn median_spacing(points: &[Point3<f64>]) -> f64 {
 mod tests {
     use super::*;
 
+    /// A shape's samples at one spacing are made once and shared; another spacing, another
+    /// shape or the open flag give their own, the same as sampled afresh; the cache stays
+    /// bounded however many shapes pass through it.
+    #[test]
+    fn surface_samples_are_made_once_per_shape_and_spacing() {
+        use crate::geometry::Superquadric;
+        let shape = Superquadric::new([0.0611, 0.0611, 0.0203], 0.31, 1.0, 0.27, 0.27).unwrap();
+        let min = shape.min_size();
+        let a = SurfaceSamples::new(&shape, 0.001, true);
+        let b = SurfaceSamples::new(&shape, 0.0011, true);
+        assert!(std::sync::Arc::ptr_eq(&a.local, &b.local), "the spacing is the shape's in both");
+        assert_eq!(a.data_spacing, 0.001);
+        assert_eq!(b.data_spacing, 0.0011);
+        let closed = SurfaceSamples::new(&shape, 0.001, false);
+        assert!(closed.local.len() > a.local.len(), "an open part has no lid samples");
+        let coarser = SurfaceSamples::new(&shape, min / 2.0, true);
+        assert!(coarser.local.len() < a.local.len());
+        for s in [&a, &closed, &coarser] {
+            assert_eq!(*s.local, sample_local(&shape, s.spacing, s.open));
+        }
+        for k in 0..2 * CACHED_SHAPES {
+            let other = Superquadric::untapered([0.02 + 0.001 * k as f64, 0.03, 0.04], 0.5, 0.5).unwrap();
+            let s = SurfaceSamples::new(&other, 0.001, false);
+            assert_eq!(*s.local, sample_local(&other, s.spacing, false));
+        }
+        assert!(SAMPLES.0.lock().unwrap().len() <= CACHED_SHAPES);
+    }
+
     #[test]
     fn ranked_voting_sums_ranks_with_ties() {
         assert_eq!(ranks(&[0.3, 0.1, 0.3, 0.2], true), vec![3, 1, 3, 2]);
@@ -608,7 +691,7 @@ pub fn visibility(
     let Some(v) = viewpoint else { return vis };
     let reach = 1.2 * samples.spacing;
     let any_near = |q: &Point3<f64>, r: f64| all_grid.any_within(all_points, q, r);
-    for (q, n) in &samples.local {
+    for (q, n) in samples.local.iter() {
         let p = placed.pose.transform_point(&Point3::from(*q));
         let n = placed.pose.rotation * n;
         let to_view = v - p;
