@@ -208,3 +208,39 @@ fn a_4096_column_sweep_is_thinned_and_the_bowl_found() {
     let error = (d.pose.translation.vector - truth.translation.vector).norm();
     assert!(error < 0.01, "position error {error:.4} m");
 }
+
+/// `sqscan detect --repeat` runs the same detection in one process and gives the same answer as
+/// one run (a real scan, the mug); a count of runs outside 1..=1000 is refused by name.
+#[test]
+fn repeated_detections_in_one_process_give_one_answer() {
+    let run = |extra: &[&str]| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_sqscan"))
+            .args(["detect", "--model", "mug", "--seed", "5", "--models-dir"])
+            .arg(root().join("models"))
+            .arg("--cloud")
+            .arg(root().join("tests/data/real/learn33.pcd"))
+            .args(extra)
+            .output()
+            .unwrap();
+        (
+            out.status.success(),
+            String::from_utf8_lossy(&out.stdout).to_string(),
+            String::from_utf8_lossy(&out.stderr).to_string(),
+        )
+    };
+    let answer = |json: &str| {
+        let mut v: serde_json::Value = serde_json::from_str(json.trim()).unwrap();
+        v.as_object_mut().unwrap().remove("timing_ms");
+        v
+    };
+    let (ok, once, err) = run(&[]);
+    assert!(ok, "{err}");
+    let (ok, thrice, err) = run(&["--repeat", "3"]);
+    assert!(ok, "{err}");
+    assert_eq!(answer(&once), answer(&thrice));
+    assert_eq!(answer(&once)["found"], true);
+    for bad in ["0", "1001"] {
+        let (ok, _, err) = run(&["--repeat", bad]);
+        assert!(!ok && err.contains("--repeat"), "{bad}: {err}");
+    }
+}

@@ -597,7 +597,10 @@ mod tests {
         let min = shape.min_size();
         let a = SurfaceSamples::new(&shape, 0.001, true);
         let b = SurfaceSamples::new(&shape, 0.0011, true);
-        assert!(std::sync::Arc::ptr_eq(&a.local, &b.local), "the spacing is the shape's in both");
+        assert!(
+            std::sync::Arc::ptr_eq(&a.local, &b.local),
+            "the spacing is the shape's in both"
+        );
         assert_eq!(a.data_spacing, 0.001);
         assert_eq!(b.data_spacing, 0.0011);
         let closed = SurfaceSamples::new(&shape, 0.001, false);
