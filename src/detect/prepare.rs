@@ -308,45 +308,53 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
     // then still spans the patch, and the trials touch a fraction of the points.
     let objects = &scene.objects;
     let voxel = (min_size / 4.0).clamp(0.002, 0.01);
-    let sub: Vec<Point3<f64>> = voxel_subsample(objects, voxel)
-        .into_iter()
-        .map(|i| objects[i])
-        .collect();
-    // The refinement fits at most a few hundred points of a part: a twelfth of the smallest
-    // size still leaves a part's visible side well over that, at a fraction of the points to
-    // test against its surface.
-    let mut mid: Vec<Point3<f64>> = voxel_subsample(objects, min_size / 12.0)
-        .into_iter()
-        .map(|i| objects[i])
-        .collect();
-    if mid.len() > MID_POINTS {
-        // Denser data than the refinement can use: a coarser voxel, up to twice as coarse. The
-        // count falls with the square of the voxel on a surface sampled finely both ways, but
-        // only in proportion to it across a sweep's rows when they are further apart than the
-        // voxel, which is where there are too many points.
-        let voxel = min_size / 12.0 * (mid.len() as f64 / MID_POINTS as f64).min(2.0);
-        mid = voxel_subsample(&mid, voxel).into_iter().map(|i| mid[i]).collect();
-    }
-    let mid_grid = Grid::new(&mid, 1.2 * max_size);
-    let sub_grid = Grid::new(&sub, min_size);
-    // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the points
-    // on a surface rank them as well, and counting is a third of a trial's work.
-    let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel).into_iter().map(|i| sub[i]).collect();
-    let coarse_grid = Grid::new(&coarse, min_size);
-    let spacing = median_spacing(&mid);
+    // Two chains of subsamples and grids that need nothing of each other: one on each core.
+    let ((sub, sub_grid, coarse, coarse_grid), (mid, mid_grid, samples)) = rayon::join(
+        || {
+            let sub: Vec<Point3<f64>> = voxel_subsample(objects, voxel)
+                .into_iter()
+                .map(|i| objects[i])
+                .collect();
+            let sub_grid = Grid::new(&sub, min_size);
+            // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the
+            // points on a surface rank them as well, and counting is a third of a trial's work.
+            let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel).into_iter().map(|i| sub[i]).collect();
+            let coarse_grid = Grid::new(&coarse, min_size);
+            (sub, sub_grid, coarse, coarse_grid)
+        },
+        || {
+            // The refinement fits at most a few hundred points of a part: a twelfth of the
+            // smallest size still leaves a part's visible side well over that, at a fraction of
+            // the points to test against its surface.
+            let mut mid: Vec<Point3<f64>> = voxel_subsample(objects, min_size / 12.0)
+                .into_iter()
+                .map(|i| objects[i])
+                .collect();
+            if mid.len() > MID_POINTS {
+                // Denser data than the refinement can use: a coarser voxel, up to twice as
+                // coarse. The count falls with the square of the voxel on a surface sampled
+                // finely both ways, but only in proportion to it across a sweep's rows when they
+                // are further apart than the voxel, which is where there are too many points.
+                let voxel = min_size / 12.0 * (mid.len() as f64 / MID_POINTS as f64).min(2.0);
+                mid = voxel_subsample(&mid, voxel).into_iter().map(|i| mid[i]).collect();
+            }
+            let mid_grid = Grid::new(&mid, 1.2 * max_size);
+            let spacing = median_spacing(&mid);
+            let samples: Vec<SurfaceSamples> = model
+                .parts
+                .iter()
+                .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
+                .collect();
+            (mid, mid_grid, samples)
+        },
+    );
     tracing::debug!(
-        "{} object points: {} subsampled, {} coarse, {} mid; spacing {:.4} m",
+        "{} object points: {} subsampled, {} coarse, {} mid",
         objects.len(),
         sub.len(),
         coarse.len(),
         mid.len(),
-        spacing
     );
-    let samples = model
-        .parts
-        .iter()
-        .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
-        .collect();
     let checks = model
         .parts
         .iter()
