@@ -285,7 +285,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__detect)
-            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --help"
+            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --repeat --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -324,6 +324,10 @@ _sqscan() {
                     return 0
                     ;;
                 --trials)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --repeat)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;

@@ -67,6 +67,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l max-range -d 'I
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l viewpoint -d 'Sensor position "x,y,z" in the cloud\'s frame [default: the file\'s VIEWPOINT, else the origin]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l hypotheses -d 'Hypotheses for the (largest) part [default: the model\'s m, else from the scene\'s extent]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l trials -d 'RANSAC trials per hypothesis' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l repeat -d 'Run the detection N times on the cloud in this process and report the fastest run, for benchmarks: the runs after the first are warm, as in the daemon. Every run must give the same answer' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l all -d 'Report every accepted instance that does not overlap a better one'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l keep-plane -d 'Keep the dominant plane instead of removing it'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -s h -l help -d 'Print help'

@@ -70,6 +70,7 @@ _arguments "${_arguments_options[@]}" : \
 '--viewpoint=[Sensor position "x,y,z" in the cloud'\''s frame \[default\: the file'\''s VIEWPOINT, else the origin\]]:X,Y,Z:_default' \
 '--hypotheses=[Hypotheses for the (largest) part \[default\: the model'\''s m, else from the scene'\''s extent\]]:M:_default' \
 '--trials=[RANSAC trials per hypothesis]:TRIALS:_default' \
+'--repeat=[Run the detection N times on the cloud in this process and report the fastest run, for benchmarks\: the runs after the first are warm, as in the daemon. Every run must give the same answer]:N:_default' \
 '--all[Report every accepted instance that does not overlap a better one]' \
 '--keep-plane[Keep the dominant plane instead of removing it]' \
 '-h[Print help]' \
