@@ -37,6 +37,7 @@ mod prepare;
 mod refine;
 mod report;
 mod rigid;
+mod sample_cache;
 mod search;
 mod select;
 mod verify;

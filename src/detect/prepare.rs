@@ -309,7 +309,7 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
     let objects = &scene.objects;
     let voxel = (min_size / 4.0).clamp(0.002, 0.01);
     // Two chains of subsamples and grids that need nothing of each other: one on each core.
-    let ((sub, sub_grid, coarse, coarse_grid), (mid, mid_grid, samples)) = rayon::join(
+    let ((sub, sub_grid, coarse, coarse_grid), (mid, mid_grid, spacing, samples)) = rayon::join(
         || {
             let sub: Vec<Point3<f64>> = voxel_subsample(objects, voxel)
                 .into_iter()
@@ -345,15 +345,16 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
                 .iter()
                 .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
                 .collect();
-            (mid, mid_grid, samples)
+            (mid, mid_grid, spacing, samples)
         },
     );
     tracing::debug!(
-        "{} object points: {} subsampled, {} coarse, {} mid",
+        "{} object points: {} subsampled, {} coarse, {} mid; spacing {:.4} m",
         objects.len(),
         sub.len(),
         coarse.len(),
         mid.len(),
+        spacing
     );
     let checks = model
         .parts

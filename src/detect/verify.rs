@@ -19,6 +19,7 @@
 //! - the RMS Euclidean (radial) distance of the surface points, against the sensor noise.
 
 use super::base::BaseCap;
+use super::sample_cache;
 use super::search::SearchSpace;
 use crate::cloud::grid::Grid;
 use crate::geometry::{NearBatch, PlacedSuperquadric};
@@ -368,11 +369,8 @@ pub struct SurfaceSamples {
     data_spacing: f64,
     /// The part is an open container: its lid is an opening (see `model::Part::open`).
     open: bool,
-    local: std::sync::Arc<LocalSamples>,
+    local: std::sync::Arc<sample_cache::LocalSamples>,
 }
-
-/// Surface points with their outward normals, in the shape's frame.
-type LocalSamples = Vec<(Vector3<f64>, Vector3<f64>)>;
 
 impl SurfaceSamples {
     pub fn new(shape: &crate::geometry::Superquadric, data_spacing: f64, open: bool) -> SurfaceSamples {
@@ -381,68 +379,9 @@ impl SurfaceSamples {
             spacing,
             data_spacing,
             open,
-            local: SAMPLES.get(shape, spacing, open),
+            local: sample_cache::local_samples(shape, spacing, open),
         }
     }
-}
-
-/// The surface samples of the shapes detected lately. They depend on the shape and the spacing
-/// alone, and the spacing is most often set by the shape (a sixth of its smallest size): a
-/// daemon asked for the same objects sweep after sweep would otherwise sample the same surfaces
-/// again on every sweep, which costs as much as a tenth of a single part's detection.
-static SAMPLES: SampleCache = SampleCache(std::sync::Mutex::new(Vec::new()));
-
-/// Shapes at most: a few models' parts, at the spacings their scenes give.
-const CACHED_SHAPES: usize = 32;
-
-struct SampleCache(std::sync::Mutex<Vec<(SampleKey, std::sync::Arc<LocalSamples>)>>);
-
-/// A shape, a spacing and whether the part is open, to the bit.
-type SampleKey = [u64; 9];
-
-impl SampleCache {
-    fn get(&self, shape: &crate::geometry::Superquadric, spacing: f64, open: bool) -> std::sync::Arc<LocalSamples> {
-        let key: SampleKey = [
-            shape.a[0].to_bits(),
-            shape.a[1].to_bits(),
-            shape.a[2].to_bits(),
-            shape.e1.to_bits(),
-            shape.e2.to_bits(),
-            shape.kx.to_bits(),
-            shape.ky.to_bits(),
-            spacing.to_bits(),
-            open as u64,
-        ];
-        // A poisoned lock only means another detection panicked while holding it: the list is
-        // still a list of finished entries.
-        let lookup = |cache: &Vec<(SampleKey, std::sync::Arc<LocalSamples>)>| {
-            cache.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone())
-        };
-        if let Some(hit) = lookup(&self.0.lock().unwrap_or_else(|e| e.into_inner())) {
-            return hit;
-        }
-        // Sampled without the lock held: detections of other shapes need not wait.
-        let local = std::sync::Arc::new(sample_local(shape, spacing, open));
-        let mut cache = self.0.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(hit) = lookup(&cache) {
-            return hit;
-        }
-        if cache.len() >= CACHED_SHAPES {
-            cache.remove(0);
-        }
-        cache.push((key, local.clone()));
-        local
-    }
-}
-
-fn sample_local(shape: &crate::geometry::Superquadric, spacing: f64, open: bool) -> LocalSamples {
-    // An open part's lid is no surface: nothing is expected there.
-    shape
-        .sample_surface(spacing)
-        .into_iter()
-        .filter_map(|q| shape.residual_grad(&q).grad.try_normalize(1e-300).map(|n| (q, n)))
-        .filter(|(_, n)| !(open && crate::model::is_lid(n)))
-        .collect()
 }
 
 /// Share of the visible model surface that has a measured point within reach. With
@@ -585,6 +524,7 @@ pub fn median_spacing(points: &[Point3<f64>]) -> f64 {
 
 #[cfg(test)]
 mod tests {
+    use super::sample_cache::{CACHED_SHAPES, SAMPLES, sample_local};
     use super::*;
 
     /// A shape's samples at one spacing are made once and shared; another spacing, another
