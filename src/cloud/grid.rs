@@ -67,6 +67,32 @@ impl Grid {
         });
     }
 
+    /// Call `f(index)` for every point within `radius` of `centre`, visiting only the cells that
+    /// meet the box `centre ± half` (per axis): a caller that drops the points outside that box
+    /// anyway (a placed part's box, turned into the frame) need not pay for the rest of the
+    /// sphere, which for a long thin part is most of it. The points come in the order
+    /// [`Self::for_each_within`] gives them.
+    pub fn for_each_within_box(
+        &self,
+        points: &[Point3<f64>],
+        centre: &Point3<f64>,
+        radius: f64,
+        half: &nalgebra::Vector3<f64>,
+        mut f: impl FnMut(usize),
+    ) {
+        let r2 = radius * radius;
+        let reach = half.map(|h| h.min(radius));
+        self.visit_box(centre, &reach, |row| {
+            for &i in row {
+                let i = i as usize;
+                if (points[i] - centre).norm_squared() <= r2 {
+                    f(i);
+                }
+            }
+            false
+        });
+    }
+
     /// Whether any point lies within `radius` of `centre` (stops at the first).
     pub fn any_within(&self, points: &[Point3<f64>], centre: &Point3<f64>, radius: f64) -> bool {
         let r2 = radius * radius;
@@ -78,9 +104,21 @@ impl Grid {
     /// The points of the cells of the box `centre +- radius`, a row of cells at a time, until
     /// `f` returns true (then true).
     #[inline]
-    fn visit_rows(&self, centre: &Point3<f64>, radius: f64, mut f: impl FnMut(&[u32]) -> bool) -> bool {
-        let lo = self.coords(&(centre - nalgebra::Vector3::repeat(radius)));
-        let hi = self.coords(&(centre + nalgebra::Vector3::repeat(radius)));
+    fn visit_rows(&self, centre: &Point3<f64>, radius: f64, f: impl FnMut(&[u32]) -> bool) -> bool {
+        self.visit_box(centre, &nalgebra::Vector3::repeat(radius), f)
+    }
+
+    /// The points of the cells of the box `centre ± half`, a row of cells at a time, until `f`
+    /// returns true (then true).
+    #[inline]
+    fn visit_box(
+        &self,
+        centre: &Point3<f64>,
+        half: &nalgebra::Vector3<f64>,
+        mut f: impl FnMut(&[u32]) -> bool,
+    ) -> bool {
+        let lo = self.coords(&(centre - half));
+        let hi = self.coords(&(centre + half));
         for z in lo[2]..=hi[2] {
             for y in lo[1]..=hi[1] {
                 let row = (z * self.dims[1] + y) * self.dims[0];
@@ -253,6 +291,40 @@ mod tests {
             let mut got = grid.within(&pts, &c, r);
             got.sort();
             let want: Vec<usize> = (0..pts.len()).filter(|&i| (pts[i] - c).norm() <= r).collect();
+            assert_eq!(got, want);
+        }
+    }
+
+    /// A box query gives every point of the sphere inside the box, in the sphere query's order.
+    #[test]
+    fn box_queries_keep_the_points_in_the_box_in_order() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let pts: Vec<Point3<f64>> = (0..3000)
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-0.5..0.5),
+                    rng.random_range(0.0..0.3),
+                )
+            })
+            .collect();
+        let grid = Grid::new(&pts, 0.05);
+        for _ in 0..200 {
+            let c = Point3::new(rng.random_range(-1.0..1.0), rng.random_range(-0.5..0.5), 0.15);
+            let r = rng.random_range(0.05..0.3);
+            let half = nalgebra::Vector3::new(
+                rng.random_range(0.0..0.3),
+                rng.random_range(0.0..0.3),
+                rng.random_range(0.0..0.3),
+            );
+            let inside = |i: usize| (0..3).all(|k| (pts[i][k] - c[k]).abs() <= half[k]);
+            let mut got = Vec::new();
+            grid.for_each_within_box(&pts, &c, r, &half, |i| {
+                if inside(i) {
+                    got.push(i)
+                }
+            });
+            let want: Vec<usize> = grid.within(&pts, &c, r).into_iter().filter(|&i| inside(i)).collect();
             assert_eq!(got, want);
         }
     }

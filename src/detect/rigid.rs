@@ -27,10 +27,23 @@ fn gather(space: &SearchSpace<'_>, parts: &[PlacedSuperquadric], band: f64) -> V
         .fold(0.0, f64::max)
         + band;
     let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
+    // Only points within `band` of some part's box can be within `band` of its surface.
+    let (mut lo, mut hi) = (Vector3::repeat(f64::INFINITY), Vector3::repeat(f64::NEG_INFINITY));
+    for (p, k) in parts.iter().zip(&kernels) {
+        let r = k.frame_reach(band);
+        lo = lo.inf(&(p.pose.translation.vector - r));
+        hi = hi.sup(&(p.pose.translation.vector + r));
+    }
+    let half = (hi - centre).sup(&(centre - lo));
     let mut near = Vec::new();
     space
         .grid
-        .for_each_within(space.points, &Point3::from(centre), reach, |i| near.push(space.points[i]));
+        .for_each_within_box(space.points, &Point3::from(centre), reach, &half, |i| {
+            let p = &space.points[i];
+            if kernels.iter().any(|k| k.in_box(p, band)) {
+                near.push(*p)
+            }
+        });
     let mut out = vec![Vec::new(); parts.len()];
     // Each point's surface distance to every part, four points at a time.
     let mut d = vec![[0.0; LANES]; parts.len()];

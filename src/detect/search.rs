@@ -225,7 +225,8 @@ pub(super) fn inliers_in(
             out.push(points[i]);
         }
     });
-    grid.for_each_within(points, &centre, placed.shape.bounding_radius() + band, |i| {
+    let reach = kernel.frame_reach(band);
+    grid.for_each_within_box(points, &centre, placed.shape.bounding_radius() + band, &reach, |i| {
         batch.push(i, &points[i])
     });
     batch.finish();
@@ -310,11 +311,14 @@ pub(super) fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, ba
             n += 1;
         }
     });
-    space
-        .coarse_grid
-        .for_each_within(space.coarse, &centre, placed.shape.bounding_radius() + band, |i| {
-            batch.push(i, &space.coarse[i])
-        });
+    let reach = kernel.frame_reach(band);
+    space.coarse_grid.for_each_within_box(
+        space.coarse,
+        &centre,
+        placed.shape.bounding_radius() + band,
+        &reach,
+        |i| batch.push(i, &space.coarse[i]),
+    );
     batch.finish();
     n
 }

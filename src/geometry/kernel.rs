@@ -403,6 +403,23 @@ impl PlacedKernel {
         Some(PlacedSuperquadric::distance_from(&self.kernel.residual_grad(&q)))
     }
 
+    /// Half-sizes, along the frame's axes, of a box that holds the shape's local box grown by
+    /// `band`: where a point must lie to pass [`NearBatch`]'s box test.
+    pub fn frame_reach(&self, band: f64) -> Vector3<f64> {
+        // A micrometre more, so that rounding cannot leave a point on the box's edge out.
+        let h = self.half_extents.add_scalar(band);
+        (self.rotation.abs() * h).add_scalar(1e-6)
+    }
+
+    /// Whether a frame point lies within `band` of the shape's local box.
+    #[inline]
+    pub fn in_box(&self, p: &Point3<f64>, band: f64) -> bool {
+        let q = self.to_local(p);
+        q.x.abs() <= self.half_extents.x + band
+            && q.y.abs() <= self.half_extents.y + band
+            && q.z.abs() <= self.half_extents.z + band
+    }
+
     /// A frame point in the local frame.
     #[inline(always)]
     pub fn to_local(&self, p: &Point3<f64>) -> Vector3<f64> {

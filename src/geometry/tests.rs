@@ -562,3 +562,29 @@ fn integer_powers_of_lanes_agree_with_powi() {
         }
     }
 }
+
+/// Every point that passes a placed shape's box test lies within its frame reach of the centre.
+#[test]
+fn the_frame_reach_holds_the_turned_box() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for _ in 0..50 {
+        let sq = random_sq(&mut rng);
+        let placed = PlacedSuperquadric::new(sq, random_pose(&mut rng));
+        let kernel = PlacedKernel::new(&placed);
+        let band = rng.random_range(0.0..0.01);
+        let reach = kernel.frame_reach(band);
+        let h = sq.local_half_extents().add_scalar(band);
+        for _ in 0..200 {
+            // Corners and random points of the grown local box.
+            let q = Vector3::new(
+                h.x * [-1.0, 1.0, rng.random_range(-1.0..1.0)][rng.random_range(0..3)],
+                h.y * [-1.0, 1.0, rng.random_range(-1.0..1.0)][rng.random_range(0..3)],
+                h.z * [-1.0, 1.0, rng.random_range(-1.0..1.0)][rng.random_range(0..3)],
+            );
+            let p = placed.pose * Point3::from(q);
+            assert!(kernel.in_box(&p, band + 1e-9));
+            let d = p.coords - placed.pose.translation.vector;
+            assert!((0..3).all(|k| d[k].abs() <= reach[k]), "{d} outside {reach}");
+        }
+    }
+}
