@@ -1,15 +1,18 @@
 //! What the support plane allows: a part resting on it does not reach through it, and an open
 //! container stands on its base or its rim.
 
+use super::sample_cache::{LocalSamples, local_samples};
 use super::search::SearchSpace;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Point3, Vector3};
+use std::sync::Arc;
 
 /// How a shape may be placed against the support plane: its surface samples, to find how deep a
 /// pose would push it through the plane.
 pub struct PlaneCheck {
-    samples: Vec<Vector3<f64>>,
+    /// Surface points (with normals, unused here), kept between detections.
+    samples: Arc<LocalSamples>,
     /// How deep (m) a pose may reach through the plane: the noise and the model's approximation.
     pub(super) tolerance: f64,
     /// The part is an open container: it rests on its base or on its rim.
@@ -37,7 +40,7 @@ impl PlaneCheck {
         // Samples half the smallest size apart find the lowest point to well within the
         // tolerance (the sagitta between samples is a small fraction of the spacing).
         PlaneCheck {
-            samples: shape.sample_surface(shape.min_size() / 2.0),
+            samples: local_samples(shape, shape.min_size() / 2.0, false),
             tolerance: 3.0 * noise + approximation_tolerance(shape),
             open,
         }
@@ -54,7 +57,7 @@ impl PlaneCheck {
         let lowest = self
             .samples
             .iter()
-            .map(|q| n_local.dot(q))
+            .map(|(q, _)| n_local.dot(q))
             .fold(f64::INFINITY, f64::min);
         -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + lowest)
     }
@@ -67,5 +70,24 @@ impl PlaneCheck {
             self.penetration(placed, p) <= self.tolerance
                 && (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The check's samples are the shape's surface at half its smallest size, sampled once and
+    /// shared by every check of that shape.
+    #[test]
+    fn plane_checks_of_one_shape_share_its_samples() {
+        let shape = Superquadric::new([0.03, 0.03, 0.05], 0.4, 1.0, 0.2, 0.2).unwrap();
+        let a = PlaneCheck::new(&shape, 0.001, true);
+        let b = PlaneCheck::new(&shape, 0.002, false);
+        assert!(Arc::ptr_eq(&a.samples, &b.samples));
+        let fresh = shape.sample_surface(shape.min_size() / 2.0);
+        let kept: Vec<Vector3<f64>> = a.samples.iter().map(|(q, _)| *q).collect();
+        assert_eq!(kept, fresh);
+        assert!(a.tolerance < b.tolerance, "the noise sets the tolerance");
     }
 }

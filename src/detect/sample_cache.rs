@@ -1,5 +1,6 @@
 //! A part's surface samples (points with their outward normals, in the shape's frame), kept
-//! between detections: they depend on the shape and the spacing alone.
+//! between detections: they depend on the shape and the spacing alone. The scores sample at the
+//! data's spacing, the support plane check at half the part's smallest size.
 
 use crate::geometry::Superquadric;
 use nalgebra::Vector3;
