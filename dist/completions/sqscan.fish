@@ -66,7 +66,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l out -d 'Write t
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l max-range -d 'Ignore points farther than this from the viewpoint (m), e.g. a wall behind the table' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l viewpoint -d 'Sensor position "x,y,z" in the cloud\'s frame [default: the file\'s VIEWPOINT, else the origin]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l hypotheses -d 'Hypotheses for the (largest) part [default: the model\'s m, else from the scene\'s extent]' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l trials -d 'RANSAC trials per hypothesis, at most (a hypothesis stops early once its best fit holds enough of its seed points)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l trials -d 'RANSAC trials per hypothesis' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l repeat -d 'Run the detection N times on the cloud in this process and report the fastest run, for benchmarks: the runs after the first are warm, as in the daemon. Every run must give the same answer' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l all -d 'Report every accepted instance that does not overlap a better one'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l keep-plane -d 'Keep the dominant plane instead of removing it'
@@ -103,7 +103,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l trials -d 'Trials
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l seed -d 'First seed (trial k uses seed + k for both the noise and the search)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l truth-object -d 'The scene object the model is (its pose is the truth) [default: the object of the same model, else the one with the model\'s first part\'s shape]; for a learned model' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l model-in-object -d 'The model\'s frame in the truth object\'s frame, "x,y,z,qx,qy,qz,qw" (m, quaternion): the truth is the object\'s pose composed with it. A learned model\'s frame is where the learner put it on the object (its `model_pose` in the learning cloud, composed with the inverse of the object\'s pose there), not the shipped model\'s [default: the identity]' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l ransac-trials -d 'RANSAC trials per hypothesis of the detector, at most (`detect --trials`) [default: the detector\'s]' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l ransac-trials -d 'RANSAC trials per hypothesis of the detector (`detect --trials`) [default: the detector\'s]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l absent -d 'Remove the object from the scene and count false "found" answers'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l json -d 'Print one JSON object instead of a table'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -s h -l help -d 'Print help'

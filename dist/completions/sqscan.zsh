@@ -69,7 +69,7 @@ _arguments "${_arguments_options[@]}" : \
 '--max-range=[Ignore points farther than this from the viewpoint (m), e.g. a wall behind the table]:M:_default' \
 '--viewpoint=[Sensor position "x,y,z" in the cloud'\''s frame \[default\: the file'\''s VIEWPOINT, else the origin\]]:X,Y,Z:_default' \
 '--hypotheses=[Hypotheses for the (largest) part \[default\: the model'\''s m, else from the scene'\''s extent\]]:M:_default' \
-'--trials=[RANSAC trials per hypothesis, at most (a hypothesis stops early once its best fit holds enough of its seed points)]:TRIALS:_default' \
+'--trials=[RANSAC trials per hypothesis]:TRIALS:_default' \
 '--repeat=[Run the detection N times on the cloud in this process and report the fastest run, for benchmarks\: the runs after the first are warm, as in the daemon. Every run must give the same answer]:N:_default' \
 '--all[Report every accepted instance that does not overlap a better one]' \
 '--keep-plane[Keep the dominant plane instead of removing it]' \
@@ -116,7 +116,7 @@ _arguments "${_arguments_options[@]}" : \
 '--seed=[First seed (trial k uses seed + k for both the noise and the search)]:SEED:_default' \
 '--truth-object=[The scene object the model is (its pose is the truth) \[default\: the object of the same model, else the one with the model'\''s first part'\''s shape\]; for a learned model]:NAME:_default' \
 '--model-in-object=[The model'\''s frame in the truth object'\''s frame, "x,y,z,qx,qy,qz,qw" (m, quaternion)\: the truth is the object'\''s pose composed with it. A learned model'\''s frame is where the learner put it on the object (its \`model_pose\` in the learning cloud, composed with the inverse of the object'\''s pose there), not the shipped model'\''s \[default\: the identity\]]:X,Y,Z,QX,QY,QZ,QW:_default' \
-'--ransac-trials=[RANSAC trials per hypothesis of the detector, at most (\`detect --trials\`) \[default\: the detector'\''s\]]:N:_default' \
+'--ransac-trials=[RANSAC trials per hypothesis of the detector (\`detect --trials\`) \[default\: the detector'\''s\]]:N:_default' \
 '--absent[Remove the object from the scene and count false "found" answers]' \
 '--json[Print one JSON object instead of a table]' \
 '-h[Print help]' \

@@ -8,8 +8,7 @@ use nalgebra::Point3;
 #[derive(Debug, Clone)]
 pub struct Params {
     pub seed: u64,
-    /// RANSAC trials per hypothesis, at most (paper: n = 10; a hypothesis stops early once its
-    /// best fit holds enough of its seeds).
+    /// RANSAC trials per hypothesis (paper: n = 10).
     pub trials: usize,
     /// Points per trial (paper: 30).
     pub sample_points: usize,

@@ -242,10 +242,8 @@ pub fn sample_radius(shape: &Superquadric) -> f64 {
     (shape.a[0] * shape.a[1] * shape.a[2]).cbrt()
 }
 
-/// The low-level search of one hypothesis: at most `settings.trials` RANSAC trials seeded from
-/// `seeds` (indices into `space.sub`), stopping as RANSAC does once another surface holding as
-/// large a share of the seeds as the best fit would most likely have been seeded on; returns
-/// the best possible fit, unrefined.
+/// The low-level search of one hypothesis: `settings.trials` RANSAC trials seeded from `seeds`
+/// (indices into `space.sub`); returns the best possible fit, unrefined.
 ///
 /// The paper keeps the trial with the smallest M over its 30 points. That is an in-sample
 /// measure: a small patch of anything is fitted well, so it favours whatever object fits its
@@ -266,14 +264,9 @@ pub fn ransac(
     // The region's seeds lie close together: the noise at the first holds for all.
     let band = refine_band(shape, space.noise.at(&space.sub[seeds[0]]));
     let mut best: Option<(usize, Fit)> = None;
-    // The share of the seeds on the best fit's surface.
-    let mut best_share = 0.0f64;
     let mut near = Vec::new();
     let mut sample = Vec::with_capacity(settings.sample_points);
-    for t in 0..settings.trials {
-        if settled(t, best_share) {
-            break;
-        }
+    for _ in 0..settings.trials {
         let s = seeds[rng.random_range(0..seeds.len())];
         near.clear();
         space
@@ -300,44 +293,11 @@ pub fn ransac(
                 .as_ref()
                 .is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m))
             {
-                best_share = seed_share(space, &f.placed, band, seeds);
                 best = Some((support, f));
             }
         }
     }
     best
-}
-
-/// Trials every search makes before it may stop.
-const MIN_TRIALS: usize = 3;
-/// The chance a search may leave of never having seeded on a surface that holds as large a
-/// share of its seeds as the best fit so far: RANSAC's adaptive stop. A region that is mostly
-/// one object is settled in a few trials; a cluttered one takes them all.
-const RANSAC_MISS: f64 = 0.01;
-
-/// Whether a search that has made `trials` trials, the best of which holds `share` of its seeds,
-/// may stop: a surface holding at least that share would have been seeded on with a chance of
-/// `1 - (1 - share)^trials`.
-fn settled(trials: usize, share: f64) -> bool {
-    trials >= MIN_TRIALS && (1.0 - share).powi(trials as i32) < RANSAC_MISS
-}
-
-widened! {
-/// The share of the seed points (indices into `space.sub`) within `band` of the placed surface.
-fn seed_share(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64, seeds: &[usize]) -> f64 {
-    let kernel = PlacedKernel::new(placed);
-    let mut n = 0usize;
-    let mut batch = NearBatch::new(&kernel, band, |_, _, rg| {
-        if PlacedSuperquadric::distance_from(rg).abs() < band {
-            n += 1;
-        }
-    });
-    for &i in seeds {
-        batch.push(i, &space.sub[i]);
-    }
-    batch.finish();
-    n as f64 / seeds.len().max(1) as f64
-}
 }
 
 widened! {
@@ -627,29 +587,4 @@ pub fn same_pose(a: &PlacedSuperquadric, b: &PlacedSuperquadric) -> bool {
 
 fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
     crate::model::axis_angle(a, b, signed).to_degrees()
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// A search stops after three trials at the earliest, sooner the more of its seeds its best
-    /// fit holds, and never while nothing fits.
-    #[test]
-    fn a_search_stops_once_its_best_fit_holds_enough_of_its_seeds() {
-        assert!(!settled(2, 1.0), "fewer than the minimum");
-        assert!(settled(3, 0.85));
-        assert!(!settled(3, 0.7));
-        assert!(settled(4, 0.7));
-        assert!(!settled(9, 0.4));
-        assert!(settled(10, 0.4));
-        assert!(!settled(1000, 0.0), "nothing found yet");
-        // Never before the chance of a miss is below one in a hundred.
-        for t in MIN_TRIALS..20 {
-            for k in 0..=100 {
-                let w = k as f64 / 100.0;
-                assert_eq!(settled(t, w), (1.0 - w).powi(t as i32) < 0.01, "{t} {w}");
-            }
-        }
-    }
 }

@@ -38,8 +38,7 @@ pub struct DetectArgs {
     /// Hypotheses for the (largest) part [default: the model's m, else from the scene's extent]
     #[arg(long, value_name = "M")]
     hypotheses: Option<usize>,
-    /// RANSAC trials per hypothesis, at most (a hypothesis stops early once its best fit
-    /// holds enough of its seed points)
+    /// RANSAC trials per hypothesis
     #[arg(long, default_value_t = 10)]
     trials: usize,
     /// Keep the dominant plane instead of removing it

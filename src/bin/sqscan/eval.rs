@@ -42,7 +42,7 @@ pub struct EvalArgs {
     /// of the object's pose there), not the shipped model's [default: the identity]
     #[arg(long, value_name = "X,Y,Z,QX,QY,QZ,QW", value_parser = parse_pose, allow_hyphen_values = true)]
     model_in_object: Option<Isometry3<f64>>,
-    /// RANSAC trials per hypothesis of the detector, at most (`detect --trials`) [default: the
+    /// RANSAC trials per hypothesis of the detector (`detect --trials`) [default: the
     /// detector's]
     #[arg(long, value_name = "N")]
     ransac_trials: Option<usize>,
