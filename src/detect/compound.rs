@@ -159,6 +159,10 @@ pub fn combinations(
             .collect();
         // The anchor candidates' shells overlap, and their trials find the same placements of
         // this part over and over: each placement is refined and scored once, for all of them.
+        // The coarse rounds bring it to its points and M is measured in the final band; the
+        // fine rounds are left out: the placement only has to be ranked in the vote, and the
+        // combination each anchor candidate chooses is fitted again, all its parts together,
+        // on the full-resolution points (`refine`).
         let mut pool: Vec<Fit> = Vec::new();
         let members: Vec<Option<Vec<usize>>> = trials
             .into_iter()
@@ -171,6 +175,7 @@ pub fn combinations(
             model.parts[part].open,
             &prep.checks[part],
             &[],
+            false,
         );
         let scores: Vec<Scores> = hyps
             .par_iter()

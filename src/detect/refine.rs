@@ -140,3 +140,19 @@ pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
     }
     best
 }
+
+/// A pose after the coarse rounds as it is, with its M over the `mid` points in the final band
+/// (the fine rounds' first measure).
+pub fn measured(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
+    let inliers = thin(inliers_in(space.mid, space.mid_grid, &c.placed, c.band), REFINE_POINTS);
+    if inliers.len() < MIN_SAMPLE {
+        return Hypothesis {
+            placed: c.fit.placed,
+            m: c.fit.m,
+        };
+    }
+    Hypothesis {
+        placed: c.placed,
+        m: measure_of_fit(&c.placed, &inliers),
+    }
+}

@@ -340,7 +340,7 @@ pub fn search_part(
     known: &[PlacedSuperquadric],
 ) -> Vec<Hypothesis> {
     let fits = region_fits(space, shape, seeds, m, settings, check, seed);
-    refine_fits(space, &distinct(fits, known), settings, open, check, known).0
+    refine_fits(space, &distinct(fits, known), settings, open, check, known, true).0
 }
 
 /// The best trial fit (with its consensus) of each of `m` compact regions of the seed points, in
@@ -366,7 +366,9 @@ pub fn region_fits(
 
 /// The refined hypotheses of `fits` (distinct, best first), and for each fit the index of the
 /// hypothesis that stands for it: its own, or that of an earlier fit it met in the coarse
-/// rounds; none where it met a `known` pose or cannot stand on the support plane.
+/// rounds; none where it met a `known` pose or cannot stand on the support plane. Without
+/// `fine`, a hypothesis is its pose after the coarse rounds, measured in the final band.
+#[allow(clippy::too_many_arguments)]
 pub fn refine_fits(
     space: &SearchSpace<'_>,
     fits: &[Fit],
@@ -374,6 +376,7 @@ pub fn refine_fits(
     open: bool,
     check: &PlaneCheck,
     known: &[PlacedSuperquadric],
+    fine: bool,
 ) -> (Vec<Hypothesis>, Vec<Option<usize>>) {
     let rest_axis = check.rest_axis(space);
     let coarse: Vec<Result<Coarse, Hypothesis>> = fits
@@ -406,7 +409,8 @@ pub fn refine_fits(
         .into_par_iter()
         .map(|c| {
             let mut h = match c {
-                Ok(c) => refine_fine(space, &c),
+                Ok(c) if fine => refine_fine(space, &c),
+                Ok(c) => super::refine::measured(space, &c),
                 Err(h) => h,
             };
             if open {
