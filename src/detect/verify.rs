@@ -146,8 +146,15 @@ pub fn score(
     let shell = tolerance + 0.3 * super::search::sample_radius(shape);
     let kernel = crate::geometry::PlacedKernel::new(placed);
     // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order surface
-    // distance and the normal (the lid test); every point in reach is evaluated.
-    let mut batch = NearBatch::new(&kernel, f64::INFINITY, |k, q, rg| {
+    // distance and the normal (the lid test). Only points that can count are evaluated: those
+    // with F^e1 < 1 + gamma (S and I), which lie in the level box, and those within the shell of
+    // the surface, which lie within the shell of the shape's box. (The first-order distance
+    // shrinks far from a shape with small exponents: a point decimetres off a box-like part's
+    // face could pass for one a few millimetres off.)
+    let reach = kernel
+        .level_box(1.0 + gamma)
+        .sup(&shape.local_half_extents().add_scalar(shell));
+    let mut batch = NearBatch::within(&kernel, reach, |k, q, rg| {
             let p = &space.points[k];
             let within_paper_radius = (p - centre).norm() <= radius;
             let g = rg.residual + 1.0;
@@ -184,10 +191,11 @@ pub fn score(
                 outside_near.push(*p);
             }
         });
-    space.grid.for_each_within(
+    space.grid.for_each_within_box(
         space.points,
         &centre,
         radius.max(shape.bounding_radius() + shell),
+        &kernel.frame_box(&reach),
         |k| batch.push(k, &space.points[k]),
     );
     batch.finish();

@@ -406,9 +406,27 @@ impl PlacedKernel {
     /// Half-sizes, along the frame's axes, of a box that holds the shape's local box grown by
     /// `band`: where a point must lie to pass [`NearBatch`]'s box test.
     pub fn frame_reach(&self, band: f64) -> Vector3<f64> {
+        self.frame_box(&self.half_extents.add_scalar(band))
+    }
+
+    /// Half-sizes, along the frame's axes, of a box that holds the local box `±half`.
+    pub fn frame_box(&self, half: &Vector3<f64>) -> Vector3<f64> {
         // A micrometre more, so that rounding cannot leave a point on the box's edge out.
-        let h = self.half_extents.add_scalar(band);
-        (self.rotation.abs() * h).add_scalar(1e-6)
+        (self.rotation.abs() * half).add_scalar(1e-6)
+    }
+
+    /// Half-sizes of the local box outside which `F^e1` exceeds `level` (at least 1): the
+    /// shape's box scaled by `s = sqrt(level)`, widened by the taper over the `|z| <= s a3` it
+    /// spans. Beyond `|z| > s a3` the z term alone exceeds it; inside, the untapered `|x|` is
+    /// `|X| / (kx z/a3 + 1) > s a1` there.
+    pub fn level_box(&self, level: f64) -> Vector3<f64> {
+        let s = level.max(1.0).sqrt();
+        let shape = &self.kernel.shape;
+        Vector3::new(
+            s * shape.a[0] * (1.0 + shape.kx.abs() * s),
+            s * shape.a[1] * (1.0 + shape.ky.abs() * s),
+            s * shape.a[2],
+        )
     }
 
     /// Whether a frame point lies within `band` of the shape's local box.
@@ -496,9 +514,15 @@ const BATCH: usize = 4;
 impl<'k, F: FnMut(usize, &Vector3<f64>, &ResidualGrad)> NearBatch<'k, F> {
     #[inline(always)]
     pub fn new(kernel: &'k PlacedKernel, band: f64, f: F) -> Self {
+        Self::within(kernel, kernel.half_extents.add_scalar(band), f)
+    }
+
+    /// Those within the local box `±reach` reach the callback.
+    #[inline(always)]
+    pub fn within(kernel: &'k PlacedKernel, reach: Vector3<f64>, f: F) -> Self {
         NearBatch {
             kernel,
-            reach: kernel.half_extents.add_scalar(band),
+            reach,
             index: [0; BATCH],
             local: [[0.0; BATCH]; 3],
             n: 0,

@@ -588,3 +588,29 @@ fn the_frame_reach_holds_the_turned_box() {
         }
     }
 }
+
+/// Outside a shape's level box `F^e1` exceeds the level, tapered or not: the score may leave
+/// those points out of S and I without changing them.
+#[test]
+fn outside_the_level_box_f_exceeds_the_level() {
+    let mut rng = ChaCha8Rng::seed_from_u64(12);
+    for _ in 0..100 {
+        let sq = random_sq(&mut rng);
+        let placed = PlacedSuperquadric::new(sq, random_pose(&mut rng));
+        let kernel = PlacedKernel::new(&placed);
+        let level = rng.random_range(1.0..1.5);
+        let b = kernel.level_box(level);
+        for _ in 0..300 {
+            // A point just outside one face of the box, anywhere across the others.
+            let mut q = Vector3::new(
+                rng.random_range(-1.0..1.0) * b.x,
+                rng.random_range(-1.0..1.0) * b.y,
+                rng.random_range(-1.0..1.0) * b.z,
+            );
+            let k = rng.random_range(0..3);
+            q[k] = b[k] * rng.random_range(1.0001..1.05) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+            let g = sq.residual_grad(&q).residual + 1.0;
+            assert!(g > level, "{sq:?} at {q}: F^e1 {g} <= {level}");
+        }
+    }
+}
