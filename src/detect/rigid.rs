@@ -90,6 +90,10 @@ fn cost(model: &Model, pose: &Isometry3<f64>, by_part: &[Vec<Point3<f64>>]) -> f
         .sum()
 }
 
+/// A fit in the final band that moves the pose less than this (m, rad) ends the refinement.
+const STILL_M: f64 = 1e-5;
+const STILL_RAD: f64 = 1e-4;
+
 /// Refine the object pose with the parts held rigidly, over `rounds` rounds of point gathering
 /// with a band shrinking from `start_band` to `final_band`. Returns the pose and the M over the
 /// final points.
@@ -110,9 +114,13 @@ pub fn refine_object(
         if n < 8 {
             break;
         }
-        pose = fit_object(model, &pose, &by_part, iterations);
-        let new_m = (cost(model, &pose, &by_part) / n as f64).sqrt();
-        let done = band <= final_band && new_m >= 0.999 * m;
+        let (fitted, fitted_cost) = fit_object(model, &pose, &by_part, iterations);
+        // A pose that hardly moved would gather the same points again and stay where it is.
+        let still = (fitted.translation.vector - pose.translation.vector).norm() < STILL_M
+            && fitted.rotation.angle_to(&pose.rotation) < STILL_RAD;
+        pose = fitted;
+        let new_m = (fitted_cost / n as f64).sqrt();
+        let done = band <= final_band && (new_m >= 0.999 * m || still);
         m = new_m;
         if done {
             break;
@@ -128,19 +136,20 @@ pub fn refine_object(
     (pose, m)
 }
 
-/// LM on the object pose: translation in the frame, rotation vector in the object frame.
+/// LM on the object pose: translation in the frame, rotation vector in the object frame. Returns
+/// the pose and its cost `sum r^2`.
 fn fit_object(
     model: &Model,
     start: &Isometry3<f64>,
     by_part: &[Vec<Point3<f64>>],
     iterations: usize,
-) -> Isometry3<f64> {
-    minimize(
+) -> (Isometry3<f64>, f64) {
+    let found = minimize(
         &RigidFit { model, by_part },
         *start,
         &LmSettings::attempts(iterations, 1e-6),
-    )
-    .x
+    );
+    (found.x, found.cost)
 }
 
 /// The pose of an object whose parts are held rigidly, each point on the part it was gathered
