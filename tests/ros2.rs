@@ -96,7 +96,14 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
 
     // A joint state a profile, in time order, the last at the cloud's stamp.
     let joints = m["joints"].as_array().unwrap();
-    assert_eq!(joints.len(), pcd.height);
+    let first_stamps: Vec<&Value> = joints.iter().take(3).map(|j| &j["stamp"]).collect();
+    assert_eq!(
+        joints.len(),
+        pcd.height,
+        "joint states received (first stamps {first_stamps:?}, cloud stamp {})\n{}",
+        cloud["stamp"],
+        log()
+    );
     assert_eq!(joints[0]["name"], json!(["ptu_pan", "ptu_tilt"]));
     let stamps: Vec<f64> = joints.iter().map(|j| j["stamp"].as_f64().unwrap()).collect();
     assert!(stamps.windows(2).all(|w| w[0] <= w[1]), "{stamps:?}");

@@ -268,10 +268,9 @@ mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
 
-    #[test]
-    fn radius_queries_match_brute_force() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
-        let pts: Vec<Point3<f64>> = (0..3000)
+    /// 3000 points spread over a 2 x 1 x 0.3 m box.
+    fn random_points(rng: &mut rand_chacha::ChaCha8Rng) -> Vec<Point3<f64>> {
+        (0..3000)
             .map(|_| {
                 Point3::new(
                     rng.random_range(-1.0..1.0),
@@ -279,7 +278,13 @@ mod tests {
                     rng.random_range(0.0..0.3),
                 )
             })
-            .collect();
+            .collect()
+    }
+
+    #[test]
+    fn radius_queries_match_brute_force() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
+        let pts = random_points(&mut rng);
         let grid = Grid::new(&pts, 0.05);
         for _ in 0..200 {
             let c = Point3::new(
@@ -299,15 +304,7 @@ mod tests {
     #[test]
     fn box_queries_keep_the_points_in_the_box_in_order() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let pts: Vec<Point3<f64>> = (0..3000)
-            .map(|_| {
-                Point3::new(
-                    rng.random_range(-1.0..1.0),
-                    rng.random_range(-0.5..0.5),
-                    rng.random_range(0.0..0.3),
-                )
-            })
-            .collect();
+        let pts = random_points(&mut rng);
         let grid = Grid::new(&pts, 0.05);
         for _ in 0..200 {
             let c = Point3::new(rng.random_range(-1.0..1.0), rng.random_range(-0.5..0.5), 0.15);
