@@ -96,11 +96,20 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
 
     // A joint state a profile, in time order, the last at the cloud's stamp.
     let joints = m["joints"].as_array().unwrap();
-    let first_stamps: Vec<&Value> = joints.iter().take(3).map(|j| &j["stamp"]).collect();
+    let t: Vec<f64> = joints.iter().map(|j| j["stamp"].as_f64().unwrap_or(f64::NAN)).collect();
+    // Where the received stamps skip profiles: (index, seconds skipped).
+    let gaps: Vec<(usize, f64)> = t
+        .windows(2)
+        .enumerate()
+        .filter(|(_, w)| w[1] - w[0] > 0.03)
+        .map(|(i, w)| (i, w[1] - w[0]))
+        .collect();
     assert_eq!(
         joints.len(),
         pcd.height,
-        "joint states received (first stamps {first_stamps:?}, cloud stamp {})\n{}",
+        "joint states received: first {:?}, last {:?}, gaps {gaps:?}, cloud stamp {}\n{}",
+        t.first(),
+        t.last(),
         cloud["stamp"],
         log()
     );

@@ -40,6 +40,12 @@ use crate::ros::{self, Time};
 /// subscriber that does not acknowledge must not stall the sweeps.
 const WAIT_WHEN_FULL: std::time::Duration = std::time::Duration::from_millis(200);
 
+/// The pause before each joint state of a sweep. Published back to back, a sweep's 150 joint
+/// states reached a Cyclone DDS subscriber with a run of 30 to 100 of them missing in about one
+/// sweep in ten, and the reliable writer never repaired the run; paced, none went missing in
+/// 30 sweeps. 150 of them take 30 ms, far less than a sweep.
+const JOINT_STATE_PACE: std::time::Duration = std::time::Duration::from_micros(200);
+
 /// Joint states a sweep's worth of history holds: a message a profile, 150 at the rig's pace;
 /// kept for `depth` sweeps, as the other topics keep `depth` messages.
 const JOINT_STATES_PER_SWEEP: usize = 1000;
@@ -297,6 +303,7 @@ fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) 
         match out {
             Event::Sweep(entry) => {
                 for (_, data) in topics::joint_states(&entry) {
+                    std::thread::sleep(JOINT_STATE_PACE);
                     if let Err(e) = pubs.joints.publish(Encoded::new(data)) {
                         tracing::warn!("ROS 2 joint states of sweep {}: {e:?}", entry.id);
                         break;

@@ -337,11 +337,6 @@ def main():
         time.sleep(0.05)
     matched = {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
     out = {"matched": matched, "match_s": time.monotonic() - t0}
-    # A reader's match says it has seen the writer, not that the writer has seen the reader: a
-    # volatile writer sends a reader only what it publishes after that, and the daemon's
-    # discovery runs on its own thread (slow in a debug build on a loaded machine). Without a
-    # moment for discovery to finish both ways, a sweep's first joint states could go to no one.
-    time.sleep(1.0)
     print(json.dumps({"progress": "matched", **matched}), file=sys.stderr, flush=True)
     out["reply"] = ask(path, {"cmd": "find", "object": obj, "timeout_s": 60})
     got = {k: [] for k in readers}
