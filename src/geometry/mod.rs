@@ -6,12 +6,14 @@
 
 mod kernel;
 mod moments;
+mod placed;
 pub(crate) mod ray;
 mod sampling;
 mod superquadric;
 
-pub use kernel::{Kernel, NearBatch, PlacedKernel, lanes_of};
+pub use kernel::{Kernel, lanes_of};
 pub use moments::principal_axes;
+pub use placed::{NearBatch, PlacedKernel};
 pub use superquadric::*;
 
 #[cfg(test)]
