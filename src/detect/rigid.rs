@@ -114,7 +114,11 @@ pub fn refine_object(
         if n < 8 {
             break;
         }
-        let (fitted, fitted_cost) = fit_object(model, &pose, &by_part, iterations);
+        // A round in a band wider than the final one only brings the pose near enough for the
+        // next, narrower gathering: it stops at a 0.1 % improvement, as a single part's coarse
+        // rounds do (`refine::refine_coarse`). The final band's rounds converge fully.
+        let tol = if band > final_band { 1e-3 } else { 1e-6 };
+        let (fitted, fitted_cost) = fit_object(model, &pose, &by_part, iterations, tol);
         // A pose that hardly moved would gather the same points again and stay where it is.
         let still = (fitted.translation.vector - pose.translation.vector).norm() < STILL_M
             && fitted.rotation.angle_to(&pose.rotation) < STILL_RAD;
@@ -143,11 +147,12 @@ fn fit_object(
     start: &Isometry3<f64>,
     by_part: &[Vec<Point3<f64>>],
     iterations: usize,
+    tol: f64,
 ) -> (Isometry3<f64>, f64) {
     let found = minimize(
         &RigidFit { model, by_part },
         *start,
-        &LmSettings::attempts(iterations, 1e-6),
+        &LmSettings::attempts(iterations, tol),
     );
     (found.x, found.cost)
 }
