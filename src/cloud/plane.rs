@@ -76,11 +76,19 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
         return None;
     }
     c /= n as f64;
-    let mut cov = Matrix3::zeros();
+    // The six distinct sums of the symmetric covariance, each the same products in the same
+    // order as the full outer products would add.
+    let mut s = [0.0f64; 6];
     for i in idx {
         let d = points[i].coords - c;
-        cov += d * d.transpose();
+        s[0] += d.x * d.x;
+        s[1] += d.x * d.y;
+        s[2] += d.x * d.z;
+        s[3] += d.y * d.y;
+        s[4] += d.y * d.z;
+        s[5] += d.z * d.z;
     }
+    let mut cov = Matrix3::new(s[0], s[1], s[2], s[1], s[3], s[4], s[2], s[4], s[5]);
     cov /= n as f64;
     let eig = SymmetricEigen::new(cov);
     let k = eig.eigenvalues.imin();
@@ -336,19 +344,23 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Start narrow: a least-squares fit over a wide band mixes in the bottoms of the objects
     // standing on the plane and tilts it (a cluttered table: a 1 degree tilt, a band of 8 cm).
     let mut band = threshold.clamp(0.003, cap);
+    // Each point's distance to the current plane, once a round: the band's points for the next
+    // fit and the spread that sets its band both come from it.
+    let distances = |plane: &Plane| -> Vec<f64> { (0..points.len()).map(|i| norm_dist(plane, i).abs()).collect() };
+    let mut dist_all = distances(&plane);
+    let mut near: Vec<usize> = Vec::with_capacity(points.len());
     for _ in 0..12 {
         let previous = band;
-        let near = (0..points.len()).filter(|&i| norm_dist(&plane, i).abs() < band);
-        let (p, _) = fit_plane(points, near)?;
+        near.clear();
+        near.extend((0..points.len()).filter(|&i| dist_all[i] < band));
+        let (p, _) = fit_plane(points, near.iter().copied())?;
         plane = if p.normal.dot(&plane.normal) < 0.0 {
             p.flipped()
         } else {
             p
         };
-        let mut dist: Vec<f64> = (0..points.len())
-            .map(|i| norm_dist(&plane, i).abs())
-            .filter(|&d| d < band)
-            .collect();
+        dist_all = distances(&plane);
+        let mut dist: Vec<f64> = dist_all.iter().copied().filter(|&d| d < band).collect();
         // 1.4826 MAD estimates sigma; three sigma hold 99.7 % of the plane's noise.
         band = (3.0 * 1.4826 * median(&mut dist).unwrap_or(0.0)).clamp(0.002, cap);
         if (band - previous).abs() < 0.05 * previous {
@@ -382,7 +394,20 @@ widened! {
 /// Each point's signed distance to the plane in units of the noise at its range
 /// (`RangeScale::at`).
 fn normalized_distances(points: &[Point3<f64>], plane: &Plane, scale: &RangeScale) -> Vec<f64> {
-    points.iter().map(|p| plane.signed_distance(p) / scale.at(p)).collect()
+    // `RangeScale::at` with its match taken out of the loop, which then vectorizes.
+    match scale.viewpoint {
+        Some(v) => {
+            let rr = scale.r_ref * scale.r_ref;
+            points
+                .iter()
+                .map(|p| {
+                    let s = (p - v).norm_squared() / rr;
+                    plane.signed_distance(p) / if s > 0.05 { s } else { 0.05 }
+                })
+                .collect()
+        }
+        None => points.iter().map(|p| plane.signed_distance(p)).collect(),
+    }
 }
 }
 
