@@ -348,13 +348,20 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
                 let voxel = min_size / 12.0 * (mid.len() as f64 / MID_POINTS as f64).min(2.0);
                 mid = voxel_subsample(&mid, voxel).into_iter().map(|i| mid[i]).collect();
             }
-            let mid_grid = Grid::new(&mid, 1.2 * max_size);
-            let spacing = median_spacing(&mid);
-            let samples: Vec<SurfaceSamples> = model
-                .parts
-                .iter()
-                .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
-                .collect();
+            // The spacing and the surface samples on this core, the grid free for the other to
+            // take once its chain is done: the spacing's search is this chain's longest step.
+            let ((spacing, samples), mid_grid) = rayon::join(
+                || {
+                    let spacing = median_spacing(&mid);
+                    let samples: Vec<SurfaceSamples> = model
+                        .parts
+                        .iter()
+                        .map(|p| SurfaceSamples::new(&p.shape, spacing, p.open))
+                        .collect();
+                    (spacing, samples)
+                },
+                || Grid::new(&mid, 1.2 * max_size),
+            );
             (mid, mid_grid, spacing, samples)
         },
     );
