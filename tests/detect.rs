@@ -244,3 +244,44 @@ fn repeated_detections_in_one_process_give_one_answer() {
         assert!(!ok && err.contains("--repeat"), "{bad}: {err}");
     }
 }
+
+/// A compound's single answer is the first of its answers with `all`: without `all` the
+/// candidates are refined a few at a time and the search stops at the first that passes. It is
+/// the same whatever the number of threads (how many candidates are refined at a time).
+#[test]
+fn a_compound_answer_is_the_first_of_all_on_any_number_of_threads() {
+    let s = scene("fig4_tools.toml");
+    let m = model("mallet");
+    let key = |r: &sqscan::detect::Report| {
+        r.detections.first().map(|d| {
+            (
+                d.pose.translation.vector.map(f64::to_bits),
+                d.pose.rotation.coords.map(f64::to_bits),
+                d.found,
+                d.confidence.to_bits(),
+            )
+        })
+    };
+    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    for seed in [1, 2, 3] {
+        let sweep = simulate(&s, seed);
+        let params = Params {
+            seed,
+            viewpoint: sweep.cloud.viewpoint_position(),
+            ..Params::default()
+        };
+        let single = detect(&sweep.cloud.points, &m, &params);
+        assert!(single.detections[0].found, "seed {seed}");
+        let every = detect(
+            &sweep.cloud.points,
+            &m,
+            &Params {
+                all: true,
+                ..params.clone()
+            },
+        );
+        assert_eq!(key(&single), key(&every), "seed {seed}");
+        let serial = one_thread.install(|| detect(&sweep.cloud.points, &m, &params));
+        assert_eq!(key(&single), key(&serial), "seed {seed}");
+    }
+}

@@ -113,40 +113,56 @@ impl fmt::Display for Margins<'_> {
 /// The free-space check of the candidates from `first_new` on that the acceptance test passed:
 /// a part where the sensor saw through it is not there. Only the candidates that may be reported
 /// are checked (it is the most expensive test per candidate, and most candidates fail cheaper
-/// ones first): the first that passes, or with `Params::all` every one. Returns how many
-/// candidates are accepted in all.
-pub fn free_space(prep: &Prepared, candidates: &mut [Detection], first_new: usize, params: &Params) -> usize {
+/// ones first): the first that passes, or with `Params::all` every one. The first `checked` of
+/// them have been through it already ([`check_free_space`]). Returns how many candidates are
+/// accepted in all.
+pub fn free_space(
+    prep: &Prepared,
+    candidates: &mut [Detection],
+    first_new: usize,
+    checked: usize,
+    params: &Params,
+) -> usize {
     let limit = if params.all { usize::MAX } else { 1 };
     let mut accepted = candidates[..first_new].iter().filter(|d| d.found).count();
-    for d in candidates[first_new..].iter_mut() {
+    for (i, d) in candidates[first_new..].iter_mut().enumerate() {
         if accepted >= limit {
             break;
         }
         if !d.found {
             continue;
         }
-        for (k, part) in d.parts.iter().enumerate() {
-            let Some(placed) = part.placed else { continue };
-            let vis = verify::visibility(
-                &prep.scene.points,
-                &prep.scene.all_grid,
-                &placed,
-                params.viewpoint,
-                prep.scene.plane.as_ref(),
-                &prep.samples[k],
-            );
-            tracing::debug!("visibility {} {vis}", part.name);
-            let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
-            if margin < 0.0 {
-                d.found = false;
-            }
-            d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
+        if i >= checked {
+            check_free_space(prep, d, params);
         }
         if d.found {
             accepted += 1;
         }
     }
     accepted
+}
+
+/// The free-space check of one candidate: each part's visible surface must not be where the
+/// sensor saw through; it clears `found` when a part fails and bounds the confidence by the
+/// margin.
+pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
+    for (k, part) in d.parts.iter().enumerate() {
+        let Some(placed) = part.placed else { continue };
+        let vis = verify::visibility(
+            &prep.scene.points,
+            &prep.scene.all_grid,
+            &placed,
+            params.viewpoint,
+            prep.scene.plane.as_ref(),
+            &prep.samples[k],
+        );
+        tracing::debug!("visibility {} {vis}", part.name);
+        let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
+        if margin < 0.0 {
+            d.found = false;
+        }
+        d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
+    }
 }
 
 /// The object's pose from its parts' placements. The anchor part (the largest found) fixes the

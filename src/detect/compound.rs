@@ -373,8 +373,21 @@ fn connection_error(model: &Model, c: &Connection, parts: &[PartResult]) -> (f64
 
 /// Rank the combinations over the connection errors and every part's M, S, I; the best of every
 /// anchor candidate is refined as one rigid object and scored again, the others go through the
-/// acceptance test as they are. Candidates come best first.
-pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, params: &Params) -> Vec<Detection> {
+/// acceptance test as they are. Candidates come best first, with how many of them have been
+/// through the free-space check already (`accept::free_space`).
+///
+/// Without `Params::all`, and for a model without an open part, the answer is the first
+/// candidate that passes the acceptance test and the free-space check: the candidates are
+/// refined a few at a time, as many as there are threads, in their order, and the search stops
+/// at the first that passes. A later candidate could not change the answer. (A model with an
+/// open part prefers any candidate standing on its base to one on its rim, so every candidate
+/// can matter.)
+pub fn candidates(
+    prep: &Prepared,
+    model: &Model,
+    combos: Vec<Combination>,
+    params: &Params,
+) -> (Vec<Detection>, usize) {
     let mut criteria: Vec<(Vec<f64>, bool)> = Vec::new();
     for c in 0..model.connections.len() {
         criteria.push((combos.iter().map(|x| x.errors[c].0).collect(), true));
@@ -396,12 +409,37 @@ pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, para
             best_of_anchor.push(k);
         }
     }
-    let mut out: Vec<Detection> = best_of_anchor
-        .par_iter()
-        .map(|&k| refine(prep, model, &combos[k], params))
-        .collect();
-    for d in &out {
-        tracing::debug!("refined {d}");
+    let lazy = !params.all && !model.parts.iter().any(|p| p.open);
+    let mut out: Vec<Detection> = Vec::with_capacity(combos.len());
+    let mut checked = 0;
+    if lazy {
+        for group in best_of_anchor.chunks(rayon::current_num_threads().max(1)) {
+            let refined: Vec<Detection> = group
+                .par_iter()
+                .map(|&k| refine(prep, model, &combos[k], params))
+                .collect();
+            let mut decided = false;
+            for mut d in refined {
+                tracing::debug!("refined {d}");
+                if d.found {
+                    accept::check_free_space(prep, &mut d, params);
+                    decided = d.found;
+                }
+                out.push(d);
+                checked += 1;
+                if decided {
+                    return (out, checked);
+                }
+            }
+        }
+    } else {
+        out = best_of_anchor
+            .par_iter()
+            .map(|&k| refine(prep, model, &combos[k], params))
+            .collect();
+        for d in &out {
+            tracing::debug!("refined {d}");
+        }
     }
     let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
     for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
@@ -415,7 +453,7 @@ pub fn candidates(prep: &Prepared, model: &Model, combos: Vec<Combination>, para
             ));
         }
     }
-    out
+    (out, checked)
 }
 
 /// Refine a combination as one rigid object, place every part by the model, score the parts
