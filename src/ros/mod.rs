@@ -62,11 +62,12 @@ fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
     w.f64(v.z);
 }
 
-/// `geometry_msgs/Pose`: the position, then the orientation as `x, y, z, w`.
+/// `geometry_msgs/Pose`: the position, then the orientation as `x, y, z, w`, of the two
+/// equivalent quaternions the one with `w >= 0`, as the JSON replies give it (`PoseJson`).
 fn pose(w: &mut CdrWriter, p: &Isometry3<f64>) {
     vector3(w, &p.translation.vector);
-    let q = p.rotation.coords;
-    for v in [q.x, q.y, q.z, q.w] {
+    let [x, y, z, qw] = crate::pose::PoseJson::from(p).orientation;
+    for v in [x, y, z, qw] {
         w.f64(v);
     }
 }
@@ -400,6 +401,23 @@ pub fn model_bbox(model: &Model) -> (Point3<f64>, Vector3<f64>) {
 mod tests {
     use super::*;
     use crate::cloud::Field;
+
+    /// A detection's pose on ROS 2 once went out as the negated quaternion of the same pose in
+    /// the JSON reply (both the same rotation; the ros2 test compares them number for number).
+    #[test]
+    fn a_pose_goes_out_with_the_quaternion_of_the_json_reply() {
+        let q = nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(-0.862, 0.0073, -0.0023, -0.5065));
+        let p = Isometry3::from_parts(nalgebra::Translation3::new(0.97, 0.2, 0.77), q);
+        let mut w = CdrWriter::new();
+        pose(&mut w, &p);
+        let bytes = w.finish();
+        let mut r = cdr::CdrReader::new(&bytes).unwrap();
+        let read: Vec<f64> = (0..7).map(|_| r.f64("pose").unwrap()).collect();
+        let json = crate::pose::PoseJson::from(&p);
+        assert_eq!(read[..3], json.position);
+        assert_eq!(read[3..], json.orientation);
+        assert!(read[6] >= 0.0);
+    }
 
     #[test]
     fn time_splits_seconds_and_nanoseconds() {
