@@ -231,7 +231,8 @@ fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
     let outside = points
         .iter()
         .map(|p| {
-            let out = |k: usize| usize::from(!(p[k] >= bounds[k].0) | !(p[k] <= bounds[k].1));
+            // The points are finite: outside is below the low bound or above the high one.
+            let out = |k: usize| usize::from(p[k] < bounds[k].0) | usize::from(p[k] > bounds[k].1);
             out(0) | out(1) | out(2)
         })
         .sum::<usize>();
