@@ -232,13 +232,18 @@ impl RangeScale {
         match self.viewpoint {
             // (r / r_ref)^2 without the square root; a select rather than `f64::max`, whose NaN
             // handling costs more in the split's pass over every point.
-            Some(v) => {
-                let s = (p - v).norm_squared() / (self.r_ref * self.r_ref);
-                if s > 0.05 { s } else { 0.05 }
-            }
+            Some(v) => scale_from(&v, self.r_ref * self.r_ref, p),
             None => 1.0,
         }
     }
+}
+
+/// `RangeScale::at` for a viewpoint `v` and `rr = r_ref^2`: the one formula, also for the
+/// split's loop, which takes the viewpoint's match out of its body.
+#[inline(always)]
+fn scale_from(v: &Point3<f64>, rr: f64, p: &Point3<f64>) -> f64 {
+    let s = (p - v).norm_squared() / rr;
+    if s > 0.05 { s } else { 0.05 }
 }
 
 /// The dominant plane of `points` and the half-width of its band at the reference range.
@@ -445,10 +450,7 @@ fn normalized_distances(points: &[Point3<f64>], plane: &Plane, scale: &RangeScal
             let rr = scale.r_ref * scale.r_ref;
             points
                 .iter()
-                .map(|p| {
-                    let s = (p - v).norm_squared() / rr;
-                    plane.signed_distance(p) / if s > 0.05 { s } else { 0.05 }
-                })
+                .map(|p| plane.signed_distance(p) / scale_from(&v, rr, p))
                 .collect()
         }
         None => points.iter().map(|p| plane.signed_distance(p)).collect(),

@@ -410,37 +410,32 @@ pub fn candidates(
         }
     }
     let lazy = !params.all && !model.parts.iter().any(|p| p.open);
-    let mut out: Vec<Detection> = Vec::with_capacity(combos.len());
-    let mut checked = 0;
-    if lazy {
-        for group in best_of_anchor.chunks(rayon::current_num_threads().max(1)) {
-            let refined: Vec<Detection> = group
-                .par_iter()
-                .map(|&k| refine(prep, model, &combos[k], params))
-                .collect();
-            let mut decided = false;
-            for mut d in refined {
-                tracing::debug!("refined {d}");
-                if d.found {
-                    accept::check_free_space(prep, &mut d, params);
-                    decided = d.found;
-                }
-                out.push(d);
-                checked += 1;
-                if decided {
-                    return (out, checked);
-                }
-            }
-        }
+    let at_a_time = if lazy {
+        rayon::current_num_threads()
     } else {
-        out = best_of_anchor
+        best_of_anchor.len()
+    };
+    let mut out: Vec<Detection> = Vec::with_capacity(combos.len());
+    for group in best_of_anchor.chunks(at_a_time.max(1)) {
+        let refined: Vec<Detection> = group
             .par_iter()
             .map(|&k| refine(prep, model, &combos[k], params))
             .collect();
-        for d in &out {
+        for mut d in refined {
             tracing::debug!("refined {d}");
+            let passed = lazy && d.found && {
+                accept::check_free_space(prep, &mut d, params);
+                d.found
+            };
+            out.push(d);
+            if passed {
+                let checked = out.len();
+                return (out, checked);
+            }
         }
     }
+    // Lazily, every refined candidate has been checked (and failed, or was not found).
+    let checked = if lazy { out.len() } else { 0 };
     let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
     for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
         if let Some(c) = combos[k].take() {

@@ -123,20 +123,21 @@ pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, 
         let anchors = anchor::rank(&prep, &anchor, hypotheses, params.gamma);
         timing.verify_ms += ms(t);
         let first_new = candidates.len();
-        let mut checked = 0;
-        if model.is_compound() {
+        // How many of the new candidates have been through the free-space check already.
+        let checked = if model.is_compound() {
             let t = Instant::now();
             let picked = compound::pick(&anchors, params);
             let combos = compound::combinations(&prep, model, &anchors, &picked, params, round);
             timing.search_ms += ms(t);
             let t = Instant::now();
-            let (found, free_space_checked) = compound::candidates(&prep, model, combos, params);
+            let (found, checked) = compound::candidates(&prep, model, combos, params);
             candidates.extend(found);
-            checked = free_space_checked;
             timing.verify_ms += ms(t);
+            checked
         } else {
             candidates.extend(anchors.single_part_candidates(model, &prep.noise(), &params.acceptance));
-        }
+            0
+        };
         let t = Instant::now();
         let accepted = accept::free_space(&prep, &mut candidates, first_new, checked, params);
         timing.verify_ms += ms(t);

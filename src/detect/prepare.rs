@@ -225,21 +225,17 @@ fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
         let reach = WILD_REACH * (hi - lo).max(0.01);
         (lo - reach, hi + reach)
     });
-    let inside = |p: &Point3<f64>| (0..3).all(|k| p[k] >= bounds[k].0 && p[k] <= bounds[k].1);
-    // Counted without branches, which the compiler vectorizes: nearly every cloud has no wild
-    // point, and this pass is over all of them.
-    let outside = points
-        .iter()
-        .map(|p| {
-            // The points are finite: outside is below the low bound or above the high one.
-            let out = |k: usize| usize::from(p[k] < bounds[k].0) | usize::from(p[k] > bounds[k].1);
-            out(0) | out(1) | out(2)
-        })
-        .sum::<usize>();
-    if outside == 0 {
+    // 1 for a point outside the box, 0 inside, without branches: the count over every point,
+    // which nearly always finds none, vectorizes. The points are finite: outside is below the
+    // low bound or above the high one.
+    let outside = |p: &Point3<f64>| {
+        let out = |k: usize| usize::from(p[k] < bounds[k].0) | usize::from(p[k] > bounds[k].1);
+        out(0) | out(1) | out(2)
+    };
+    if points.iter().map(outside).sum::<usize>() == 0 {
         return points;
     }
-    points.into_iter().filter(|p| inside(p)).collect()
+    points.into_iter().filter(|p| outside(p) == 0).collect()
 }
 
 /// The grid the free-space check looks along the lines of sight in.

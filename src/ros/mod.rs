@@ -66,8 +66,7 @@ fn vector3(w: &mut CdrWriter, v: &Vector3<f64>) {
 /// equivalent quaternions the one with `w >= 0`, as the JSON replies give it (`PoseJson`).
 fn pose(w: &mut CdrWriter, p: &Isometry3<f64>) {
     vector3(w, &p.translation.vector);
-    let [x, y, z, qw] = crate::pose::PoseJson::from(p).orientation;
-    for v in [x, y, z, qw] {
+    for v in crate::pose::PoseJson::from(p).orientation {
         w.f64(v);
     }
 }
