@@ -72,13 +72,7 @@ pub fn assess(
     if let Some(b) = base_recess {
         margins.push((b - MIN_BASE_RECESS) / MIN_BASE_RECESS);
     }
-    for (c, (a, d)) in model.connections.iter().zip(&connection_errors) {
-        if a.is_finite() {
-            margins.push((acc.max_angle_error - a) / acc.max_angle_error);
-            let dmax = acc.max_distance_error * c.distance.max(0.02);
-            margins.push((dmax - d) / dmax);
-        }
-    }
+    margins.extend(connection_margins(model, &connection_errors, acc));
     tracing::trace!("{}", Margins(&margins));
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
@@ -91,6 +85,31 @@ pub fn assess(
         connection_errors,
         upright: None,
     }
+}
+
+/// The margins of the angle and the distance error of each connection whose parts were both
+/// found (a missing part's errors are infinite, and its absence already lowers the coverage).
+fn connection_margins<'a>(
+    model: &'a Model,
+    connection_errors: &'a [(f64, f64)],
+    acc: &'a Acceptance,
+) -> impl Iterator<Item = f64> + 'a {
+    model
+        .connections
+        .iter()
+        .zip(connection_errors)
+        .filter(|(_, (a, _))| a.is_finite())
+        .flat_map(|(c, &(a, d))| {
+            let dmax = acc.max_distance_error * c.distance.max(0.02);
+            [(acc.max_angle_error - a) / acc.max_angle_error, (dmax - d) / dmax]
+        })
+}
+
+/// Whether every part of a combination was found and every connection between them, as found,
+/// is within the acceptance test's bounds.
+pub fn connections_hold(model: &Model, connection_errors: &[(f64, f64)], acc: &Acceptance) -> bool {
+    connection_errors.iter().all(|(a, _)| a.is_finite())
+        && connection_margins(model, connection_errors, acc).all(|m| m >= 0.0)
 }
 
 /// Each measure's margin to its threshold in units of its scale (negative: the test fails):

@@ -409,6 +409,10 @@ pub fn candidates(
             best_of_anchor.push(k);
         }
     }
+    // Those whose parts were found where the model puts them against each other come first, in
+    // their order. The rigid fit of a combination whose connection is off rarely closes the gap:
+    // it keeps the anchor and places the other part by the model where nothing is.
+    best_of_anchor.sort_by_key(|&k| !accept::connections_hold(model, &combos[k].errors, &params.acceptance));
     let lazy = !params.all && !model.parts.iter().any(|p| p.open);
     let at_a_time = if lazy {
         rayon::current_num_threads()
