@@ -10,9 +10,9 @@ use super::accept::{self, object_pose};
 use super::anchor::Anchors;
 use super::fit::Fit;
 use super::prepare::Prepared;
-use super::report::{ConnectionText, Detection, PartResult};
+use super::report::{ConnectionText, Detection, PartResult, PoseText, VotesText};
 use super::search::{self, SearchSettings};
-use super::verify::{Scores, paper_criteria, rank_sums, score};
+use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
 use super::{Params, box_volume, fit, rigid};
 use crate::geometry::PlacedSuperquadric;
 use crate::model::{Connection, Model, axis_angle};
@@ -31,6 +31,9 @@ pub struct Combination {
     /// Which anchor candidate (an index into `Anchors::hypotheses`) it grew from.
     pub anchor: usize,
     pub parts: Vec<PartResult>,
+    /// Whether each part's scores are complete; where not, they hold the paper's M, S and I
+    /// alone (`Scores::votes`), all that ranking asks, and [`measure`] completes them.
+    pub measured: Vec<bool>,
     /// Angle (rad) and distance (m) error of each connection; infinite where a part is missing.
     pub errors: Vec<(f64, f64)>,
 }
@@ -39,8 +42,11 @@ pub struct Combination {
 impl fmt::Display for Combination {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", ConnectionText(&self.errors))?;
-        for p in &self.parts {
-            write!(f, " | {p}")?;
+        for (p, &measured) in self.parts.iter().zip(&self.measured) {
+            match (&p.placed, measured) {
+                (Some(q), false) => write!(f, " | {} {} {}", p.name, PoseText(&q.pose), VotesText(&p.scores))?,
+                _ => write!(f, " | {p}")?,
+            }
         }
         Ok(())
     }
@@ -117,13 +123,13 @@ pub fn combinations(
             ..Default::default()
         },
     };
-    // Partial combinations: a placement (or none) per part.
-    let mut partial: Vec<(usize, Vec<PartResult>)> = picked
+    // Partial combinations: a placement (or none) per part, and whether its scores are complete.
+    let mut partial: Vec<(usize, Vec<PartResult>, Vec<bool>)> = picked
         .iter()
         .map(|&k| {
             let mut v: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
             v[anchor] = anchors.part_result(model, k);
-            (k, v)
+            (k, v, vec![true; model.parts.len()])
         })
         .collect();
     for (step, &(part, parent, ci)) in visit.iter().enumerate() {
@@ -133,7 +139,7 @@ pub fn combinations(
         let trials: Vec<Option<Vec<Fit>>> = partial
             .par_iter()
             .enumerate()
-            .map(|(pi, (_, combo))| {
+            .map(|(pi, (_, combo, _))| {
                 let parent_placed = combo[parent].placed?;
                 // Where the model puts the part against this placement of its parent, and beside
                 // that a few RANSAC regions of the shell: they find the part when the parent's fit
@@ -162,7 +168,9 @@ pub fn combinations(
         // The coarse rounds bring it to its points and M is measured in the final band; the
         // fine rounds are left out: the placement only has to be ranked in the vote, and the
         // combination each anchor candidate chooses is fitted again, all its parts together,
-        // on the full-resolution points (`refine`).
+        // on the full-resolution points (`refine`). For the same reason a closed part's
+        // placement gets the paper's votes alone; the acceptance measures are taken of the few
+        // that reach the acceptance test unrefined (`measure`).
         let mut pool: Vec<Fit> = Vec::new();
         let members: Vec<Option<Vec<usize>>> = trials
             .into_iter()
@@ -177,12 +185,20 @@ pub fn combinations(
             &[],
             false,
         );
+        let open = model.parts[part].open;
         let scores: Vec<Scores> = hyps
             .par_iter()
-            .map(|h| score(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
+            .map(|h| {
+                if open {
+                    score(&space, &h.placed, h.m, params.gamma, &prep.samples[part])
+                } else {
+                    let (s, i) = votes(&space, &h.placed, params.gamma);
+                    Scores::votes(h.m, s, i)
+                }
+            })
             .collect();
         let mut next = Vec::new();
-        for ((origin, combo), members) in partial.iter().zip(members) {
+        for ((origin, combo, measured), members) in partial.iter().zip(members) {
             let mut found: Vec<usize> = Vec::new();
             for k in members.unwrap_or_default().into_iter().filter_map(|j| stands_for[j]) {
                 if !found.contains(&k) {
@@ -190,7 +206,7 @@ pub fn combinations(
                 }
             }
             if found.is_empty() {
-                next.push((*origin, combo.clone()));
+                next.push((*origin, combo.clone(), measured.clone()));
             }
             for k in found {
                 let mut c = combo.clone();
@@ -199,20 +215,27 @@ pub fn combinations(
                     placed: Some(hyps[k].placed),
                     scores: scores[k],
                 };
-                next.push((*origin, c));
+                let mut m = measured.clone();
+                m[part] = open;
+                next.push((*origin, c, m));
             }
         }
         partial = next;
     }
     partial
         .into_iter()
-        .map(|(anchor, parts)| {
+        .map(|(anchor, parts, measured)| {
             let errors = model
                 .connections
                 .iter()
                 .map(|c| connection_error(model, c, &parts))
                 .collect();
-            Combination { anchor, parts, errors }
+            Combination {
+                anchor,
+                parts,
+                measured,
+                errors,
+            }
         })
         .collect()
 }
@@ -441,8 +464,10 @@ pub fn candidates(
     // Lazily, every refined candidate has been checked (and failed, or was not found).
     let checked = if lazy { out.len() } else { 0 };
     let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
+    let mut measured: Vec<(usize, PlacedSuperquadric, Scores)> = Vec::new();
     for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
-        if let Some(c) = combos[k].take() {
+        if let Some(mut c) = combos[k].take() {
+            measure(prep, &mut c, params, &mut measured);
             out.push(accept::assess(
                 model,
                 c.parts,
@@ -453,6 +478,29 @@ pub fn candidates(
         }
     }
     (out, checked)
+}
+
+/// Complete the scores of a combination's parts that hold the paper's votes alone. The
+/// combinations share placements: each is measured once, and `done` keeps what was measured.
+fn measure(
+    prep: &Prepared,
+    combo: &mut Combination,
+    params: &Params,
+    done: &mut Vec<(usize, PlacedSuperquadric, Scores)>,
+) {
+    let space = prep.space();
+    for (p, (r, measured)) in combo.parts.iter_mut().zip(&mut combo.measured).enumerate() {
+        let Some(q) = r.placed.filter(|_| !*measured) else {
+            continue;
+        };
+        let known = done.iter().find(|(k, d, _)| *k == p && d.pose == q.pose).map(|d| d.2);
+        r.scores = known.unwrap_or_else(|| {
+            let s = score(&space, &q, r.scores.m, params.gamma, &prep.samples[p]);
+            done.push((p, q, s));
+            s
+        });
+        *measured = true;
+    }
 }
 
 /// Refine a combination as one rigid object, place every part by the model, score the parts
@@ -512,6 +560,46 @@ mod tests {
 
     fn rel(model: &Model, parent: usize, part: usize) -> Isometry3<f64> {
         model.parts[parent].pose_in_object.inverse() * model.parts[part].pose_in_object
+    }
+
+    /// The votes that rank a compound's placements are the S and I the full score counts, for
+    /// placements on, near and off the data.
+    #[test]
+    fn a_placement_votes_as_it_scores() {
+        use rand::{RngExt, SeedableRng};
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let models = root.join("models");
+        let scene = crate::sim::Scene::from_file(&root.join("scenes/fig4_tools.toml"), &models).unwrap();
+        let sweep = crate::sim::simulate(&scene, 0);
+        let model = Model::load("mallet", &models).unwrap();
+        let params = Params {
+            viewpoint: sweep.cloud.viewpoint_position(),
+            ..Params::default()
+        };
+        let prep = crate::detect::prepare::index(
+            std::sync::Arc::new(crate::detect::scene(&sweep.cloud.points, &params)),
+            &model,
+            &params,
+        );
+        let space = prep.space();
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let (mut with_surface, mut with_interior) = (0, 0);
+        for k in 0..300 {
+            let part = k % 2;
+            let on = space.sub[rng.random_range(0..space.sub.len())];
+            let offset = Vector3::new(rng.random(), rng.random(), rng.random()).map(|v: f64| (v - 0.5) * 0.06);
+            let turn = Vector3::new(rng.random(), rng.random(), rng.random()).map(|v: f64| (v - 0.5) * 6.0);
+            let placed = PlacedSuperquadric::new(model.parts[part].shape, Isometry3::new(on.coords + offset, turn));
+            let full = score(&space, &placed, 0.1, params.gamma, &prep.samples[part]);
+            assert_eq!(votes(&space, &placed, params.gamma), (full.s, full.i), "placement {k}");
+            with_surface += (full.s > 0) as usize;
+            with_interior += (full.i > 0) as usize;
+        }
+        // The placements exercise both counts.
+        assert!(
+            with_surface > 100 && with_interior > 50,
+            "{with_surface} {with_interior}"
+        );
     }
 
     #[test]

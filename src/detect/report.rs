@@ -85,6 +85,15 @@ impl fmt::Display for PoseText<'_> {
     }
 }
 
+/// The paper's criteria alone: `M .. S .. I ..`.
+pub(super) struct VotesText<'a>(pub &'a Scores);
+
+impl fmt::Display for VotesText<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "M {:.4} S {} I {}", self.0.m, self.0.s, self.0.i)
+    }
+}
+
 /// The connection errors of a compound: `A <deg> deg D <m>` for each connection.
 pub(super) struct ConnectionText<'a>(pub &'a [(f64, f64)]);
 

@@ -63,6 +63,19 @@ pub struct Scores {
 }
 
 impl Scores {
+    /// The paper's M, S and I alone; the acceptance measures say nothing was seen (no coverage,
+    /// no surface points).
+    pub fn votes(m: f64, s: usize, i: usize) -> Scores {
+        Scores {
+            m,
+            s,
+            i,
+            rms: f64::INFINITY,
+            faces: f64::INFINITY,
+            ..Default::default()
+        }
+    }
+
     /// Inside points per surface point.
     pub fn interior_ratio(&self) -> f64 {
         self.inside_points as f64 / (self.surface_points as f64).max(1.0)
@@ -248,6 +261,41 @@ pub fn score(
         faces,
         base_recess: on_rim.then(|| base.recess()),
     }
+}
+}
+
+widened! {
+/// The paper's S and I of a closed part's placement, counted as [`score`] counts them, without
+/// the acceptance measures: all that ranking a placement among others asks. (For an open part
+/// seen from above, I counts its lid points: [`score`] does that.)
+pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64) -> (usize, usize) {
+    let centre = Point3::from(placed.pose.translation.vector);
+    let radius = 1.2 * placed.shape.max_size();
+    let kernel = crate::geometry::PlacedKernel::new(placed);
+    // Every point with F^e1 < 1 + gamma lies in the level box.
+    let reach = kernel.level_box(1.0 + gamma);
+    let (mut s, mut i) = (0usize, 0usize);
+    let mut batch = NearBatch::within(&kernel, reach, |k, _, rg| {
+        if (space.points[k] - centre).norm() <= radius {
+            let g = rg.residual + 1.0;
+            if g < 1.0 - gamma {
+                i += 1;
+            } else if g < 1.0 + gamma {
+                s += 1;
+            }
+        }
+    });
+    // The same test of the distance as `score` makes decides; the grid's own (on squares) must
+    // not drop a point it keeps.
+    space.grid.for_each_within_box(
+        space.points,
+        &centre,
+        1.01 * radius,
+        &kernel.frame_box(&reach),
+        |k| batch.push(k, &space.points[k]),
+    );
+    batch.finish();
+    (s, i)
 }
 }
 
