@@ -3,12 +3,11 @@
 //! candidates are these hypotheses; a compound's other parts are searched around them
 //! (`compound`).
 
-use super::accept;
-use super::prepare::{Prepared, RangeNoise};
-use super::report::{Detection, PartResult, PoseText};
+use super::prepare::Prepared;
+use super::report::{Detection, PartResult, PoseText, VotesText};
 use super::search::{Hypothesis, search_part};
-use super::verify::{Scores, paper_criteria, rank_sums, score};
-use super::{Acceptance, Params, box_volume};
+use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
+use super::{Params, accept, box_volume, select};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;
 use crate::numeric::stream_seed;
@@ -85,30 +84,38 @@ pub fn search(
     )
 }
 
-/// The anchor hypotheses scored and ranked.
+/// The anchor hypotheses ranked.
 pub struct Anchors {
     /// Index into the model's parts.
     pub part: usize,
     pub hypotheses: Vec<Hypothesis>,
+    /// Each hypothesis' scores: complete where `measured` ([`Anchors::measure`]), else the
+    /// paper's M, S and I alone (`Scores::votes`), all that ranking asks.
     pub scores: Vec<Scores>,
+    pub measured: Vec<bool>,
     /// Each hypothesis' rank sum over M, S and I (smaller is better).
     pub rank: Vec<usize>,
     /// Indices into `hypotheses`, best rank first (ties by M).
     pub order: Vec<usize>,
 }
 
-/// Score the hypotheses and rank them by the paper's voting.
+/// Rank the hypotheses by the paper's voting over M, S and I. The acceptance measures are taken
+/// later, of the hypotheses that are judged ([`Anchors::measure`]).
 pub fn rank(prep: &Prepared, anchor: &AnchorPart, hypotheses: Vec<Hypothesis>, gamma: f64) -> Anchors {
     let space = prep.space();
     let scores: Vec<Scores> = hypotheses
         .par_iter()
-        .map(|h| score(&space, &h.placed, h.m, gamma, &prep.samples[anchor.part]))
+        .map(|h| {
+            let (s, i) = votes(&space, &h.placed, gamma, &prep.samples[anchor.part]);
+            Scores::votes(h.m, s, i)
+        })
         .collect();
     let rank = rank_sums(&paper_criteria(&scores));
     let mut order: Vec<usize> = (0..hypotheses.len()).collect();
     order.sort_by_key(|&k| (rank[k], ordered(hypotheses[k].m)));
     let anchors = Anchors {
         part: anchor.part,
+        measured: vec![false; hypotheses.len()],
         hypotheses,
         scores,
         rank,
@@ -123,15 +130,37 @@ pub fn rank(prep: &Prepared, anchor: &AnchorPart, hypotheses: Vec<Hypothesis>, g
 impl Anchors {
     /// The hypotheses best first, for the log.
     pub fn ranked(&self) -> impl Iterator<Item = Ranked<'_>> {
-        self.order.iter().map(|&k| Ranked {
+        self.order.iter().map(|&k| self.ranked_one(k))
+    }
+
+    fn ranked_one(&self, k: usize) -> Ranked<'_> {
+        Ranked {
             rank: self.rank[k],
             hypothesis: &self.hypotheses[k],
             scores: &self.scores[k],
-        })
+            measured: self.measured[k],
+        }
     }
 
-    /// The part result of hypothesis `k`.
+    /// Complete the scores of the hypotheses `ks` (side by side) that hold the votes alone.
+    pub fn measure(&mut self, prep: &Prepared, ks: &[usize], gamma: f64) {
+        let todo: Vec<usize> = ks.iter().copied().filter(|&k| !self.measured[k]).collect();
+        let space = prep.space();
+        let samples = &prep.samples[self.part];
+        let full: Vec<Scores> = todo
+            .par_iter()
+            .map(|&k| score(&space, &self.hypotheses[k].placed, self.hypotheses[k].m, gamma, samples))
+            .collect();
+        for (k, s) in todo.into_iter().zip(full) {
+            self.scores[k] = s;
+            self.measured[k] = true;
+            tracing::debug!("measured {}", self.ranked_one(k));
+        }
+    }
+
+    /// The part result of hypothesis `k`, which must have been measured.
     pub fn part_result(&self, model: &Model, k: usize) -> PartResult {
+        debug_assert!(self.measured[k], "hypothesis {k} was not measured");
         PartResult {
             name: model.parts[self.part].name.clone(),
             placed: Some(self.hypotheses[k].placed),
@@ -139,32 +168,97 @@ impl Anchors {
         }
     }
 
-    /// A single-part model's candidates: every hypothesis, best rank first, through the
-    /// acceptance test.
-    pub fn single_part_candidates(&self, model: &Model, noise: &RangeNoise, acceptance: &Acceptance) -> Vec<Detection> {
-        self.order
-            .iter()
-            .map(|&k| accept::assess(model, vec![self.part_result(model, k)], Vec::new(), noise, acceptance))
-            .collect()
+    /// A single-part model's candidates through the acceptance test, best rank first (a
+    /// container standing on its base before any on its rim, as [`select::select`] prefers
+    /// them), with how many of them have been through the free-space check already
+    /// (`accept::free_space`).
+    ///
+    /// Without `Params::all` the answer is the first candidate in that order that passes the
+    /// acceptance test and the free-space check: the candidates are measured a few at a time,
+    /// as many as there are threads, and the search stops at the first that passes. With it,
+    /// every hypothesis is a candidate.
+    pub fn single_part_candidates(
+        &mut self,
+        prep: &Prepared,
+        model: &Model,
+        params: &Params,
+    ) -> (Vec<Detection>, usize) {
+        let noise = prep.noise();
+        let mut order = self.order.clone();
+        if let Some(plane) = &prep.scene.plane {
+            // Stable: the ranking holds within each kind.
+            order.sort_by_key(|&k| {
+                let pose = self.hypotheses[k].placed.pose * model.parts[self.part].pose_in_object.inverse();
+                select::upright(model, &pose, plane) == Some(false)
+            });
+        }
+        let lazy = !params.all;
+        let at_a_time = if lazy {
+            rayon::current_num_threads()
+        } else {
+            order.len()
+        };
+        let space = prep.space();
+        let mut out: Vec<Detection> = Vec::with_capacity(order.len());
+        for group in order.chunks(at_a_time.max(1)) {
+            // Each candidate measured, judged and (lazily, when it passes) checked against the
+            // free space on its own thread.
+            let judged: Vec<(Scores, Detection)> = group
+                .par_iter()
+                .map(|&k| {
+                    let h = &self.hypotheses[k];
+                    let scores = if self.measured[k] {
+                        self.scores[k]
+                    } else {
+                        score(&space, &h.placed, h.m, params.gamma, &prep.samples[self.part])
+                    };
+                    let part = PartResult {
+                        name: model.parts[self.part].name.clone(),
+                        placed: Some(h.placed),
+                        scores,
+                    };
+                    let mut d = accept::assess(model, vec![part], Vec::new(), &noise, &params.acceptance);
+                    if lazy && d.found {
+                        accept::check_free_space(prep, &mut d, params);
+                    }
+                    (scores, d)
+                })
+                .collect();
+            for (&k, (scores, d)) in group.iter().zip(judged) {
+                self.scores[k] = scores;
+                self.measured[k] = true;
+                tracing::debug!("measured {}", self.ranked_one(k));
+                let passed = lazy && d.found;
+                out.push(d);
+                if passed {
+                    let checked = out.len();
+                    return (out, checked);
+                }
+            }
+        }
+        // Lazily, every candidate has been checked (and failed, or was not found).
+        let checked = if lazy { out.len() } else { 0 };
+        (out, checked)
     }
 }
 
-/// One ranked anchor hypothesis: `rank .. pos (..) z (..) M .. S .. I .. cov ..`.
+/// One ranked anchor hypothesis: `rank .. pos (..) z (..) M .. S .. I ..`, and the acceptance
+/// measures once they are taken.
 pub struct Ranked<'a> {
     pub rank: usize,
     pub hypothesis: &'a Hypothesis,
     pub scores: &'a Scores,
+    pub measured: bool,
 }
 
 impl fmt::Display for Ranked<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "rank {:3} {} {}",
-            self.rank,
-            PoseText(&self.hypothesis.placed.pose),
-            self.scores
-        )
+        write!(f, "rank {:3} {} ", self.rank, PoseText(&self.hypothesis.placed.pose))?;
+        if self.measured {
+            write!(f, "{}", self.scores)
+        } else {
+            write!(f, "{}", VotesText(self.scores))
+        }
     }
 }
 

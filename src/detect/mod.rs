@@ -120,13 +120,13 @@ pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, 
         searched.extend(hypotheses.iter().map(|h| h.placed));
         timing.search_ms += ms(t);
         let t = Instant::now();
-        let anchors = anchor::rank(&prep, &anchor, hypotheses, params.gamma);
+        let mut anchors = anchor::rank(&prep, &anchor, hypotheses, params.gamma);
         timing.verify_ms += ms(t);
         let first_new = candidates.len();
         // How many of the new candidates have been through the free-space check already.
         let checked = if model.is_compound() {
             let t = Instant::now();
-            let picked = compound::pick(&anchors, params);
+            let picked = compound::pick(&prep, &mut anchors, params);
             let combos = compound::combinations(&prep, model, &anchors, &picked, params, round);
             timing.search_ms += ms(t);
             let t = Instant::now();
@@ -135,8 +135,11 @@ pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, 
             timing.verify_ms += ms(t);
             checked
         } else {
-            candidates.extend(anchors.single_part_candidates(model, &prep.noise(), &params.acceptance));
-            0
+            let t = Instant::now();
+            let (found, checked) = anchors.single_part_candidates(&prep, model, params);
+            candidates.extend(found);
+            timing.verify_ms += ms(t);
+            checked
         };
         let t = Instant::now();
         let accepted = accept::free_space(&prep, &mut candidates, first_new, checked, params);

@@ -15,16 +15,19 @@ pub const ON_RIM_CONFIDENCE: f64 = 0.5;
 /// Flag each candidate of a model with an open part as standing on its base or on its rim (see
 /// [`Detection::upright`]), and hold the confidence of those on their rims.
 pub fn flag_upright(candidates: &mut [Detection], model: &Model, plane: &Plane) {
-    let Some(opening) = model.parts.iter().find(|p| p.open) else {
-        return;
-    };
     for d in candidates {
-        let up = (d.pose.rotation * opening.pose_in_object.rotation * Vector3::z()).dot(&plane.normal) > 0.0;
-        d.upright = Some(up);
-        if !up {
+        d.upright = upright(model, &d.pose, plane);
+        if d.upright == Some(false) {
             d.confidence = d.confidence.min(ON_RIM_CONFIDENCE);
         }
     }
+}
+
+/// For a model with an open part, whether the object at `pose` stands on its base (its opening
+/// faces up from the plane); `None` for a model without one.
+pub fn upright(model: &Model, pose: &nalgebra::Isometry3<f64>, plane: &Plane) -> Option<bool> {
+    let opening = model.parts.iter().find(|p| p.open)?;
+    Some((pose.rotation * opening.pose_in_object.rotation * Vector3::z()).dot(&plane.normal) > 0.0)
 }
 
 /// With `all`, every accepted instance that does not overlap a better one (centres closer than

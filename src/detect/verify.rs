@@ -115,10 +115,19 @@ pub fn score(
     gamma: f64,
     samples: &SurfaceSamples,
 ) -> Scores {
-    let centre = Point3::from(placed.pose.translation.vector);
+    let Around {
+        centre,
+        radius,
+        band,
+        tolerance,
+        shell,
+        up_sign,
+        opening_up,
+        kernel,
+        reach,
+        search,
+    } = Around::new(space, placed, gamma, samples);
     let shape = &placed.shape;
-    let radius = 1.2 * shape.max_size();
-    let band = (2.5 * space.noise.at(&centre)).max(0.002);
     let (mut s, mut i) = (0usize, 0usize);
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
     // Their surface distances, for the faces test.
@@ -127,46 +136,10 @@ pub fn score(
     let mut inside_points = 0usize;
     let mut lid = 0usize;
     let mut outside_near: Vec<Point3<f64>> = Vec::new();
-    // An open container's wall has two measured surfaces, the outside and the inside seen through
-    // the opening, where its model has one: the fit settles between them (both lie within the
-    // refinement band), and the outside is then measured up to a wall's thickness outside the
-    // model. So for an open part, points out to the approximation tolerance (a tenth of the
-    // smallest size, as the support plane check allows) beyond the noise band are the object's
-    // own wall, and the shell, where data past the model's edge counts against it, starts beyond
-    // that. (Measured on the mOSD bowls: the wooden bowl's wall is about 5 mm thick, and its
-    // outside lay 3-7 mm outside the fitted model, 0.15 shell points per surface point against
-    // the limit of 0.08.) A closed part keeps the shell right outside the band.
-    let tolerance = if samples.open {
-        band + super::search::approximation_tolerance(shape)
-    } else {
-        band
-    };
-    // A container standing on its rim shows neither its inside nor its opening: its points are
-    // scored as those of a closed part.
-    // The local sign of the up direction, for a container standing on the plane.
-    let up_sign = if samples.open {
-        space
-            .plane
-            .map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
-    } else {
-        None
-    };
-    let opening_up = samples.open && up_sign.is_none_or(|s| s > 0.0);
     let on_rim = samples.open && up_sign.is_some_and(|s| s < 0.0);
     let mut base = BaseCap::new(shape, band);
     let mut tolerated: Vec<Point3<f64>> = Vec::new();
     let mut inner_wall: Vec<Point3<f64>> = Vec::new();
-    let shell = tolerance + 0.3 * super::search::sample_radius(shape);
-    let kernel = crate::geometry::PlacedKernel::new(placed);
-    // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order surface
-    // distance and the normal (the lid test). Only points that can count are evaluated: those
-    // with F^e1 < 1 + gamma (S and I), which lie in the level box, and those within the shell of
-    // the surface, which lie within the shell of the shape's box. (The first-order distance
-    // shrinks far from a shape with small exponents: a point decimetres off a box-like part's
-    // face could pass for one a few millimetres off.)
-    let reach = kernel
-        .level_box(1.0 + gamma)
-        .sup(&shape.local_half_extents().add_scalar(shell));
     let mut batch = NearBatch::within(&kernel, reach, |k, q, rg| {
             let p = &space.points[k];
             let within_paper_radius = (p - centre).norm() <= radius;
@@ -207,7 +180,7 @@ pub fn score(
     space.grid.for_each_within_box(
         space.points,
         &centre,
-        radius.max(shape.bounding_radius() + shell),
+        search,
         &kernel.frame_box(&reach),
         |k| batch.push(k, &space.points[k]),
     );
@@ -264,18 +237,110 @@ pub fn score(
 }
 }
 
+/// Where [`score`] and [`votes`] look around a placement, and how they tell the points apart.
+struct Around {
+    centre: Point3<f64>,
+    /// The paper's radius (1.2 max(a)) within which S and I are counted.
+    radius: f64,
+    /// The Euclidean surface band: three noise sigmas.
+    band: f64,
+    /// How far outside the surface a point is still the object's own (see [`Around::new`]).
+    tolerance: f64,
+    /// How far outside the surface data past the model's edge counts against it.
+    shell: f64,
+    /// For an open container on the support plane, the sign of its axis along the plane's normal.
+    up_sign: Option<f64>,
+    /// An open container seen from above (or off any plane): its I counts its lid points.
+    opening_up: bool,
+    kernel: crate::geometry::PlacedKernel,
+    /// The local box holding every point that can count.
+    reach: Vector3<f64>,
+    /// The radius about the centre holding them.
+    search: f64,
+}
+
+impl Around {
+    fn new(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64, samples: &SurfaceSamples) -> Around {
+        let centre = Point3::from(placed.pose.translation.vector);
+        let shape = &placed.shape;
+        let radius = 1.2 * shape.max_size();
+        let band = (2.5 * space.noise.at(&centre)).max(0.002);
+        // An open container's wall has two measured surfaces, the outside and the inside seen
+        // through the opening, where its model has one: the fit settles between them (both lie
+        // within the refinement band), and the outside is then measured up to a wall's thickness
+        // outside the model. So for an open part, points out to the approximation tolerance (a
+        // tenth of the smallest size, as the support plane check allows) beyond the noise band
+        // are the object's own wall, and the shell, where data past the model's edge counts
+        // against it, starts beyond that. (Measured on the mOSD bowls: the wooden bowl's wall is
+        // about 5 mm thick, and its outside lay 3-7 mm outside the fitted model, 0.15 shell
+        // points per surface point against the limit of 0.08.) A closed part keeps the shell
+        // right outside the band.
+        let tolerance = if samples.open {
+            band + super::search::approximation_tolerance(shape)
+        } else {
+            band
+        };
+        let shell = tolerance + 0.3 * super::search::sample_radius(shape);
+        // A container standing on its rim shows neither its inside nor its opening: its points
+        // are scored as those of a closed part.
+        let up_sign = if samples.open {
+            space
+                .plane
+                .map(|p| (placed.pose.rotation * Vector3::z()).dot(&p.normal).signum())
+        } else {
+            None
+        };
+        let opening_up = samples.open && up_sign.is_none_or(|s| s > 0.0);
+        let kernel = crate::geometry::PlacedKernel::new(placed);
+        // One evaluation of the shape gives F^e1 (the paper's criteria), the first-order surface
+        // distance and the normal (the lid test). Only points that can count are evaluated:
+        // those with F^e1 < 1 + gamma (S and I), which lie in the level box, and those within
+        // the shell of the surface, which lie within the shell of the shape's box. (The
+        // first-order distance shrinks far from a shape with small exponents: a point
+        // decimetres off a box-like part's face could pass for one a few millimetres off.)
+        let reach = kernel
+            .level_box(1.0 + gamma)
+            .sup(&shape.local_half_extents().add_scalar(shell));
+        Around {
+            centre,
+            radius,
+            band,
+            tolerance,
+            shell,
+            up_sign,
+            opening_up,
+            kernel,
+            reach,
+            search: radius.max(shape.bounding_radius() + shell),
+        }
+    }
+}
+
 widened! {
-/// The paper's S and I of a closed part's placement, counted as [`score`] counts them, without
-/// the acceptance measures: all that ranking a placement among others asks. (For an open part
-/// seen from above, I counts its lid points: [`score`] does that.)
-pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64) -> (usize, usize) {
-    let centre = Point3::from(placed.pose.translation.vector);
-    let radius = 1.2 * placed.shape.max_size();
-    let kernel = crate::geometry::PlacedKernel::new(placed);
-    // Every point with F^e1 < 1 + gamma lies in the level box.
-    let reach = kernel.level_box(1.0 + gamma);
-    let (mut s, mut i) = (0usize, 0usize);
-    let mut batch = NearBatch::within(&kernel, reach, |k, _, rg| {
+/// The paper's S and I of a placement, counted as [`score`] counts them, without the acceptance
+/// measures: all that ranking a placement among others asks. (For an open container seen from
+/// above, I counts its lid points.)
+pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64, samples: &SurfaceSamples) -> (usize, usize) {
+    let around = Around::new(space, placed, gamma, samples);
+    let Around {
+        centre,
+        radius,
+        band,
+        opening_up,
+        ref kernel,
+        ..
+    } = around;
+    // A closed part's S and I lie in the level box; an open one's lid points anywhere `score`
+    // looks.
+    let (reach, search) = if opening_up {
+        (around.reach, around.search)
+    } else {
+        // The same test of the distance as `score` makes decides; the grid's own (on squares)
+        // must not drop a point it keeps.
+        (kernel.level_box(1.0 + gamma), 1.01 * radius)
+    };
+    let (mut s, mut i, mut lid) = (0usize, 0usize, 0usize);
+    let mut batch = NearBatch::within(kernel, reach, |k, _, rg| {
         if (space.points[k] - centre).norm() <= radius {
             let g = rg.residual + 1.0;
             if g < 1.0 - gamma {
@@ -284,18 +349,22 @@ pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64) -
                 s += 1;
             }
         }
+        if opening_up
+            && PlacedSuperquadric::distance_from(rg).abs() < band
+            && crate::model::is_lid(&rg.grad)
+        {
+            lid += 1;
+        }
     });
-    // The same test of the distance as `score` makes decides; the grid's own (on squares) must
-    // not drop a point it keeps.
     space.grid.for_each_within_box(
         space.points,
         &centre,
-        1.01 * radius,
+        search,
         &kernel.frame_box(&reach),
         |k| batch.push(k, &space.points[k]),
     );
     batch.finish();
-    (s, i)
+    (s, if opening_up { lid } else { i })
 }
 }
 
