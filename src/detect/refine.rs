@@ -15,6 +15,10 @@ const REFINE_ROUNDS: usize = 6;
 /// Refinement fits use at most this many of the points near the surface, evenly spread: six
 /// pose parameters are as well determined by 600 points as by 6000, at a tenth of the time.
 pub(super) const REFINE_POINTS: usize = 600;
+/// The coarse rounds of a placement that is only ranked (a compound's further part, whose
+/// combination is fitted again as one rigid object) fit at most this many: they only bring it
+/// to its points, and its M is still measured over `REFINE_POINTS`.
+pub(super) const RANKED_POINTS: usize = 300;
 
 /// The inlier band for refinement: three noise sigmas, at least a tenth of the smallest size
 /// (so a rough RANSAC pose still gathers its object's points), at most half of it.
@@ -47,13 +51,14 @@ impl Coarse {
 
 /// The coarse rounds of a refinement: a pose fitted to a small patch can be off by a good part of
 /// the object's size, so the first round gathers points in a wide band and each round halves
-/// it, down to the final band. `Err` is the answer when too few points are near the pose to go
-/// on.
+/// it, down to the final band, fitting at most `points` of those it gathers. `Err` is the answer
+/// when too few points are near the pose to go on.
 pub fn refine_coarse(
     space: &SearchSpace<'_>,
     fit: &Fit,
     iterations: usize,
     rest_axis: Option<Vector3<f64>>,
+    points: usize,
 ) -> Result<Coarse, Hypothesis> {
     let shape = fit.placed.shape;
     let mut fit = *fit;
@@ -87,7 +92,7 @@ pub fn refine_coarse(
                 m: fit.m,
             });
         }
-        let inliers = thin(inliers, REFINE_POINTS);
+        let inliers = thin(inliers, points);
         band = (0.5 * band).max(final_band);
         // M over a wider band is not comparable with M over the final one: just fit. Nor does
         // the next round need this pose to better than the trials' 0.1 %: it gathers the points

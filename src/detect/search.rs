@@ -381,7 +381,14 @@ pub fn refine_fits(
     let rest_axis = check.rest_axis(space);
     let coarse: Vec<Result<Coarse, Hypothesis>> = fits
         .par_iter()
-        .map(|f| refine_coarse(space, f, settings.fit_iterations, rest_axis))
+        .map(|f| {
+            let points = if fine {
+                super::refine::REFINE_POINTS
+            } else {
+                super::refine::RANKED_POINTS
+            };
+            refine_coarse(space, f, settings.fit_iterations, rest_axis, points)
+        })
         .collect();
     // Copies of one object that the trials left apart (a few centimetres, a turned axis) meet
     // in the coarse rounds: the fine rounds, the scores and the vote need only the first (the
