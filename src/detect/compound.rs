@@ -14,7 +14,7 @@ use super::report::{ConnectionText, Detection, PartResult, PoseText, VotesText};
 use super::search::{self, SearchSettings};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
 use super::{Params, box_volume, fit, rigid};
-use crate::geometry::PlacedSuperquadric;
+use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use crate::model::{Connection, Model, axis_angle};
 use crate::numeric::stream_seed;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -254,12 +254,16 @@ fn shell_seeds(
     let pc = Point3::from(parent.pose.translation.vector);
     let reach = shape.bounding_radius();
     let band = search::refine_band(&parent.shape, space.noise.at(&pc));
+    let kernel = PlacedKernel::new(parent);
     let mut seeds = Vec::new();
     space
         .sub_grid
         .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
             let p = &space.sub[i];
-            if (p - pc).norm() >= conn.distance - reach && parent.surface_distance(p).abs() > band {
+            // Outside the parent's box grown by the band, a point is off its surface.
+            if (p - pc).norm() >= conn.distance - reach
+                && kernel.surface_distance_near(p, band).is_none_or(|d| d.abs() > band)
+            {
                 seeds.push(i);
             }
         });
