@@ -3,7 +3,7 @@
 //! the rest is subsampled and put into grids for the search and the checks.
 
 use super::Params;
-use super::search::{PlaneCheck, SearchSettings, SearchSpace};
+use super::search::{PlaneCheck, SearchSettings, SearchSpace, morton_order};
 use super::verify::{SurfaceSamples, median_spacing};
 use crate::cloud::grid::{Grid, voxel_subsample};
 use crate::cloud::plane::{Plane, RangeScale, remove_dominant_plane};
@@ -251,6 +251,8 @@ pub struct Prepared {
     pub sub: Vec<Point3<f64>>,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
+    /// Indices into `sub` in Morton order (`search::morton_order`).
+    pub sub_morton: Vec<u32>,
     /// `sub` subsampled again to twice its voxel, where the trials count their consensus.
     pub coarse: Vec<Point3<f64>>,
     /// Grid over `coarse`, cells the size of the model's smallest part.
@@ -279,6 +281,7 @@ impl Prepared {
             grid: &self.mid_grid,
             sub: &self.sub,
             sub_grid: &self.sub_grid,
+            sub_morton: &self.sub_morton,
             coarse: &self.coarse,
             coarse_grid: &self.coarse_grid,
             mid: &self.mid,
@@ -316,18 +319,19 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
     let objects = &scene.objects;
     let voxel = (min_size / 4.0).clamp(0.002, 0.01);
     // Two chains of subsamples and grids that need nothing of each other: one on each core.
-    let ((sub, sub_grid, coarse, coarse_grid), (mid, mid_grid, spacing, samples)) = rayon::join(
+    let ((sub, sub_grid, sub_morton, coarse, coarse_grid), (mid, mid_grid, spacing, samples)) = rayon::join(
         || {
             let sub: Vec<Point3<f64>> = voxel_subsample(objects, voxel)
                 .into_iter()
                 .map(|i| objects[i])
                 .collect();
             let sub_grid = Grid::new(&sub, min_size);
+            let sub_morton = morton_order(&sub);
             // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the
             // points on a surface rank them as well, and counting is a third of a trial's work.
             let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel).into_iter().map(|i| sub[i]).collect();
             let coarse_grid = Grid::new(&coarse, min_size);
-            (sub, sub_grid, coarse, coarse_grid)
+            (sub, sub_grid, sub_morton, coarse, coarse_grid)
         },
         || {
             // The refinement fits at most a few hundred points of a part: a twelfth of the
@@ -378,6 +382,7 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
     Prepared {
         sub,
         sub_grid,
+        sub_morton,
         coarse,
         coarse_grid,
         mid,

@@ -51,6 +51,9 @@ pub struct SearchSpace<'a> {
     pub grid: &'a Grid,
     pub sub: &'a [Point3<f64>],
     pub sub_grid: &'a Grid,
+    /// Indices into `sub` in Morton order ([`morton_order`]): where the search's regions come
+    /// from.
+    pub sub_morton: &'a [u32],
     /// A coarser subsample, where the trials count their consensus.
     pub coarse: &'a [Point3<f64>],
     pub coarse_grid: &'a Grid,
@@ -354,7 +357,7 @@ pub fn region_fits(
     check: &PlaneCheck,
     seed: u64,
 ) -> Vec<(usize, Fit)> {
-    let regions = spatial_regions(space.sub, seeds, m);
+    let regions = spatial_regions(space.sub_morton, seeds, m);
     (0..m)
         .into_par_iter()
         .filter_map(|h| {
@@ -524,17 +527,37 @@ fn orient_opening(space: &SearchSpace<'_>, placed: &mut PlacedSuperquadric) {
     }
 }
 
-/// Split the seed points into `m` spatially compact regions of equal size (consecutive runs in
-/// Morton order of 1 cm voxels), one for each hypothesis.
+/// Split the seed points (indices into the points `morton` orders, each at most once) into `m`
+/// spatially compact regions of equal size (consecutive runs in Morton order of 1 cm voxels),
+/// one for each hypothesis.
 ///
 /// The paper draws every hypothesis' trials from the whole scene and keeps each one's best fit,
 /// so the hypotheses crowd onto the few objects that fit best and a lookalike can hide the
 /// object from all m of them. Its m is chosen "to cover the whole scene": giving each hypothesis
 /// its own part of the scene does exactly that.
-fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec<usize>> {
+fn spatial_regions(morton: &[u32], seeds: &[usize], m: usize) -> Vec<Vec<usize>> {
     if seeds.is_empty() || m <= 1 {
         return vec![seeds.to_vec()];
     }
+    // The seeds in the points' order: all of them, or those marked.
+    let order: Vec<usize> = if seeds.len() == morton.len() {
+        morton.iter().map(|&i| i as usize).collect()
+    } else {
+        let mut marked = vec![false; morton.len()];
+        for &i in seeds {
+            marked[i] = true;
+        }
+        morton.iter().map(|&i| i as usize).filter(|&i| marked[i]).collect()
+    };
+    let m = m.min(order.len());
+    (0..m)
+        .map(|h| order[h * order.len() / m..(h + 1) * order.len() / m].to_vec())
+        .collect()
+}
+
+/// The indices of `points` sorted by the Morton code of their 1 cm voxels (ties by index): runs
+/// of it are compact regions of space.
+pub fn morton_order(points: &[Point3<f64>]) -> Vec<u32> {
     let voxel = 0.01;
     let spread = |v: u64| {
         // Interleave the low 21 bits with two zero bits between each.
@@ -555,17 +578,9 @@ fn spatial_regions(points: &[Point3<f64>], seeds: &[usize], m: usize) -> Vec<Vec
         });
         spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
     };
-    let mut order: Vec<(u64, usize)> = seeds.iter().map(|&i| (key(&points[i]), i)).collect();
+    let mut order: Vec<(u64, u32)> = points.iter().enumerate().map(|(i, p)| (key(p), i as u32)).collect();
     order.sort_unstable();
-    let m = m.min(order.len());
-    (0..m)
-        .map(|h| {
-            order[h * order.len() / m..(h + 1) * order.len() / m]
-                .iter()
-                .map(|&(_, i)| i)
-                .collect()
-        })
-        .collect()
+    order.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Drop fits that repeat a better one or a `known` pose (the same place within half the sample
@@ -598,4 +613,37 @@ pub fn same_pose(a: &PlacedSuperquadric, b: &PlacedSuperquadric) -> bool {
 
 fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
     crate::model::axis_angle(a, b, signed).to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The regions are runs of the points' Morton order, compact in space, the same whatever
+    /// order the seeds come in: four 3 cm patches 20 cm apart, their points interleaved in
+    /// index order, split into one region each.
+    #[test]
+    fn regions_are_compact_runs_of_the_morton_order() {
+        let corners = [(0.0, 0.0), (0.2, 0.0), (0.0, 0.2), (0.2, 0.2)];
+        let points: Vec<Point3<f64>> = (0..400)
+            .map(|k| {
+                let (cx, cy) = corners[k % 4];
+                let j = k / 4;
+                Point3::new(cx + 0.003 * (j % 10) as f64, cy + 0.003 * (j / 10) as f64, 0.5)
+            })
+            .collect();
+        let morton = morton_order(&points);
+        let all: Vec<usize> = (0..points.len()).collect();
+        let regions = spatial_regions(&morton, &all, 4);
+        assert_eq!(regions.len(), 4);
+        for r in &regions {
+            assert_eq!(r.len(), 100);
+            assert!(r.iter().all(|&i| i % 4 == r[0] % 4), "a region spans patches");
+        }
+        // A subset, given backwards: its regions are the runs of the same order.
+        let subset: Vec<usize> = (0..points.len()).rev().filter(|i| i % 3 != 0).collect();
+        let of_subset = spatial_regions(&morton, &subset, 4);
+        let expected: Vec<usize> = morton.iter().map(|&i| i as usize).filter(|i| i % 3 != 0).collect();
+        assert_eq!(of_subset.concat(), expected);
+    }
 }
