@@ -3,6 +3,7 @@
 //! ones (the detector turns a sign-free object "z up").
 
 use std::f64::consts::PI;
+use std::sync::{Arc, Mutex};
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
@@ -58,7 +59,55 @@ fn is_symmetry(model: &Model, samples: &[Vec<Point3<f64>>], g: &UnitQuaternion<f
     })
 }
 
+/// The symmetries of the models asked about lately, by their geometry to the bit: finding them
+/// samples every part, which costs as much as a twentieth of a compound's detection, and a
+/// daemon asks about the same models sweep after sweep.
+static CACHE: Mutex<Vec<(Vec<u64>, Arc<Symmetry>)>> = Mutex::new(Vec::new());
+
+/// Models at most in [`CACHE`].
+const CACHED_MODELS: usize = 16;
+
+/// What the symmetries depend on: every part's shape, pose in the object frame and opening.
+fn geometry_key(model: &Model) -> Vec<u64> {
+    let mut key = Vec::with_capacity(15 * model.parts.len());
+    for p in &model.parts {
+        let s = &p.shape;
+        let t = &p.pose_in_object.translation.vector;
+        let q = p.pose_in_object.rotation.coords;
+        key.extend(
+            [
+                s.a[0], s.a[1], s.a[2], s.e1, s.e2, s.kx, s.ky, t.x, t.y, t.z, q.x, q.y, q.z, q.w,
+            ]
+            .map(f64::to_bits),
+        );
+        key.push(p.open as u64);
+    }
+    key
+}
+
 impl Symmetry {
+    /// [`Symmetry::of`], found once for each model's geometry and kept.
+    pub fn cached(model: &Model) -> Arc<Symmetry> {
+        let key = geometry_key(model);
+        let lookup =
+            |cache: &Vec<(Vec<u64>, Arc<Symmetry>)>| cache.iter().find(|(k, _)| *k == key).map(|(_, v)| v.clone());
+        // A poisoned lock only means another thread panicked while holding it: the list is still
+        // a list of finished entries.
+        if let Some(hit) = lookup(&CACHE.lock().unwrap_or_else(|e| e.into_inner())) {
+            return hit;
+        }
+        let found = Arc::new(Symmetry::of(model));
+        let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(hit) = lookup(&cache) {
+            return hit;
+        }
+        if cache.len() >= CACHED_MODELS {
+            cache.remove(0);
+        }
+        cache.push((key, found.clone()));
+        found
+    }
+
     pub fn of(model: &Model) -> Symmetry {
         let spin_z = model.parts.iter().all(|p| {
             let z = p.pose_in_object.rotation * Vector3::z();
@@ -158,5 +207,24 @@ mod tests {
         // A bowl cannot be turned over: left as fitted.
         let b = Symmetry::of(&model("bowl"));
         assert_eq!(b.canonical_up(&upside_down, &Vector3::z()), upside_down);
+    }
+
+    /// A model's symmetries are found once and kept by its geometry: the same model (and a copy
+    /// of it under another name) gets the same set, another model its own.
+    #[test]
+    fn symmetries_are_kept_by_geometry() {
+        let cup = model("cup");
+        let first = Symmetry::cached(&cup);
+        let found = Symmetry::of(&cup);
+        assert_eq!(first.spin_z, found.spin_z);
+        assert_eq!(first.discrete, found.discrete);
+        let mut renamed = cup.clone();
+        renamed.name = "another_cup".into();
+        assert!(Arc::ptr_eq(&first, &Symmetry::cached(&renamed)));
+        let mut moved = cup.clone();
+        moved.parts[1].pose_in_object.translation.vector.z += 0.01;
+        assert!(!Arc::ptr_eq(&first, &Symmetry::cached(&moved)));
+        let bowl = Symmetry::cached(&model("bowl"));
+        assert!(bowl.spin_z && !first.spin_z);
     }
 }

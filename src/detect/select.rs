@@ -60,13 +60,13 @@ pub fn select(mut candidates: Vec<Detection>, all: bool, max_size: f64) -> Vec<D
 
 /// Report the equivalent pose that stands on the plane (see `Symmetry::canonical_up`). The
 /// symmetry search samples the model, so it is done only for a pose that leans away from the
-/// plane's normal.
+/// plane's normal, and once for each model (`Symmetry::cached`).
 pub fn stand_on_plane(detections: &mut [Detection], model: &Model, plane: &Plane) {
     let up = plane.normal;
     let mut symmetry = None;
     for d in detections {
         if (d.pose.rotation * Vector3::z()).dot(&up) < 0.0 {
-            let s = symmetry.get_or_insert_with(|| Symmetry::of(model));
+            let s = symmetry.get_or_insert_with(|| Symmetry::cached(model));
             d.pose.rotation = s.canonical_up(&d.pose.rotation, &up);
         }
     }
