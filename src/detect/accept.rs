@@ -10,6 +10,7 @@ use super::verify;
 use super::{Acceptance, Params, box_volume};
 use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
 use std::fmt;
 
 /// How far (m) the middle of a vessel's base must lie below its foot ring for a container
@@ -159,6 +160,47 @@ pub fn free_space(
         }
     }
     accepted
+}
+
+/// Judge candidates in the order the answer is chosen in: `make` gives each item's candidate
+/// (with a value the caller keeps), as many side by side as there are threads. With `lazy`, a
+/// candidate that passes the acceptance test is checked against the free space on the same
+/// thread, and the judging stops at the first that passes both: a later one could not change
+/// the answer. Without it, every item is made, all side by side. Returns what was made, in
+/// order, and whether the last passed.
+pub fn judge_in_order<T: Sync, R: Send>(
+    prep: &Prepared,
+    params: &Params,
+    items: &[T],
+    lazy: bool,
+    make: impl Fn(&T) -> (R, Detection) + Sync,
+) -> (Vec<(R, Detection)>, bool) {
+    let at_a_time = if lazy {
+        rayon::current_num_threads()
+    } else {
+        items.len()
+    };
+    let mut out = Vec::with_capacity(items.len());
+    for group in items.chunks(at_a_time.max(1)) {
+        let judged: Vec<(R, Detection)> = group
+            .par_iter()
+            .map(|item| {
+                let (r, mut d) = make(item);
+                if lazy && d.found {
+                    check_free_space(prep, &mut d, params);
+                }
+                (r, d)
+            })
+            .collect();
+        for (r, d) in judged {
+            let passed = lazy && d.found;
+            out.push((r, d));
+            if passed {
+                return (out, true);
+            }
+        }
+    }
+    (out, false)
 }
 
 /// The free-space check of one candidate: each part's visible surface must not be where the

@@ -193,50 +193,33 @@ impl Anchors {
             });
         }
         let lazy = !params.all;
-        let at_a_time = if lazy {
-            rayon::current_num_threads()
-        } else {
-            order.len()
-        };
         let space = prep.space();
-        let mut out: Vec<Detection> = Vec::with_capacity(order.len());
-        for group in order.chunks(at_a_time.max(1)) {
-            // Each candidate measured, judged and (lazily, when it passes) checked against the
-            // free space on its own thread.
-            let judged: Vec<(Scores, Detection)> = group
-                .par_iter()
-                .map(|&k| {
-                    let h = &self.hypotheses[k];
-                    let scores = if self.measured[k] {
-                        self.scores[k]
-                    } else {
-                        score(&space, &h.placed, h.m, params.gamma, &prep.samples[self.part])
-                    };
-                    let part = PartResult {
-                        name: model.parts[self.part].name.clone(),
-                        placed: Some(h.placed),
-                        scores,
-                    };
-                    let mut d = accept::assess(model, vec![part], Vec::new(), &noise, &params.acceptance);
-                    if lazy && d.found {
-                        accept::check_free_space(prep, &mut d, params);
-                    }
-                    (scores, d)
-                })
-                .collect();
-            for (&k, (scores, d)) in group.iter().zip(judged) {
-                self.scores[k] = scores;
-                self.measured[k] = true;
-                tracing::debug!("measured {}", self.ranked_one(k));
-                let passed = lazy && d.found;
-                out.push(d);
-                if passed {
-                    let checked = out.len();
-                    return (out, checked);
-                }
-            }
+        let (judged, _) = accept::judge_in_order(prep, params, &order, lazy, |&k| {
+            let h = &self.hypotheses[k];
+            let scores = if self.measured[k] {
+                self.scores[k]
+            } else {
+                score(&space, &h.placed, h.m, params.gamma, &prep.samples[self.part])
+            };
+            let part = PartResult {
+                name: model.parts[self.part].name.clone(),
+                placed: Some(h.placed),
+                scores,
+            };
+            (
+                scores,
+                accept::assess(model, vec![part], Vec::new(), &noise, &params.acceptance),
+            )
+        });
+        let mut out: Vec<Detection> = Vec::with_capacity(judged.len());
+        for (&k, (scores, d)) in order.iter().zip(judged) {
+            self.scores[k] = scores;
+            self.measured[k] = true;
+            tracing::debug!("measured {}", self.ranked_one(k));
+            out.push(d);
         }
-        // Lazily, every candidate has been checked (and failed, or was not found).
+        // Lazily, every candidate judged has been checked (and failed, or was not found), up to
+        // the one that passed.
         let checked = if lazy { out.len() } else { 0 };
         (out, checked)
     }

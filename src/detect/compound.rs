@@ -443,37 +443,19 @@ pub fn candidates(
     // it keeps the anchor and places the other part by the model where nothing is.
     best_of_anchor.sort_by_key(|&k| !accept::connections_hold(model, &combos[k].errors, &params.acceptance));
     let lazy = !params.all && !model.parts.iter().any(|p| p.open);
-    let at_a_time = if lazy {
-        rayon::current_num_threads()
-    } else {
-        best_of_anchor.len()
-    };
+    let (refined, passed) = accept::judge_in_order(prep, params, &best_of_anchor, lazy, |&k| {
+        let d = refine(prep, model, &combos[k], params);
+        tracing::debug!("refined {d}");
+        ((), d)
+    });
     let mut out: Vec<Detection> = Vec::with_capacity(combos.len());
-    for group in best_of_anchor.chunks(at_a_time.max(1)) {
-        // Each refined, judged and (lazily, when it passes) checked against the free space on
-        // its own thread.
-        let refined: Vec<Detection> = group
-            .par_iter()
-            .map(|&k| {
-                let mut d = refine(prep, model, &combos[k], params);
-                tracing::debug!("refined {d}");
-                if lazy && d.found {
-                    accept::check_free_space(prep, &mut d, params);
-                }
-                d
-            })
-            .collect();
-        for d in refined {
-            let passed = lazy && d.found;
-            out.push(d);
-            if passed {
-                let checked = out.len();
-                return (out, checked);
-            }
-        }
-    }
-    // Lazily, every refined candidate has been checked (and failed, or was not found).
+    out.extend(refined.into_iter().map(|(_, d)| d));
+    // Lazily, every refined candidate has been checked (and failed, or was not found), up to
+    // the one that passed.
     let checked = if lazy { out.len() } else { 0 };
+    if passed {
+        return (out, checked);
+    }
     let mut combos: Vec<Option<Combination>> = combos.into_iter().map(Some).collect();
     let mut measured: Vec<(usize, PlacedSuperquadric, Scores)> = Vec::new();
     for k in idx.into_iter().filter(|k| !best_of_anchor.contains(k)) {
