@@ -6,7 +6,7 @@
 
 use super::prepare::{Prepared, RangeNoise};
 use super::report::{Detection, PartResult};
-use super::verify;
+use super::visibility;
 use super::{Acceptance, Params, box_volume};
 use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
@@ -209,7 +209,7 @@ pub fn judge_in_order<T: Sync, R: Send>(
 pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
     for (k, part) in d.parts.iter().enumerate() {
         let Some(placed) = part.placed else { continue };
-        let vis = verify::visibility(
+        let vis = visibility::visibility(
             &prep.scene.points,
             &prep.scene.all_grid,
             &placed,

@@ -41,6 +41,7 @@ mod sample_cache;
 mod search;
 mod select;
 mod verify;
+mod visibility;
 
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};

@@ -45,7 +45,7 @@ pub struct Acceptance {
     /// Most points just outside the surface per surface point.
     pub max_shell_ratio: f64,
     /// Least share of each part's visible side that, where the sensor could have seen it, it
-    /// did (see [`super::verify::Visibility::seen_ratio`]).
+    /// did (see [`super::visibility::Visibility::seen_ratio`]).
     pub min_seen: f64,
     /// Largest RMS surface distance, in noise sigmas.
     pub max_rms_sigmas: f64,
