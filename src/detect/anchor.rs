@@ -105,10 +105,7 @@ pub fn rank(prep: &Prepared, anchor: &AnchorPart, hypotheses: Vec<Hypothesis>, g
     let space = prep.space();
     let scores: Vec<Scores> = hypotheses
         .par_iter()
-        .map(|h| {
-            let (s, i) = votes(&space, &h.placed, gamma, &prep.samples[anchor.part]);
-            Scores::votes(h.m, s, i)
-        })
+        .map(|h| votes(&space, &h.placed, h.m, gamma, &prep.samples[anchor.part]))
         .collect();
     let rank = rank_sums(&paper_criteria(&scores));
     let mut order: Vec<usize> = (0..hypotheses.len()).collect();
@@ -142,29 +139,41 @@ impl Anchors {
         }
     }
 
+    /// Hypothesis `k`'s complete scores: kept, or measured now.
+    fn full_scores(&self, prep: &Prepared, k: usize, gamma: f64) -> Scores {
+        if self.measured[k] {
+            return self.scores[k];
+        }
+        let h = &self.hypotheses[k];
+        score(&prep.space(), &h.placed, h.m, gamma, &prep.samples[self.part])
+    }
+
+    /// Keep hypothesis `k`'s complete scores.
+    fn keep(&mut self, k: usize, scores: Scores) {
+        self.scores[k] = scores;
+        self.measured[k] = true;
+        tracing::debug!("measured {}", self.ranked_one(k));
+    }
+
     /// Complete the scores of the hypotheses `ks` (side by side) that hold the votes alone.
     pub fn measure(&mut self, prep: &Prepared, ks: &[usize], gamma: f64) {
-        let todo: Vec<usize> = ks.iter().copied().filter(|&k| !self.measured[k]).collect();
-        let space = prep.space();
-        let samples = &prep.samples[self.part];
-        let full: Vec<Scores> = todo
-            .par_iter()
-            .map(|&k| score(&space, &self.hypotheses[k].placed, self.hypotheses[k].m, gamma, samples))
-            .collect();
-        for (k, s) in todo.into_iter().zip(full) {
-            self.scores[k] = s;
-            self.measured[k] = true;
-            tracing::debug!("measured {}", self.ranked_one(k));
+        let full: Vec<Scores> = ks.par_iter().map(|&k| self.full_scores(prep, k, gamma)).collect();
+        for (&k, s) in ks.iter().zip(full) {
+            self.keep(k, s);
         }
     }
 
     /// The part result of hypothesis `k`, which must have been measured.
     pub fn part_result(&self, model: &Model, k: usize) -> PartResult {
         debug_assert!(self.measured[k], "hypothesis {k} was not measured");
+        self.part_with(model, k, self.scores[k])
+    }
+
+    fn part_with(&self, model: &Model, k: usize, scores: Scores) -> PartResult {
         PartResult {
             name: model.parts[self.part].name.clone(),
             placed: Some(self.hypotheses[k].placed),
-            scores: self.scores[k],
+            scores,
         }
     }
 
@@ -193,19 +202,9 @@ impl Anchors {
             });
         }
         let lazy = !params.all;
-        let space = prep.space();
         let (judged, _) = accept::judge_in_order(prep, params, &order, lazy, |&k| {
-            let h = &self.hypotheses[k];
-            let scores = if self.measured[k] {
-                self.scores[k]
-            } else {
-                score(&space, &h.placed, h.m, params.gamma, &prep.samples[self.part])
-            };
-            let part = PartResult {
-                name: model.parts[self.part].name.clone(),
-                placed: Some(h.placed),
-                scores,
-            };
+            let scores = self.full_scores(prep, k, params.gamma);
+            let part = self.part_with(model, k, scores);
             (
                 scores,
                 accept::assess(model, vec![part], Vec::new(), &noise, &params.acceptance),
@@ -213,9 +212,7 @@ impl Anchors {
         });
         let mut out: Vec<Detection> = Vec::with_capacity(judged.len());
         for (&k, (scores, d)) in order.iter().zip(judged) {
-            self.scores[k] = scores;
-            self.measured[k] = true;
-            tracing::debug!("measured {}", self.ranked_one(k));
+            self.keep(k, scores);
             out.push(d);
         }
         // Lazily, every candidate judged has been checked (and failed, or was not found), up to

@@ -194,10 +194,7 @@ pub fn combinations(
         );
         let scores: Vec<Scores> = hyps
             .par_iter()
-            .map(|h| {
-                let (s, i) = votes(&space, &h.placed, params.gamma, &prep.samples[part]);
-                Scores::votes(h.m, s, i)
-            })
+            .map(|h| votes(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
             .collect();
         let mut next = Vec::new();
         for ((origin, combo, measured), members) in partial.iter().zip(members) {
@@ -586,11 +583,8 @@ mod tests {
                 let turn = Vector3::new(rng.random(), rng.random(), rng.random()).map(|v: f64| (v - 0.5) * 6.0);
                 let placed = PlacedSuperquadric::new(model.parts[part].shape, Isometry3::new(on.coords + offset, turn));
                 let full = score(&space, &placed, 0.1, params.gamma, &prep.samples[part]);
-                assert_eq!(
-                    votes(&space, &placed, params.gamma, &prep.samples[part]),
-                    (full.s, full.i),
-                    "{name} placement {k}"
-                );
+                let voted = votes(&space, &placed, 0.1, params.gamma, &prep.samples[part]);
+                assert_eq!((voted.s, voted.i), (full.s, full.i), "{name} placement {k}");
                 with_surface += (full.s > 0) as usize;
                 with_interior += (full.i > 0) as usize;
             }

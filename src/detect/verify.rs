@@ -65,7 +65,7 @@ pub struct Scores {
 impl Scores {
     /// The paper's M, S and I alone; the acceptance measures say nothing was seen (no coverage,
     /// no surface points).
-    pub fn votes(m: f64, s: usize, i: usize) -> Scores {
+    fn votes(m: f64, s: usize, i: usize) -> Scores {
         Scores {
             m,
             s,
@@ -317,10 +317,16 @@ impl Around {
 }
 
 widened! {
-/// The paper's S and I of a placement, counted as [`score`] counts them, without the acceptance
-/// measures: all that ranking a placement among others asks. (For an open container seen from
-/// above, I counts its lid points.)
-pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64, samples: &SurfaceSamples) -> (usize, usize) {
+/// The paper's M (given), S and I of a placement, S and I counted as [`score`] counts them,
+/// without the acceptance measures: all that ranking a placement among others asks (see
+/// `Scores::votes`). For an open container seen from above, I counts its lid points.
+pub fn votes(
+    space: &SearchSpace<'_>,
+    placed: &PlacedSuperquadric,
+    m: f64,
+    gamma: f64,
+    samples: &SurfaceSamples,
+) -> Scores {
     let around = Around::new(space, placed, gamma, samples);
     let Around {
         centre,
@@ -364,7 +370,7 @@ pub fn votes(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, gamma: f64, s
         |k| batch.push(k, &space.points[k]),
     );
     batch.finish();
-    (s, if opening_up { lid } else { i })
+    Scores::votes(m, s, if opening_up { lid } else { i })
 }
 }
 
