@@ -128,12 +128,10 @@ pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, 
         let checked = if model.is_compound() {
             let t = Instant::now();
             let picked = compound::pick(&prep, &mut anchors, params);
-            let combos = compound::combinations(&prep, model, &anchors, &picked, params, round);
             timing.search_ms += ms(t);
-            let t = Instant::now();
-            let (found, checked) = compound::candidates(&prep, model, combos, params);
+            let (found, checked) =
+                compound::round_candidates(&prep, model, &anchors, &picked, params, round, &mut timing);
             candidates.extend(found);
-            timing.verify_ms += ms(t);
             checked
         } else {
             let t = Instant::now();
