@@ -425,6 +425,8 @@ fn one_answer_first_passing(model: &Model, params: &Params) -> bool {
 /// its connection places the other parts on their points, and that combination passes. The
 /// shells' trials find the parts when the anchor candidate's fit is off (a head slid along its
 /// axis), and the whole search runs when no combination of the connections' placements passes.
+/// Only the first round tries this: a second round runs when the first found nothing, where
+/// an object, if there, was seen or fitted poorly.
 pub fn round_candidates(
     prep: &Prepared,
     model: &Model,
