@@ -5,7 +5,7 @@
 
 use super::prepare::Prepared;
 use super::report::{Detection, PartResult, PoseText, VotesText};
-use super::search::{Hypothesis, search_part};
+use super::search::{self, Coarse, Hypothesis, Refine, Refined, search_part};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
 use super::{Params, accept, box_volume, select};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
@@ -69,8 +69,17 @@ pub fn search(
     params: &Params,
     round: u64,
     known: &[PlacedSuperquadric],
-) -> Vec<Hypothesis> {
+) -> Refined {
     let all_seeds: Vec<usize> = (0..prep.sub.len()).collect();
+    // One answer of a single part is the first hypothesis, in the order of the vote, that
+    // passes: the ranking takes M, S and I after the coarse rounds, and only the hypotheses
+    // judged get the fine rounds. A compound's anchor candidates place its other parts, and
+    // with `all` every hypothesis is judged: they get them all.
+    let refine = if model.is_compound() || params.all {
+        Refine::Fine
+    } else {
+        Refine::Deferred
+    };
     search_part(
         &prep.space(),
         &model.parts[anchor.part].shape,
@@ -81,6 +90,7 @@ pub fn search(
         &prep.checks[anchor.part],
         stream_seed(params.seed, anchor.part as u64 + 1000 * round),
         known,
+        refine,
     )
 }
 
@@ -89,6 +99,9 @@ pub struct Anchors {
     /// Index into the model's parts.
     pub part: usize,
     pub hypotheses: Vec<Hypothesis>,
+    /// Where each hypothesis' fine rounds were deferred (`Refine::Deferred`) and have not run
+    /// yet: they run when it is measured.
+    deferred: Vec<Option<Coarse>>,
     /// Each hypothesis' scores: complete where `measured` ([`Anchors::measure`]), else the
     /// paper's M, S and I alone (`Scores::votes`), all that ranking asks.
     pub scores: Vec<Scores>,
@@ -101,8 +114,11 @@ pub struct Anchors {
 
 /// Rank the hypotheses by the paper's voting over M, S and I. The acceptance measures are taken
 /// later, of the hypotheses that are judged ([`Anchors::measure`]).
-pub fn rank(prep: &Prepared, anchor: &AnchorPart, hypotheses: Vec<Hypothesis>, gamma: f64) -> Anchors {
+pub fn rank(prep: &Prepared, anchor: &AnchorPart, found: Refined, gamma: f64) -> Anchors {
     let space = prep.space();
+    let Refined {
+        hypotheses, deferred, ..
+    } = found;
     let scores: Vec<Scores> = hypotheses
         .par_iter()
         .map(|h| votes(&space, &h.placed, h.m, gamma, &prep.samples[anchor.part]))
@@ -114,6 +130,7 @@ pub fn rank(prep: &Prepared, anchor: &AnchorPart, hypotheses: Vec<Hypothesis>, g
         part: anchor.part,
         measured: vec![false; hypotheses.len()],
         hypotheses,
+        deferred,
         scores,
         rank,
         order,
@@ -139,25 +156,41 @@ impl Anchors {
         }
     }
 
-    /// Hypothesis `k`'s complete scores: kept, or measured now.
-    fn full_scores(&self, prep: &Prepared, k: usize, gamma: f64) -> Scores {
+    /// Hypothesis `k` as it is measured, with its complete scores: kept, or its deferred fine
+    /// rounds run and its scores measured now.
+    fn full_scores(&self, prep: &Prepared, model: &Model, k: usize, gamma: f64) -> (Hypothesis, Scores) {
         if self.measured[k] {
-            return self.scores[k];
+            return (self.hypotheses[k], self.scores[k]);
         }
-        let h = &self.hypotheses[k];
-        score(&prep.space(), &h.placed, h.m, gamma, &prep.samples[self.part])
+        let space = prep.space();
+        let h = match &self.deferred[k] {
+            Some(c) => search::finish_deferred(
+                &space,
+                &prep.checks[self.part],
+                model.parts[self.part].open,
+                c,
+                self.hypotheses[k],
+            ),
+            None => self.hypotheses[k],
+        };
+        (h, score(&space, &h.placed, h.m, gamma, &prep.samples[self.part]))
     }
 
-    /// Keep hypothesis `k`'s complete scores.
-    fn keep(&mut self, k: usize, scores: Scores) {
+    /// Keep hypothesis `k` as measured, with its complete scores.
+    fn keep(&mut self, k: usize, (h, scores): (Hypothesis, Scores)) {
+        self.hypotheses[k] = h;
+        self.deferred[k] = None;
         self.scores[k] = scores;
         self.measured[k] = true;
         tracing::debug!("measured {}", self.ranked_one(k));
     }
 
     /// Complete the scores of the hypotheses `ks` (side by side) that hold the votes alone.
-    pub fn measure(&mut self, prep: &Prepared, ks: &[usize], gamma: f64) {
-        let full: Vec<Scores> = ks.par_iter().map(|&k| self.full_scores(prep, k, gamma)).collect();
+    pub fn measure(&mut self, prep: &Prepared, model: &Model, ks: &[usize], gamma: f64) {
+        let full: Vec<(Hypothesis, Scores)> = ks
+            .par_iter()
+            .map(|&k| self.full_scores(prep, model, k, gamma))
+            .collect();
         for (&k, s) in ks.iter().zip(full) {
             self.keep(k, s);
         }
@@ -166,13 +199,13 @@ impl Anchors {
     /// The part result of hypothesis `k`, which must have been measured.
     pub fn part_result(&self, model: &Model, k: usize) -> PartResult {
         debug_assert!(self.measured[k], "hypothesis {k} was not measured");
-        self.part_with(model, k, self.scores[k])
+        self.part_with(model, &self.hypotheses[k], self.scores[k])
     }
 
-    fn part_with(&self, model: &Model, k: usize, scores: Scores) -> PartResult {
+    fn part_with(&self, model: &Model, h: &Hypothesis, scores: Scores) -> PartResult {
         PartResult {
             name: model.parts[self.part].name.clone(),
-            placed: Some(self.hypotheses[k].placed),
+            placed: Some(h.placed),
             scores,
         }
     }
@@ -203,16 +236,16 @@ impl Anchors {
         }
         let lazy = !params.all;
         let (judged, _) = accept::judge_in_order(prep, params, &order, lazy, |&k| {
-            let scores = self.full_scores(prep, k, params.gamma);
-            let part = self.part_with(model, k, scores);
+            let (h, scores) = self.full_scores(prep, model, k, params.gamma);
+            let part = self.part_with(model, &h, scores);
             (
-                scores,
+                (h, scores),
                 accept::assess(model, vec![part], Vec::new(), &noise, &params.acceptance),
             )
         });
         let mut out: Vec<Detection> = Vec::with_capacity(judged.len());
-        for (&k, (scores, d)) in order.iter().zip(judged) {
-            self.keep(k, scores);
+        for (&k, (measured, d)) in order.iter().zip(judged) {
+            self.keep(k, measured);
             out.push(d);
         }
         // Lazily, every candidate judged has been checked (and failed, or was not found), up to

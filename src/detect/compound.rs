@@ -60,14 +60,14 @@ impl fmt::Display for Combination {
 /// their connections, land centimetres apart too, and the rigid refinement from the worse one
 /// does not always find its way to the better (a mallet's head 2.3 cm off, ranked first by one
 /// place, lost the shaft).
-pub fn pick(prep: &Prepared, anchors: &mut Anchors, params: &Params) -> Vec<usize> {
+pub fn pick(prep: &Prepared, model: &Model, anchors: &mut Anchors, params: &Params) -> Vec<usize> {
     let wanted = params.compound_candidates.max(1);
     let order = anchors.order.clone();
     let mut picked: Vec<usize> = Vec::new();
     // The coverage needs the acceptance measures: taken a few hypotheses at a time, as many as
     // there are threads, until enough are picked.
     for group in order.chunks(rayon::current_num_threads().max(1)) {
-        anchors.measure(prep, group, params.gamma);
+        anchors.measure(prep, model, group, params.gamma);
         for &k in group {
             let distinct = picked
                 .iter()
@@ -184,14 +184,18 @@ pub fn combinations(
             .into_iter()
             .map(|fits| fits.map(|fits| fits.into_iter().map(|f| pooled(&mut pool, f)).collect()))
             .collect();
-        let (hyps, stands_for) = search::refine_fits(
+        let search::Refined {
+            hypotheses: hyps,
+            stands_for,
+            ..
+        } = search::refine_fits(
             &space,
             &pool,
             &settings,
             model.parts[part].open,
             &prep.checks[part],
             &[],
-            false,
+            search::Refine::Ranked,
         );
         let scores: Vec<Scores> = hyps
             .par_iter()
@@ -686,7 +690,7 @@ mod tests {
             let part = anchor::AnchorPart::choose(&model, &params, &prep.scene.objects);
             let hypotheses = anchor::search(&prep, &model, &part, &params, 0, &[]);
             let mut anchors = anchor::rank(&prep, &part, hypotheses, params.gamma);
-            let picked = pick(&prep, &mut anchors, &params);
+            let picked = pick(&prep, &model, &mut anchors, &params);
             let placed_only = Params {
                 local_hypotheses: 0,
                 ..params.clone()

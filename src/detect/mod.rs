@@ -117,17 +117,17 @@ pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, 
     let mut searched: Vec<crate::geometry::PlacedSuperquadric> = Vec::new();
     for round in 0..SEARCH_ROUNDS {
         let t = Instant::now();
-        let hypotheses = anchor::search(&prep, model, &anchor, params, round, &searched);
-        searched.extend(hypotheses.iter().map(|h| h.placed));
+        let found = anchor::search(&prep, model, &anchor, params, round, &searched);
+        searched.extend(found.hypotheses.iter().map(|h| h.placed));
         timing.search_ms += ms(t);
         let t = Instant::now();
-        let mut anchors = anchor::rank(&prep, &anchor, hypotheses, params.gamma);
+        let mut anchors = anchor::rank(&prep, &anchor, found, params.gamma);
         timing.verify_ms += ms(t);
         let first_new = candidates.len();
         // How many of the new candidates have been through the free-space check already.
         let checked = if model.is_compound() {
             let t = Instant::now();
-            let picked = compound::pick(&prep, &mut anchors, params);
+            let picked = compound::pick(&prep, model, &mut anchors, params);
             timing.search_ms += ms(t);
             let (found, checked) =
                 compound::round_candidates(&prep, model, &anchors, &picked, params, round, &mut timing);

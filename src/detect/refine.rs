@@ -33,6 +33,7 @@ pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
 /// ([`refine_fine`]) need. A refinement fits a pose on the points near it (`mid`) until M stops
 /// improving. With a `rest_axis` (an open container on the support plane) the part's axis is
 /// turned onto it first and keeps that direction: only the position and the spin are fitted.
+#[derive(Debug, Clone, Copy)]
 pub struct Coarse {
     fit: Fit,
     placed: PlacedSuperquadric,
