@@ -16,8 +16,9 @@ const REFINE_ROUNDS: usize = 6;
 /// pose parameters are as well determined by 600 points as by 6000, at a tenth of the time.
 pub(super) const REFINE_POINTS: usize = 600;
 /// The coarse rounds of a placement that is only ranked (a compound's further part, whose
-/// combination is fitted again as one rigid object) fit at most this many: they only bring it
-/// to its points, and its M is still measured over `REFINE_POINTS`.
+/// combination is fitted again as one rigid object; a single part's hypothesis, whose fine
+/// rounds wait until it is judged) fit at most this many: they only bring it to its points,
+/// and its M is still measured over `REFINE_POINTS`.
 pub(super) const RANKED_POINTS: usize = 300;
 
 /// The inlier band for refinement: three noise sigmas, at least a tenth of the smallest size
@@ -113,7 +114,7 @@ pub fn refine_coarse(
 }
 
 /// The fine rounds of a refinement, at the final band on the `mid` points, until M stops
-/// improving.
+/// improving by 1 % a round; the last round's fit is kept where it improves at all.
 pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
     let mut best = Hypothesis {
         placed: c.placed,
@@ -134,6 +135,12 @@ pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
         best = Hypothesis { placed, m: before };
         let f = fit_pose_with(&placed, &inliers, c.iterations.min(FINE_ITERATIONS), c.freedom, 1e-6);
         if f.m >= before * 0.99 {
+            if f.m < before {
+                best = Hypothesis {
+                    placed: f.placed,
+                    m: f.m,
+                };
+            }
             break;
         }
         placed = f.placed;

@@ -375,9 +375,9 @@ pub enum Refine {
     Fine,
     /// The coarse rounds alone, on at most `RANKED_POINTS`: a placement that is only ranked.
     Ranked,
-    /// The coarse rounds, the fine ones deferred ([`Refined::deferred`]) until the hypothesis
-    /// is judged ([`finish_deferred`]): its M, S and I for the ranking are taken after the
-    /// coarse rounds.
+    /// The coarse rounds as for [`Refine::Ranked`], the fine ones deferred
+    /// ([`Refined::deferred`]) until the hypothesis is judged ([`finish_deferred`]): its M, S
+    /// and I for the ranking are taken after the coarse rounds.
     Deferred,
 }
 
@@ -408,8 +408,8 @@ pub fn refine_fits(
 ) -> Refined {
     let rest_axis = check.rest_axis(space);
     let points = match refine {
-        Refine::Ranked => super::refine::RANKED_POINTS,
-        Refine::Fine | Refine::Deferred => super::refine::REFINE_POINTS,
+        Refine::Ranked | Refine::Deferred => super::refine::RANKED_POINTS,
+        Refine::Fine => super::refine::REFINE_POINTS,
     };
     let coarse: Vec<Result<Coarse, Hypothesis>> = fits
         .par_iter()
@@ -494,8 +494,8 @@ fn settled(space: &SearchSpace<'_>, check: &PlaneCheck, open: bool, mut h: Hypot
 }
 
 /// The fine rounds deferred by [`Refine::Deferred`], from where the coarse rounds left the
-/// hypothesis: the pose [`Refine::Fine`] gives. Where the support plane does not allow that
-/// pose, the hypothesis stays as ranked (`ranked`, which it does allow).
+/// hypothesis. Where the support plane does not allow the pose they give, the hypothesis stays
+/// as ranked (`ranked`, which it does allow).
 pub fn finish_deferred(
     space: &SearchSpace<'_>,
     check: &PlaneCheck,
@@ -671,8 +671,10 @@ fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
 mod tests {
     use super::*;
 
-    /// A hypothesis whose fine rounds were deferred ends, once they run, where the fine rounds
-    /// would have put it at once: the bowl (tapered) and the mug (open) on the paper's Fig. 3.
+    /// A hypothesis on the object whose fine rounds were deferred (its coarse rounds on fewer
+    /// points) ends, once they run, where the fine rounds take the same trial's fit at once, to
+    /// a fraction of the noise, and fits as well: the bowl (tapered) and the mug (open) on the
+    /// paper's Fig. 3.
     #[test]
     fn deferred_fine_rounds_end_where_the_fine_rounds_do() {
         use crate::detect::{Params, prepare};
@@ -698,24 +700,35 @@ mod tests {
             let fits = distinct(region_fits(&space, shape, &seeds, 10, &prep.settings, check, 3), &[]);
             let fine = refine_fits(&space, &fits, &prep.settings, open, check, &[], Refine::Fine);
             let later = refine_fits(&space, &fits, &prep.settings, open, check, &[], Refine::Deferred);
-            assert_eq!(fine.stands_for, later.stands_for, "{name}");
-            assert!(fine.hypotheses.len() >= 3, "{name}: {} hypotheses", fine.hypotheses.len());
-            for (k, (f, (h, c))) in fine
-                .hypotheses
-                .iter()
-                .zip(later.hypotheses.iter().zip(&later.deferred))
-                .enumerate()
-            {
-                let finished = finish_deferred(&space, check, open, c.as_ref().unwrap(), *h);
-                assert_eq!(finished.placed.pose, f.placed.pose, "{name} hypothesis {k}");
-                assert_eq!(finished.m.to_bits(), f.m.to_bits(), "{name} hypothesis {k}");
+            let best = fine.hypotheses.iter().map(|h| h.m).fold(f64::INFINITY, f64::min);
+            let mut compared = 0;
+            for (j, (a, b)) in fine.stands_for.iter().zip(&later.stands_for).enumerate() {
+                let (Some(a), Some(b)) = (a, b) else { continue };
+                let f = fine.hypotheses[*a];
+                let c = later.deferred[*b].as_ref().expect("deferred");
+                let done = finish_deferred(&space, check, open, c, later.hypotheses[*b]);
+                let moved = (done.placed.pose.translation.vector - f.placed.pose.translation.vector).norm();
+                let turned = axis_angle_deg(
+                    &(done.placed.pose.rotation * Vector3::z()),
+                    &(f.placed.pose.rotation * Vector3::z()),
+                    shape.is_tapered(),
+                );
+                if f.m > 1.1 * best {
+                    // Off the object, a fit can wander to another place either way.
+                    continue;
+                }
+                assert!(
+                    moved < 1.5e-3 && turned < 1.0 && done.m < 1.05 * f.m,
+                    "{name} fit {j}: {moved} m, {turned} deg apart, M {} against {}",
+                    done.m,
+                    f.m
+                );
+                compared += 1;
             }
+            assert!(compared >= 2, "{name}: {compared} fits compared");
         }
     }
 
-    /// The regions are runs of the points' Morton order, compact in space, the same whatever
-    /// order the seeds come in: four 3 cm patches 20 cm apart, their points interleaved in
-    /// index order, split into one region each.
     #[test]
     fn regions_are_compact_runs_of_the_morton_order() {
         let corners = [(0.0, 0.0), (0.2, 0.0), (0.0, 0.2), (0.2, 0.2)];
