@@ -157,7 +157,16 @@ pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
 /// A pose after the coarse rounds as it is, with its M over the `mid` points in the final band
 /// (the fine rounds' first measure).
 pub fn measured(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
-    let inliers = thin(inliers_in(space.mid, space.mid_grid, &c.placed, c.band), REFINE_POINTS);
+    measured_on(space.mid, space.mid_grid, c)
+}
+
+/// [`measured`] over the subsampled points the coarse rounds fit.
+pub fn measured_coarse(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
+    measured_on(space.sub, space.sub_grid, c)
+}
+
+fn measured_on(points: &[Point3<f64>], grid: &crate::cloud::grid::Grid, c: &Coarse) -> Hypothesis {
+    let inliers = thin(inliers_in(points, grid, &c.placed, c.band), REFINE_POINTS);
     if inliers.len() < MIN_SAMPLE {
         return Hypothesis {
             placed: c.fit.placed,

@@ -377,7 +377,8 @@ pub enum Refine {
     Ranked,
     /// The coarse rounds as for [`Refine::Ranked`], the fine ones deferred
     /// ([`Refined::deferred`]) until the hypothesis is judged ([`finish_deferred`]): its M, S
-    /// and I for the ranking are taken after the coarse rounds.
+    /// and I for the ranking are taken after the coarse rounds, M on the subsampled points
+    /// they fit (the vote compares the hypotheses with each other, all measured alike).
     Deferred,
 }
 
@@ -442,10 +443,8 @@ pub fn refine_fits(
         .map(|c| {
             let (h, deferred) = match c {
                 Ok(c) if refine == Refine::Fine => (refine_fine(space, &c), None),
-                Ok(c) => (
-                    super::refine::measured(space, &c),
-                    (refine == Refine::Deferred).then_some(c),
-                ),
+                Ok(c) if refine == Refine::Ranked => (super::refine::measured(space, &c), None),
+                Ok(c) => (super::refine::measured_coarse(space, &c), Some(c)),
                 Err(h) => (h, None),
             };
             let h = settled(space, check, open, h);
