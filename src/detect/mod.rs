@@ -76,21 +76,35 @@ fn box_volume(s: &Superquadric) -> f64 {
 
 /// Detect `model` in `cloud` (finite and non-finite points; non-finite are skipped).
 pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {
-    let t = Instant::now();
-    let scene = std::sync::Arc::new(scene(cloud, params));
-    detect_in(&scene, model, params, ms(t))
+    on_pool(|| {
+        let t = Instant::now();
+        let scene = std::sync::Arc::new(scene(cloud, params));
+        detect_in(&scene, model, params, ms(t))
+    })
+}
+
+/// Run `f` on a thread of rayon's pool (at once, when called on one). Each parallel stage of
+/// a detection then shares its work with the pool's other threads directly; called from
+/// another thread, every stage would hand its work to the pool and wait to be woken, a dozen
+/// times a detection.
+fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
+    rayon::scope(|_| f())
 }
 
 /// The cloud filtered and its support plane removed, as [`detect_in`] takes it: made once, it
 /// serves the detections of any number of objects with the same viewpoint, range cut and plane
 /// setting (`params.viewpoint`, `max_range`, `remove_plane`; the rest is not looked at).
 pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
-    prepare::scene(cloud, params)
+    on_pool(|| prepare::scene(cloud, params))
 }
 
 /// [`detect`] on a prepared [`scene`]; `plane_ms` is what the scene cost this detection (0 for
 /// one made before), reported as the plane's time.
 pub fn detect_in(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, plane_ms: f64) -> Report {
+    on_pool(|| detect_on_pool(scene, model, params, plane_ms))
+}
+
+fn detect_on_pool(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params, plane_ms: f64) -> Report {
     let start = Instant::now();
     let mut timing = Timing {
         plane_ms,
