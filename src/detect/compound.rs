@@ -501,11 +501,12 @@ pub fn candidates(
         }
     }
     // Those whose parts were found where the model puts them against each other come first, in
-    // their order. The rigid fit of a combination whose connection is off rarely closes the gap:
-    // it keeps the anchor and places the other part by the model where nothing is.
-    best_of_anchor.sort_by_key(|&k| !accept::connections_hold(model, &combos[k].errors, &params.acceptance));
-    if judged == Judged::Holding {
-        best_of_anchor.retain(|&k| accept::connections_hold(model, &combos[k].errors, &params.acceptance));
+    // their order (or alone). The rigid fit of a combination whose connection is off rarely
+    // closes the gap: it keeps the anchor and places the other part by the model where nothing is.
+    let holds = |k: &usize| accept::connections_hold(model, &combos[*k].errors, &params.acceptance);
+    match judged {
+        Judged::All => best_of_anchor.sort_by_key(|k| !holds(k)),
+        Judged::Holding => best_of_anchor.retain(holds),
     }
     let lazy = one_answer_first_passing(model, params);
     let (refined, passed) = accept::judge_in_order(prep, params, &best_of_anchor, lazy, |&k| {
@@ -626,21 +627,8 @@ mod tests {
     #[test]
     fn a_placement_votes_as_it_scores() {
         use rand::{RngExt, SeedableRng};
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let models = root.join("models");
-        let scene = crate::sim::Scene::from_file(&root.join("scenes/fig3_table.toml"), &models).unwrap();
-        let sweep = crate::sim::simulate(&scene, 0);
         for name in ["mallet", "mug"] {
-            let model = Model::load(name, &models).unwrap();
-            let params = Params {
-                viewpoint: sweep.cloud.viewpoint_position(),
-                ..Params::default()
-            };
-            let prep = crate::detect::prepare::index(
-                std::sync::Arc::new(crate::detect::scene(&sweep.cloud.points, &params)),
-                &model,
-                &params,
-            );
+            let (model, params, prep) = crate::detect::prepare::simulated("fig3_table", 0, name);
             let space = prep.space();
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
             let (mut with_surface, mut with_interior) = (0, 0);
@@ -670,23 +658,11 @@ mod tests {
     #[test]
     fn the_connections_placements_alone_find_what_the_whole_search_finds() {
         use crate::detect::{anchor, prepare};
-        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-        let models = root.join("models");
         for (scene, name) in [("fig4_tools", "mallet"), ("fig3_table", "cup")] {
-            let scene = crate::sim::Scene::from_file(&root.join(format!("scenes/{scene}.toml")), &models).unwrap();
-            let sweep = crate::sim::simulate(&scene, 1);
-            let model = Model::load(name, &models).unwrap();
-            let params = Params {
-                seed: 1,
-                viewpoint: sweep.cloud.viewpoint_position(),
-                ..Params::default()
-            };
+            // The index does not look at the seed; the search does.
+            let (model, params, prep) = prepare::simulated(scene, 1, name);
+            let params = Params { seed: 1, ..params };
             assert!(one_answer_first_passing(&model, &params), "{name}");
-            let prep = prepare::index(
-                std::sync::Arc::new(crate::detect::scene(&sweep.cloud.points, &params)),
-                &model,
-                &params,
-            );
             let part = anchor::AnchorPart::choose(&model, &params, &prep.scene.objects);
             let hypotheses = anchor::search(&prep, &model, &part, &params, 0, &[]);
             let mut anchors = anchor::rank(&prep, &part, hypotheses, params.gamma);

@@ -400,6 +400,27 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
     }
 }
 
+/// For the detector's tests: `scenes/{scene}.toml` simulated with noise seed `sim_seed`, indexed
+/// for model `name` with the default parameters seen from the sweep's viewpoint.
+#[cfg(test)]
+pub(super) fn simulated(scene: &str, sim_seed: u64, name: &str) -> (Model, Params, Prepared) {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let models = root.join("models");
+    let scene = crate::sim::Scene::from_file(&root.join(format!("scenes/{scene}.toml")), &models).unwrap();
+    let sweep = crate::sim::simulate(&scene, sim_seed);
+    let model = Model::load(name, &models).unwrap();
+    let params = Params {
+        viewpoint: sweep.cloud.viewpoint_position(),
+        ..Params::default()
+    };
+    let prep = index(
+        std::sync::Arc::new(super::scene(&sweep.cloud.points, &params)),
+        &model,
+        &params,
+    );
+    (model, params, prep)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

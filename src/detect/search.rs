@@ -676,23 +676,8 @@ mod tests {
     /// paper's Fig. 3.
     #[test]
     fn deferred_fine_rounds_end_where_the_fine_rounds_do() {
-        use crate::detect::{Params, prepare};
-        use crate::model::Model;
-        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-        let models = root.join("models");
-        let scene = crate::sim::Scene::from_file(&root.join("scenes/fig3_table.toml"), &models).unwrap();
-        let sweep = crate::sim::simulate(&scene, 2);
         for name in ["bowl", "mug"] {
-            let model = Model::load(name, &models).unwrap();
-            let params = Params {
-                viewpoint: sweep.cloud.viewpoint_position(),
-                ..Params::default()
-            };
-            let prep = prepare::index(
-                std::sync::Arc::new(crate::detect::scene(&sweep.cloud.points, &params)),
-                &model,
-                &params,
-            );
+            let (model, _, prep) = crate::detect::prepare::simulated("fig3_table", 2, name);
             let space = prep.space();
             let (shape, open, check) = (&model.parts[0].shape, model.parts[0].open, &prep.checks[0]);
             let seeds: Vec<usize> = (0..space.sub.len()).collect();
