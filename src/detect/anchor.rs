@@ -4,8 +4,9 @@
 //! (`compound`).
 
 use super::prepare::Prepared;
+use super::refine::{self, Coarse, Refine, Refined};
 use super::report::{Detection, PartResult, PoseText, VotesText};
-use super::search::{self, Coarse, Hypothesis, Refine, Refined, search_part};
+use super::search::{Hypothesis, search_part};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
 use super::{Params, accept, box_volume, select};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
@@ -164,7 +165,7 @@ impl Anchors {
         }
         let space = prep.space();
         let h = match &self.deferred[k] {
-            Some(c) => search::finish_deferred(
+            Some(c) => refine::finish_deferred(
                 &space,
                 &prep.checks[self.part],
                 model.parts[self.part].open,

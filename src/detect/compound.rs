@@ -10,6 +10,7 @@ use super::accept::{self, object_pose};
 use super::anchor::Anchors;
 use super::fit::Fit;
 use super::prepare::Prepared;
+use super::refine;
 use super::report::{ConnectionText, Detection, PartResult, PoseText, Timing, VotesText};
 use super::search::{self, SearchSettings};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
@@ -184,18 +185,18 @@ pub fn combinations(
             .into_iter()
             .map(|fits| fits.map(|fits| fits.into_iter().map(|f| pooled(&mut pool, f)).collect()))
             .collect();
-        let search::Refined {
+        let refine::Refined {
             hypotheses: hyps,
             stands_for,
             ..
-        } = search::refine_fits(
+        } = refine::refine_fits(
             &space,
             &pool,
             &settings,
             model.parts[part].open,
             &prep.checks[part],
             &[],
-            search::Refine::Ranked,
+            refine::Refine::Ranked,
         );
         let scores: Vec<Scores> = hyps
             .par_iter()
