@@ -1,7 +1,8 @@
 //! The compound stage: from the best distinct anchor candidates, every other part is placed where
 //! the model puts it against an already-found part (at every spin of that part about its axis,
 //! which its fit does not fix) and searched by a few RANSAC trials in the shell its connection
-//! leaves; each placement found is refined and scored once for every candidate that found it. The
+//! leaves (both in `shell`); each placement found is refined and scored once for every candidate
+//! that found it. The
 //! combinations are ranked by the connection errors A and D (paper eq. 6, 7) together with every
 //! part's M, S and I, and the best combination of each anchor candidate is refined as one rigid
 //! object.
@@ -13,12 +14,13 @@ use super::prepare::Prepared;
 use super::refine;
 use super::report::{ConnectionText, Detection, PartResult, PoseText, Timing, VotesText};
 use super::search::{self, SearchSettings};
+use super::shell::{shell_seeds, spun_placements};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
 use super::{Params, box_volume, fit, ms, rigid};
-use crate::geometry::{PlacedKernel, PlacedSuperquadric};
+use crate::geometry::PlacedSuperquadric;
 use crate::model::{Connection, Model, axis_angle};
 use crate::numeric::stream_seed;
-use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 use std::fmt;
 use std::time::Instant;
@@ -245,34 +247,6 @@ pub fn combinations(
         .collect()
 }
 
-/// Subsampled points in the shell around a parent placement where the part's surface can be
-/// (its connection's distance, give or take the part's reach), that are not on the parent's own
-/// surface: where the part's RANSAC trials seed.
-fn shell_seeds(
-    space: &search::SearchSpace<'_>,
-    conn: &Connection,
-    shape: &crate::geometry::Superquadric,
-    parent: &PlacedSuperquadric,
-) -> Vec<usize> {
-    let pc = Point3::from(parent.pose.translation.vector);
-    let reach = shape.bounding_radius();
-    let band = search::refine_band(&parent.shape, space.noise.at(&pc));
-    let kernel = PlacedKernel::new(parent);
-    let mut seeds = Vec::new();
-    space
-        .sub_grid
-        .for_each_within(space.sub, &pc, conn.distance + reach, |i| {
-            let p = &space.sub[i];
-            // Outside the parent's box grown by the band, a point is off its surface.
-            if (p - pc).norm() >= conn.distance - reach
-                && kernel.surface_distance_near(p, band).is_none_or(|d| d.abs() > band)
-            {
-                seeds.push(i);
-            }
-        });
-    seeds
-}
-
 /// The index in `pool` of the placement `fit` repeats (the same pose), added when new.
 fn pooled(pool: &mut Vec<Fit>, fit: Fit) -> usize {
     match pool.iter().position(|p| search::same_pose(&p.placed, &fit.placed)) {
@@ -282,106 +256,6 @@ fn pooled(pool: &mut Vec<Fit>, fit: Fit) -> usize {
             pool.len() - 1
         }
     }
-}
-
-/// Bounds on the steps of the spin about the parent's axis at which the part is tried where the
-/// model puts it.
-const SPIN_STEPS: (usize, usize) = (16, 180);
-/// Placements kept per parent placement: the best local maxima of the support over the spin.
-const SPIN_KEPT: usize = 3;
-
-/// The part where the model puts it against its parent's placement, at every spin of the parent
-/// about its own axis (and turned over, when the parent's fit cannot tell its ends apart): a
-/// parent's fit fixes its axis but often not its spin, which is what places the other part. The
-/// best local maxima of the support (subsampled points within the band of the part's surface)
-/// come back as fits, to be refined.
-fn spun_placements(
-    space: &search::SearchSpace<'_>,
-    model: &Model,
-    parent: usize,
-    part: usize,
-    parent_placed: &PlacedSuperquadric,
-    check: &search::PlaneCheck,
-) -> Vec<(usize, Fit)> {
-    let rel = model.parts[parent].pose_in_object.inverse() * model.parts[part].pose_in_object;
-    let shape = model.parts[part].shape;
-    let centre = Point3::from(parent_placed.pose.translation.vector);
-    let band = search::refine_band(&shape, space.noise.at(&centre));
-    let turned_over = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-    let flips: &[f64] = if model.parts[parent].shape.is_tapered() || same_when_turned_over(&rel, &shape, &turned_over) {
-        &[0.0]
-    } else {
-        &[0.0, std::f64::consts::PI]
-    };
-    // Steps no longer along the arc than the part's thinnest half-size, so that the support's
-    // peak cannot fall between two of them.
-    let arc = rel.translation.vector.xy().norm() * std::f64::consts::TAU;
-    let thinnest = shape.a.iter().copied().fold(f64::INFINITY, f64::min);
-    let steps = ((arc / thinnest).ceil() as usize).clamp(SPIN_STEPS.0, SPIN_STEPS.1);
-    let mut out: Vec<(usize, Fit)> = Vec::new();
-    for &flip in flips {
-        let turn = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), flip);
-        let placed: Vec<PlacedSuperquadric> = (0..steps)
-            .map(|k| {
-                let spin = UnitQuaternion::from_axis_angle(
-                    &Vector3::z_axis(),
-                    std::f64::consts::TAU * k as f64 / steps as f64,
-                );
-                let pose = parent_placed.pose * Isometry3::from_parts(Translation3::identity(), turn * spin) * rel;
-                PlacedSuperquadric::new(shape, pose)
-            })
-            .collect();
-        let support: Vec<usize> = placed
-            .iter()
-            .map(|q| {
-                if check.allows(space, q) {
-                    search::consensus(space, q, band)
-                } else {
-                    0
-                }
-            })
-            .collect();
-        for k in 0..steps {
-            let (prev, next) = (support[(k + steps - 1) % steps], support[(k + 1) % steps]);
-            // A plateau's first step stands for it.
-            if support[k] >= search::MIN_SAMPLE && support[k] > prev && support[k] >= next {
-                out.push((
-                    support[k],
-                    Fit {
-                        placed: placed[k],
-                        m: f64::INFINITY,
-                        iterations: 0,
-                    },
-                ));
-            }
-        }
-    }
-    out.sort_by(|a, b| b.0.cmp(&a.0));
-    out.truncate(SPIN_KEPT);
-    out
-}
-
-/// Whether turning the parent over (half a turn about its x axis) puts the part, placed at `rel`
-/// in the parent's frame, where some spin about the parent's axis already puts it: when the part
-/// sits in the parent's middle plane and the turn is one of the part's own symmetries there (a
-/// mallet's shaft, a cup's handle). Then the turned-over spins repeat the others.
-fn same_when_turned_over(
-    rel: &Isometry3<f64>,
-    shape: &crate::geometry::Superquadric,
-    turned_over: &UnitQuaternion<f64>,
-) -> bool {
-    // Turned over, then spun back by any angle: the part's pose in its own frame.
-    let moved = rel.inverse() * Isometry3::from_parts(Translation3::identity(), *turned_over) * rel;
-    if moved.translation.vector.norm() > 1e-6 {
-        return false;
-    }
-    let half = |axis: nalgebra::Unit<Vector3<f64>>| UnitQuaternion::from_axis_angle(&axis, std::f64::consts::PI);
-    // The superquadric is even in x and y; untapered, also in z.
-    let mut symmetries = vec![UnitQuaternion::identity(), half(Vector3::z_axis())];
-    if !shape.is_tapered() {
-        symmetries.extend([half(Vector3::x_axis()), half(Vector3::y_axis())]);
-    }
-    symmetries.iter().any(|s| s.angle_to(&moved.rotation) < 1e-6)
 }
 
 /// A and D of one connection (paper eq. 6, 7); infinite when a part is missing. An untapered
@@ -615,12 +489,7 @@ fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Superquadric;
-    use std::path::Path;
-
-    fn rel(model: &Model, parent: usize, part: usize) -> Isometry3<f64> {
-        model.parts[parent].pose_in_object.inverse() * model.parts[part].pose_in_object
-    }
+    use nalgebra::Isometry3;
 
     /// The votes that rank placements are the S and I the full score counts, for placements on,
     /// near and off the data, of closed parts and of an open one (whose I counts its lid points
@@ -693,27 +562,5 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    fn turning_the_parent_over_repeats_a_part_in_its_middle_plane_only() {
-        let models = Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
-        let over = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
-        // A mallet's shaft and a cup's handle sit in the middle plane of the head and the body.
-        for name in ["mallet", "cup"] {
-            let m = Model::load(name, &models).unwrap();
-            assert!(
-                same_when_turned_over(&rel(&m, 0, 1), &m.parts[1].shape, &over),
-                "{name}"
-            );
-        }
-        // Off that plane (a handle 2 cm up), turned over is elsewhere.
-        let shape = Superquadric::new([0.03, 0.023, 0.008], 0.5, 1.0, 0.0, 0.0).unwrap();
-        let up = Isometry3::translation(0.05, 0.0, 0.02);
-        assert!(!same_when_turned_over(&up, &shape, &over));
-        // In the plane but tapered along an axis the turn reverses: not the same surface.
-        let tapered = Superquadric::new([0.03, 0.03, 0.05], 0.5, 1.0, 0.3, 0.3).unwrap();
-        let flat = Isometry3::translation(0.05, 0.0, 0.0);
-        assert!(!same_when_turned_over(&flat, &tapered, &over));
     }
 }

@@ -40,6 +40,7 @@ mod rigid;
 mod sample_cache;
 mod search;
 mod select;
+mod shell;
 mod verify;
 mod visibility;
 
