@@ -2,10 +2,9 @@
 //! the model puts it against an already-found part (at every spin of that part about its axis,
 //! which its fit does not fix) and searched by a few RANSAC trials in the shell its connection
 //! leaves (both in `shell`); each placement found is refined and scored once for every candidate
-//! that found it. The
-//! combinations are ranked by the connection errors A and D (paper eq. 6, 7) together with every
-//! part's M, S and I, and the best combination of each anchor candidate is refined as one rigid
-//! object.
+//! that found it. The combinations are ranked by the connection errors A and D (paper eq. 6, 7)
+//! together with every part's M, S and I, and the best combination of each anchor candidate is
+//! refined as one rigid object.
 
 use super::accept::{self, object_pose};
 use super::anchor::Anchors;
