@@ -106,6 +106,50 @@ fn fit_plane(points: &[Point3<f64>], idx: impl Iterator<Item = usize> + Clone) -
 /// Find and remove the dominant plane. `keep_below`: keep points on the far side of the plane
 /// (under a table) too; by default they are dropped, since nothing there stands on it.
 pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint: Option<Point3<f64>>) -> PlaneRemoval {
+    let found = sample_stride(points.len()).and_then(|stride| {
+        let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
+        find_dominant_plane(&sample, viewpoint)
+    });
+    split_at_plane(points, found, keep_below, viewpoint)
+}
+
+/// A plane found on an even sample of the points ([`find_dominant_plane`]), before the points
+/// are split at it ([`split_at_plane`]).
+#[derive(Debug, Clone, Copy)]
+pub struct FoundPlane {
+    plane: Plane,
+    band: f64,
+    range_scale: RangeScale,
+}
+
+/// Every how many of `n` points the plane is found on: a table holds far more points than a
+/// plane needs (a Kinect frame 300 000), and every step of the search passes over them several
+/// times; only the split into plane and objects runs on every point. `None`: too few points to
+/// look for a plane in.
+pub fn sample_stride(n: usize) -> Option<usize> {
+    (n >= SEEDS).then(|| n.div_ceil(FIT_POINTS).max(1))
+}
+
+/// The dominant plane of `sample`, every [`sample_stride`]-th of the points, and the band its
+/// points lie in.
+pub fn find_dominant_plane(sample: &[Point3<f64>], viewpoint: Option<Point3<f64>>) -> Option<FoundPlane> {
+    let range_scale = RangeScale::new(sample, viewpoint);
+    let (plane, band) = find_plane(sample, &range_scale)?;
+    Some(FoundPlane {
+        plane,
+        band,
+        range_scale,
+    })
+}
+
+/// Split `points` at the plane found on their sample, or keep them all when none was found or it
+/// holds too few of them. `keep_below` as for [`remove_dominant_plane`].
+pub fn split_at_plane(
+    points: &[Point3<f64>],
+    found: Option<FoundPlane>,
+    keep_below: bool,
+    viewpoint: Option<Point3<f64>>,
+) -> PlaneRemoval {
     // Nothing removed: every point kept.
     let no_plane = |inliers: usize, band: f64, range_scale: RangeScale| PlaneRemoval {
         plane: None,
@@ -114,16 +158,12 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         kept: (0..points.len()).collect(),
         range_scale,
     };
-    if points.len() < SEEDS {
-        return no_plane(0, 0.0, RangeScale::uniform());
-    }
-    // The plane and its band are found on an even subsample: a table holds far more points than
-    // a plane needs (a Kinect frame 300 000), and every step below passes over them several
-    // times. Only the final split into plane and objects runs on every point.
-    let stride = points.len().div_ceil(FIT_POINTS).max(1);
-    let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
-    let range_scale = RangeScale::new(&sample, viewpoint);
-    let Some((mut plane, band)) = find_plane(&sample, &range_scale) else {
+    let Some(FoundPlane {
+        mut plane,
+        band,
+        range_scale,
+    }) = found
+    else {
         return no_plane(0, 0.0, RangeScale::uniform());
     };
     // Each point's distance once: the split below and the count here both need it.

@@ -6,7 +6,9 @@ use super::Params;
 use super::search::{PlaneCheck, SearchSettings, SearchSpace, morton_order};
 use super::verify::{SurfaceSamples, median_spacing};
 use crate::cloud::grid::{Grid, voxel_subsample};
-use crate::cloud::plane::{Plane, RangeScale, remove_dominant_plane};
+use crate::cloud::plane::{
+    Plane, RangeScale, find_dominant_plane, remove_dominant_plane, sample_stride, split_at_plane,
+};
 use crate::model::Model;
 use nalgebra::Point3;
 use std::fmt;
@@ -90,7 +92,6 @@ impl fmt::Display for RemovalSummary {
 /// Filter the cloud (non-finite points are skipped) and remove the support plane.
 pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     let origin = params.viewpoint.unwrap_or(Point3::origin());
-    let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
     // x - x is 0 for a finite x and NaN otherwise: a count without branches.
     #[allow(clippy::eq_op)]
     let input_points = cloud
@@ -98,42 +99,54 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         .filter(|p| (p[0] - p[0]) + (p[1] - p[1]) + (p[2] - p[2]) == 0.0)
         .count();
     let stride = thinning_stride(cloud, origin);
-    let to_f64 = |p: &[f32; 3]| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len() / stride + 1);
-    if input_points == cloud.len() {
-        // Every point finite (a simulated sweep, a filtered cloud): a plain conversion, without
-        // the test that keeps the loop from being vectorized.
-        points.extend(cloud.iter().step_by(stride).map(to_f64));
-    } else {
-        points.extend(cloud.iter().step_by(stride).filter(finite).map(to_f64));
-    }
-    if stride > 1 {
-        tracing::debug!(
-            "rows thinned to one point in {stride}: {} of {input_points}",
-            points.len()
-        );
-    }
-    let points: Vec<Point3<f64>> = match params.max_range {
-        Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
-        None => points,
-    };
-    let points = without_wild_points(points);
     if !params.remove_plane {
+        let points = without_wild_points(filtered(cloud, stride, input_points, params, origin));
+        let all_grid = sight_grid(&points);
         return Scene {
             input_points,
             objects: points.clone(),
-            all_grid: sight_grid(&points),
+            all_grid,
             points,
             plane: None,
             noise: RangeNoise::uniform(DEFAULT_NOISE),
         };
     }
-    // The grid of the lines of sight needs every point and nothing of the plane: it is built on
-    // the second core while the plane is found.
-    let (removal, all_grid) = rayon::join(
-        || remove_dominant_plane(&points, false, params.viewpoint),
-        || sight_grid(&points),
+    // The plane is found on an even sample of the points: taken from the cloud on this core
+    // while the other converts every point and builds the grid of the lines of sight, which
+    // needs nothing of the plane.
+    let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
+    let in_range = |p: &Point3<f64>| params.max_range.is_none_or(|r| (p - origin).norm() <= r);
+    let kept = || cloud.iter().step_by(stride).filter(finite).map(to_f64).filter(in_range);
+    let n = if stride == 1 && params.max_range.is_none() {
+        input_points
+    } else {
+        kept().count()
+    };
+    let (found, (points, all_grid)) = rayon::join(
+        || {
+            sample_stride(n).and_then(|s| {
+                let sample: Vec<Point3<f64>> = kept().step_by(s).collect();
+                find_dominant_plane(&sample, params.viewpoint)
+            })
+        },
+        || {
+            let points = without_wild_points(filtered(cloud, stride, input_points, params, origin));
+            let all_grid = sight_grid(&points);
+            (points, all_grid)
+        },
     );
+    // Wild points dropped: the plane is found again on the sample of the points that stay.
+    let removal = if points.len() == n {
+        split_at_plane(&points, found, false, params.viewpoint)
+    } else {
+        remove_dominant_plane(&points, false, params.viewpoint)
+    };
+    if stride > 1 {
+        tracing::debug!(
+            "rows thinned to one point in {stride}: {} of {input_points} kept",
+            points.len()
+        );
+    }
     let noise = if removal.plane.is_some() {
         RangeNoise {
             at_reference: (removal.band / 3.0).max(MIN_NOISE),
@@ -156,6 +169,33 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         all_grid,
         plane: removal.plane,
         noise,
+    }
+}
+
+fn to_f64(p: &[f32; 3]) -> Point3<f64> {
+    Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+}
+
+/// Every `stride`-th point of the cloud that is finite and within range, in double precision.
+fn filtered(
+    cloud: &[[f32; 3]],
+    stride: usize,
+    input_points: usize,
+    params: &Params,
+    origin: Point3<f64>,
+) -> Vec<Point3<f64>> {
+    let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
+    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len() / stride + 1);
+    if input_points == cloud.len() {
+        // Every point finite: a plain conversion, without the test that keeps the loop from
+        // being vectorized.
+        points.extend(cloud.iter().step_by(stride).map(to_f64));
+    } else {
+        points.extend(cloud.iter().step_by(stride).filter(finite).map(to_f64));
+    }
+    match params.max_range {
+        Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
+        None => points,
     }
 }
 
@@ -206,36 +246,56 @@ fn thinning_stride(cloud: &[[f32; 3]], origin: Point3<f64>) -> usize {
 /// box's size, a point is taken for a wild return and dropped.
 const WILD_REACH: f64 = 2.0;
 
-/// The points without wild returns (a reflection, a window, a corrupt value 30 m or 3e38 m
-/// away): a few such points are nothing a detector can use, and stretch every grid and bounding
-/// box over empty space. The box is the 1st to 99th percentile of each coordinate, widened by
+/// Where wild returns lie (a reflection, a window, a corrupt value 30 m or 3e38 m away): a few
+/// such points are nothing a detector can use, and stretch every grid and bounding box over
+/// empty space. Outside the box of the 1st to 99th percentile of each coordinate, widened by
 /// twice its size (at least 1 cm) on each side; the room behind a table stays.
-fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
-    if points.len() < 100 {
-        return points;
+struct WildBounds([(f64, f64); 3]);
+
+impl WildBounds {
+    /// The bounds of `n` finite points (`None` below 100, too few to tell). The percentiles are
+    /// those of an even share of 2 000 of them: a bound widened by twice the box does not need
+    /// them closer than that.
+    fn of(points: impl Iterator<Item = Point3<f64>>, n: usize) -> Option<WildBounds> {
+        if n < 100 {
+            return None;
+        }
+        let stride = n.div_ceil(2_000).max(1);
+        let mut v: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(2_000));
+        for p in points.step_by(stride) {
+            for (k, c) in v.iter_mut().enumerate() {
+                c.push(p[k]);
+            }
+        }
+        Some(WildBounds(v.map(|mut v| {
+            let n = v.len();
+            let lo = *v.select_nth_unstable_by(n / 100, f64::total_cmp).1;
+            let hi = *v.select_nth_unstable_by(n - 1 - n / 100, f64::total_cmp).1;
+            let reach = WILD_REACH * (hi - lo).max(0.01);
+            (lo - reach, hi + reach)
+        })))
     }
-    // The percentiles of an even share of 2 000 points: a bound widened by twice the box does
-    // not need them closer than that.
-    let stride = points.len().div_ceil(2_000).max(1);
-    let bounds: [(f64, f64); 3] = std::array::from_fn(|k| {
-        let mut v: Vec<f64> = points.iter().step_by(stride).map(|p| p[k]).collect();
-        let n = v.len();
-        let lo = *v.select_nth_unstable_by(n / 100, f64::total_cmp).1;
-        let hi = *v.select_nth_unstable_by(n - 1 - n / 100, f64::total_cmp).1;
-        let reach = WILD_REACH * (hi - lo).max(0.01);
-        (lo - reach, hi + reach)
-    });
-    // 1 for a point outside the box, 0 inside, without branches: the count over every point,
-    // which nearly always finds none, vectorizes. The points are finite: outside is below the
-    // low bound or above the high one.
-    let outside = |p: &Point3<f64>| {
-        let out = |k: usize| usize::from(p[k] < bounds[k].0) | usize::from(p[k] > bounds[k].1);
+
+    /// 1 for a point outside the box, 0 inside, without branches: the count over every point,
+    /// which nearly always finds none, vectorizes. The points are finite: outside is below the
+    /// low bound or above the high one.
+    #[inline]
+    fn outside(&self, p: &Point3<f64>) -> usize {
+        let b = &self.0;
+        let out = |k: usize| usize::from(p[k] < b[k].0) | usize::from(p[k] > b[k].1);
         out(0) | out(1) | out(2)
+    }
+}
+
+/// The points without wild returns ([`WildBounds`]).
+fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
+    let Some(wild) = WildBounds::of(points.iter().copied(), points.len()) else {
+        return points;
     };
-    if points.iter().map(outside).sum::<usize>() == 0 {
+    if points.iter().map(|p| wild.outside(p)).sum::<usize>() == 0 {
         return points;
     }
-    points.into_iter().filter(|p| outside(p) == 0).collect()
+    points.into_iter().filter(|p| wild.outside(p) == 0).collect()
 }
 
 /// The grid the free-space check looks along the lines of sight in.
@@ -479,6 +539,64 @@ mod tests {
         let s = scene(&dense, &params);
         assert_eq!(s.input_points, dense.len() - 2);
         assert!(s.points.len() <= dense.len() / 10 + 1, "{} kept", s.points.len());
+    }
+
+    /// The plane found on a sample taken from the cloud, beside the conversion, is the one found
+    /// on the converted points, and splits them the same: with holes, thinned rows, a range cut
+    /// and wild returns (whose removal changes the sample).
+    #[test]
+    fn the_plane_found_beside_the_conversion_is_the_one_of_the_points() {
+        let sweep = crate::sim::simulate(
+            &crate::sim::Scene::from_file(
+                &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/fig3_table.toml"),
+                &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models"),
+            )
+            .unwrap(),
+            1,
+        );
+        let viewpoint = sweep.cloud.viewpoint_position();
+        let plain = sweep.cloud.points.clone();
+        assert!(plain.iter().any(|p| p[0].is_nan()), "a sweep has holes");
+        let mut wild = plain.clone();
+        let k = wild.iter().position(|p| p[0].is_finite()).unwrap();
+        wild[k] = [3e4, -2e4, 5e4];
+        let finite: Vec<[f32; 3]> = plain.iter().copied().filter(|p| p[0].is_finite()).collect();
+        let dense: Vec<[f32; 3]> = rows(0.0002, 4096, 30, 0.0005);
+        let cases: [(&str, &[[f32; 3]], Option<f64>); 5] = [
+            ("sweep", &plain, None),
+            ("wild return", &wild, None),
+            ("range cut", &plain, Some(1.0)),
+            ("every point finite", &finite, None),
+            ("thinned rows", &dense, None),
+        ];
+        for (name, cloud, max_range) in cases {
+            let params = Params {
+                viewpoint: if name == "thinned rows" { None } else { viewpoint },
+                max_range,
+                ..Params::default()
+            };
+            let s = scene(cloud, &params);
+            let origin = params.viewpoint.unwrap_or(Point3::origin());
+            let stride = thinning_stride(cloud, origin);
+            let input = cloud.iter().filter(|p| p.iter().all(|v| v.is_finite())).count();
+            let points = without_wild_points(filtered(cloud, stride, input, &params, origin));
+            let removal = remove_dominant_plane(&points, false, params.viewpoint);
+            assert!(removal.plane.is_some(), "{name}: no plane");
+            assert_eq!(s.points, points, "{name}");
+            assert_eq!(s.plane, removal.plane, "{name}");
+            let objects: Vec<Point3<f64>> = removal.kept.iter().map(|&i| points[i]).collect();
+            assert_eq!(s.objects, objects, "{name}");
+        }
+        let count = |cloud: &[[f32; 3]], max_range| {
+            let params = Params {
+                viewpoint,
+                max_range,
+                ..Params::default()
+            };
+            scene(cloud, &params).points.len()
+        };
+        let all = count(&plain, None);
+        assert!(count(&wild, None) == all - 1 && count(&plain, Some(1.0)) < all);
     }
 
     /// Twice the range, four times the noise; never under the floor; one figure without a
