@@ -62,13 +62,35 @@ impl PlaneCheck {
         -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + lowest)
     }
 
+    /// Whether the placed shape reaches through the plane by more than `depth` (m), that is
+    /// [`PlaneCheck::penetration`] `> depth`, in fewer steps: the box the shape lies in settles
+    /// most poses that stay clear, and a pose that reaches deeper is settled by the first sample
+    /// past the limit.
+    fn reaches_through(&self, placed: &PlacedSuperquadric, plane: &Plane, depth: f64) -> bool {
+        let n_local = placed.pose.rotation.inverse() * plane.normal;
+        // Deeper than `depth` where a point lies below this along the normal (local frame).
+        let limit = -(plane.signed_distance(&Point3::from(placed.pose.translation.vector)) + depth);
+        let ext = placed.shape.local_half_extents();
+        let box_lowest = -(n_local.x.abs() * ext.x + n_local.y.abs() * ext.y + n_local.z.abs() * ext.z);
+        box_lowest < limit && self.samples.iter().any(|(q, _)| n_local.dot(q) < limit)
+    }
+
+    /// Whether a trial may start from `placed`: it reaches through the plane by no more than
+    /// `slack` beyond what [`PlaneCheck::allows`].
+    pub fn may_start(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric, slack: f64) -> bool {
+        space
+            .plane
+            .as_ref()
+            .is_none_or(|p| !self.reaches_through(placed, p, self.tolerance + slack))
+    }
+
     /// Whether the pose is possible for an object resting on or above the plane: it does not
     /// reach through it, and an open container stands on its base or its rim.
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
         space.plane.as_ref().is_none_or(|p| {
             let z = placed.pose.rotation * Vector3::z();
-            self.penetration(placed, p) <= self.tolerance
-                && (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
+            (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
+                && !self.reaches_through(placed, p, self.tolerance)
         })
     }
 }
@@ -76,6 +98,43 @@ impl PlaneCheck {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The box and the first sample past the limit settle what the lowest sample would: on
+    /// poses of every tilt and height about the plane, at depths from well above it to well
+    /// through it.
+    #[test]
+    fn reaching_through_is_the_penetration_past_the_depth() {
+        use nalgebra::{Isometry3, Vector3};
+        use rand::{RngExt, SeedableRng};
+        let shape = Superquadric::new([0.06, 0.05, 0.02], 0.4, 0.8, 0.3, -0.2).unwrap();
+        let check = PlaneCheck::new(&shape, 0.001, false);
+        let plane = Plane {
+            normal: Vector3::new(0.1, -0.05, 1.0).normalize(),
+            d: -0.7,
+        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let (mut through, mut clear) = (0, 0);
+        for _ in 0..2000 {
+            let pose = Isometry3::new(
+                Vector3::new(0.8, 0.1, 0.7 + rng.random_range(-0.08..0.1)),
+                Vector3::new(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                ),
+            );
+            let placed = PlacedSuperquadric::new(shape, pose);
+            let depth = rng.random_range(-0.02..0.05);
+            let deeper = check.penetration(&placed, &plane) > depth;
+            assert_eq!(
+                check.reaches_through(&placed, &plane, depth),
+                deeper,
+                "{pose:?} at {depth}"
+            );
+            if deeper { through += 1 } else { clear += 1 }
+        }
+        assert!(through > 300 && clear > 300, "{through} through, {clear} clear");
+    }
 
     /// The check's samples are the shape's surface at half its smallest size, sampled once and
     /// shared by every check of that shape.

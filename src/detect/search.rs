@@ -6,8 +6,9 @@
 //!
 //! Beyond the paper, every start is placed where the superquadric would touch the sampled patch
 //! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
-//! centroid, so a fit needs a few iterations instead of twenty; the starts are screened by
-//! successive halving and only the best continues. Hypotheses that meet in the coarse rounds of
+//! centroid, so a fit needs a few iterations instead of twenty; starts that would reach deep
+//! through the support plane are not fitted, and the rest are screened by successive halving
+//! and only the best continues. Hypotheses that meet in the coarse rounds of
 //! the refinement are refined, scored and voted on once.
 //!
 //! [`search_part`] runs the m hypotheses of one part in parallel, each over its own compact region
@@ -285,7 +286,15 @@ pub fn ransac(
         }
         sample.clear();
         sample.extend(near[..k].iter().map(|&i| space.sub[i]));
-        let starts = initial_poses(shape, &sample, space.viewpoint, check.rest_axis(space));
+        let mut starts = initial_poses(shape, &sample, space.viewpoint, check.rest_axis(space));
+        // A start turned so that the part reaches through the support plane further than the
+        // sample spans is turned the wrong way for this patch (a flat part set on its edge
+        // beside a patch near the table): fitted, it ends where the plane does not allow it,
+        // and the part's right way round for the patch is among the other starts.
+        starts.retain(|s| check.may_start(space, &PlacedSuperquadric::new(*shape, *s), radius));
+        if starts.is_empty() {
+            continue;
+        }
         if let Some(f) = fit_from_starts(shape, &starts, &sample, settings.fit_iterations) {
             if !check.allows(space, &f.placed) {
                 continue;
