@@ -245,30 +245,22 @@ pub fn sample_radius(shape: &Superquadric) -> f64 {
     (shape.a[0] * shape.a[1] * shape.a[2]).cbrt()
 }
 
-/// The low-level search of one hypothesis: `settings.trials` RANSAC trials seeded from `seeds`
-/// (indices into `space.sub`); returns the best possible fit, unrefined.
-///
-/// The paper keeps the trial with the smallest M over its 30 points. That is an in-sample
-/// measure: a small patch of anything is fitted well, so it favours whatever object fits its
-/// patches best, not the object. Here a trial is judged by its consensus, as in classic RANSAC:
-/// the subsampled points within the inlier band of the fitted surface, ties broken by M.
-pub fn ransac(
+/// The samples of one hypothesis' `settings.trials` RANSAC trials, seeded from `seeds` (indices
+/// into `space.sub`): each a random subset of the points within the sample radius of a random
+/// seed point. A seed with too few points around it gives no sample.
+fn draw_samples(
     space: &SearchSpace<'_>,
     shape: &Superquadric,
     seeds: &[usize],
     settings: &SearchSettings,
-    check: &PlaneCheck,
     rng: &mut ChaCha8Rng,
-) -> Option<(usize, Fit)> {
+) -> Vec<Vec<Point3<f64>>> {
     if seeds.is_empty() {
-        return None;
+        return Vec::new();
     }
     let radius = sample_radius(shape);
-    // The region's seeds lie close together: the noise at the first holds for all.
-    let band = refine_band(shape, space.noise.at(&space.sub[seeds[0]]));
-    let mut best: Option<(usize, Fit)> = None;
     let mut near = Vec::new();
-    let mut sample = Vec::with_capacity(settings.sample_points);
+    let mut out = Vec::with_capacity(settings.trials);
     for _ in 0..settings.trials {
         let s = seeds[rng.random_range(0..seeds.len())];
         near.clear();
@@ -284,31 +276,48 @@ pub fn ransac(
             let j = rng.random_range(i..near.len());
             near.swap(i, j);
         }
-        sample.clear();
-        sample.extend(near[..k].iter().map(|&i| space.sub[i]));
-        let mut starts = initial_poses(shape, &sample, space.viewpoint, check.rest_axis(space));
-        // A start turned so that the part reaches through the support plane further than the
-        // sample spans is turned the wrong way for this patch (a flat part set on its edge
-        // beside a patch near the table): fitted, it ends where the plane does not allow it,
-        // and the part's right way round for the patch is among the other starts.
-        starts.retain(|s| check.may_start(space, &PlacedSuperquadric::new(*shape, *s), radius));
-        if starts.is_empty() {
-            continue;
-        }
-        if let Some(f) = fit_from_starts(shape, &starts, &sample, settings.fit_iterations) {
-            if !check.allows(space, &f.placed) {
-                continue;
-            }
-            let support = consensus(space, &f.placed, band);
-            if best
-                .as_ref()
-                .is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m))
-            {
-                best = Some((support, f));
-            }
-        }
+        out.push(near[..k].iter().map(|&i| space.sub[i]).collect());
     }
-    best
+    out
+}
+
+/// One RANSAC trial: the pose fitted to `sample` from the starts [`initial_poses`] gives, with
+/// its consensus in `band`; none where the support plane does not allow it.
+///
+/// The paper keeps the trial with the smallest M over its 30 points. That is an in-sample
+/// measure: a small patch of anything is fitted well, so it favours whatever object fits its
+/// patches best, not the object. Here a trial is judged by its consensus, as in classic RANSAC:
+/// the subsampled points within the inlier band of the fitted surface, ties broken by M.
+fn trial(
+    space: &SearchSpace<'_>,
+    shape: &Superquadric,
+    sample: &[Point3<f64>],
+    band: f64,
+    settings: &SearchSettings,
+    check: &PlaneCheck,
+) -> Option<(usize, Fit)> {
+    let radius = sample_radius(shape);
+    let mut starts = initial_poses(shape, sample, space.viewpoint, check.rest_axis(space));
+    // A start turned so that the part reaches through the support plane further than the
+    // sample spans is turned the wrong way for this patch (a flat part set on its edge
+    // beside a patch near the table): fitted, it ends where the plane does not allow it,
+    // and the part's right way round for the patch is among the other starts.
+    starts.retain(|s| check.may_start(space, &PlacedSuperquadric::new(*shape, *s), radius));
+    if starts.is_empty() {
+        return None;
+    }
+    let f = fit_from_starts(shape, &starts, sample, settings.fit_iterations)?;
+    if !check.allows(space, &f.placed) {
+        return None;
+    }
+    Some((consensus(space, &f.placed, band), f))
+}
+
+/// Whether a trial with `support` and fit `f` beats the best so far: more support, or as much
+/// and a smaller M (the first of equals stays).
+fn better(support: usize, f: &Fit, best: &Option<(usize, Fit)>) -> bool {
+    best.as_ref()
+        .is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m))
 }
 
 widened! {
@@ -355,8 +364,13 @@ pub fn search_part(
     refine_fits(space, &distinct(fits, known), settings, open, check, known, refine)
 }
 
-/// The best trial fit (with its consensus) of each of `m` compact regions of the seed points, in
-/// parallel, each region from its own stream; unrefined.
+/// The best trial fit (with its consensus) of each of `m` compact regions of the seed points,
+/// each region's trials drawn from its own stream; unrefined.
+///
+/// The draws (a grid query and a partial shuffle each) are made region by region; the trials'
+/// fits, nearly all the cost, then run side by side over all the regions at once: the regions'
+/// costs differ several times over (a region on the table's edge fits little, one on an object
+/// every start), and ten regions shared by whole between two cores leave one idle.
 pub fn region_fits(
     space: &SearchSpace<'_>,
     shape: &Superquadric,
@@ -367,13 +381,40 @@ pub fn region_fits(
     seed: u64,
 ) -> Vec<(usize, Fit)> {
     let regions = spatial_regions(space.sub_morton, seeds, m);
-    (0..m)
+    let region = |h: usize| &regions[h % regions.len()];
+    let draws: Vec<Vec<Vec<Point3<f64>>>> = (0..m)
         .into_par_iter()
-        .filter_map(|h| {
+        .map(|h| {
             let mut rng = ChaCha8Rng::seed_from_u64(stream_seed(seed, h as u64));
-            ransac(space, shape, &regions[h % regions.len()], settings, check, &mut rng)
+            draw_samples(space, shape, region(h), settings, &mut rng)
         })
-        .collect()
+        .collect();
+    // The region's seeds lie close together: the noise at the first holds for all.
+    let bands: Vec<f64> = (0..m)
+        .map(|h| {
+            region(h)
+                .first()
+                .map_or(0.0, |&s| refine_band(shape, space.noise.at(&space.sub[s])))
+        })
+        .collect();
+    let trials: Vec<(usize, &[Point3<f64>])> = draws
+        .iter()
+        .enumerate()
+        .flat_map(|(h, d)| d.iter().map(move |sample| (h, &sample[..])))
+        .collect();
+    let fits: Vec<Option<(usize, Fit)>> = trials
+        .par_iter()
+        .map(|&(h, sample)| trial(space, shape, sample, bands[h], settings, check))
+        .collect();
+    let mut best: Vec<Option<(usize, Fit)>> = vec![None; m];
+    for (&(h, _), fit) in trials.iter().zip(fits) {
+        if let Some((support, f)) = fit
+            && better(support, &f, &best[h])
+        {
+            best[h] = Some((support, f));
+        }
+    }
+    best.into_iter().flatten().collect()
 }
 
 /// Split the seed points (indices into the points `morton` orders, each at most once) into `m`
