@@ -313,7 +313,7 @@ pub struct Prepared {
     pub sub_grid: Grid,
     /// Indices into `sub` in Morton order (`search::morton_order`).
     pub sub_morton: Vec<u32>,
-    /// `sub` subsampled again to twice its voxel, where the trials count their consensus.
+    /// `sub` subsampled again to three times its voxel, where the trials count their consensus.
     pub coarse: Vec<Point3<f64>>,
     /// Grid over `coarse`, cells the size of the model's smallest part.
     pub coarse_grid: Grid,
@@ -387,9 +387,9 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
                 .collect();
             let sub_grid = Grid::new(&sub, min_size);
             let sub_morton = morton_order(&sub);
-            // A trial's consensus only has to rank the trials of one hypothesis: a quarter of the
-            // points on a surface rank them as well, and counting is a third of a trial's work.
-            let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 2.0 * voxel).into_iter().map(|i| sub[i]).collect();
+            // A trial's consensus only has to rank the trials of one hypothesis: a ninth of the
+            // points on a surface (three times the voxel) rank them as well, and counting is a third of a trial's work.
+            let coarse: Vec<Point3<f64>> = voxel_subsample(&sub, 3.0 * voxel).into_iter().map(|i| sub[i]).collect();
             let coarse_grid = Grid::new(&coarse, min_size);
             (sub, sub_grid, sub_morton, coarse, coarse_grid)
         },
