@@ -12,6 +12,8 @@ use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 use std::fmt;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// How far (m) the middle of a vessel's base must lie below its foot ring for a container
 /// standing on its rim to be told from a closed part of its shape. Ceramic mugs and bowls stand
@@ -163,11 +165,12 @@ pub fn free_space(
 }
 
 /// Judge candidates in the order the answer is chosen in: `make` gives each item's candidate
-/// (with a value the caller keeps), as many side by side as there are threads. With `lazy`, a
-/// candidate that passes the acceptance test is checked against the free space on the same
-/// thread, and the judging stops at the first that passes both: a later one could not change
-/// the answer. Without it, every item is made, all side by side. Returns what was made, in
-/// order, and whether the last passed.
+/// (with a value the caller keeps). With `lazy`, a candidate that passes the acceptance test is
+/// checked against the free space on the same thread, and the judging stops at the first that
+/// passes both: a later one could not change the answer. Each thread takes the next item in the
+/// order as soon as it is free (candidates cost several times more or less than each other), and
+/// none takes one past an item that has passed. Without `lazy`, every item is made, all side by
+/// side. Returns what was made, in order, up to the first that passed, and whether one did.
 pub fn judge_in_order<T: Sync, R: Send>(
     prep: &Prepared,
     params: &Params,
@@ -175,32 +178,41 @@ pub fn judge_in_order<T: Sync, R: Send>(
     lazy: bool,
     make: impl Fn(&T) -> (R, Detection) + Sync,
 ) -> (Vec<(R, Detection)>, bool) {
-    let at_a_time = if lazy {
-        rayon::current_num_threads()
-    } else {
-        items.len()
-    };
-    let mut out = Vec::with_capacity(items.len());
-    for group in items.chunks(at_a_time.max(1)) {
-        let judged: Vec<(R, Detection)> = group
-            .par_iter()
-            .map(|item| {
-                let (r, mut d) = make(item);
-                if lazy && d.found {
-                    check_free_space(prep, &mut d, params);
-                }
-                (r, d)
-            })
-            .collect();
-        for (r, d) in judged {
-            let passed = lazy && d.found;
-            out.push((r, d));
+    if !lazy {
+        return (items.par_iter().map(&make).collect(), false);
+    }
+    let next = AtomicUsize::new(0);
+    let first_passed = AtomicUsize::new(usize::MAX);
+    let made: Vec<Mutex<Option<(R, Detection)>>> = items.iter().map(|_| Mutex::new(None)).collect();
+    let threads = rayon::current_num_threads().min(items.len()).max(1);
+    (0..threads).into_par_iter().with_max_len(1).for_each(|_| {
+        loop {
+            let i = next.fetch_add(1, Ordering::SeqCst);
+            if i >= items.len() || i > first_passed.load(Ordering::SeqCst) {
+                break;
+            }
+            let (r, mut d) = make(&items[i]);
+            if d.found {
+                check_free_space(prep, &mut d, params);
+            }
+            let passed = d.found;
+            *made[i].lock().unwrap_or_else(|e| e.into_inner()) = Some((r, d));
             if passed {
-                return (out, true);
+                first_passed.fetch_min(i, Ordering::SeqCst);
             }
         }
-    }
-    (out, false)
+    });
+    let passed = first_passed.into_inner();
+    let out: Vec<(R, Detection)> = made
+        .into_iter()
+        .take(passed.saturating_add(1))
+        .map(|m| {
+            m.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every item up to the first that passed is judged")
+        })
+        .collect();
+    (out, passed != usize::MAX)
 }
 
 /// The free-space check of one candidate: each part's visible surface must not be where the
@@ -289,4 +301,49 @@ pub fn object_pose(model: &Model, parts: &[PartResult]) -> Isometry3<f64> {
         }
     }
     best.1 * anchor_in_object.inverse()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Judged lazily, the candidates come back in their order up to the first that passes and
+    /// no further, on any number of threads and whatever each costs; with none passing, all of
+    /// them; without `lazy`, all of them and none is said to pass.
+    #[test]
+    fn judging_in_order_stops_at_the_first_that_passes() {
+        let (_, params, prep) = super::super::prepare::simulated("fig3_table", 1, "bowl");
+        let detection = |found: bool| Detection {
+            found,
+            confidence: if found { 1.0 } else { 0.0 },
+            pose: Isometry3::identity(),
+            parts: Vec::new(),
+            connection_errors: Vec::new(),
+            upright: None,
+        };
+        let items: Vec<usize> = (0..12).collect();
+        let make = |passing: &'static [usize]| {
+            move |&k: &usize| {
+                // The early items cost the most: a free thread runs ahead of a busy one.
+                std::thread::sleep(std::time::Duration::from_micros(((12 - k) * 300) as u64));
+                (k, detection(passing.contains(&k)))
+            }
+        };
+        for threads in [1, 2, 3, 5] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let (out, passed) = judge_in_order(&prep, &params, &items, true, make(&[5, 9]));
+                assert!(passed, "{threads} threads");
+                assert_eq!(
+                    out.iter().map(|(k, _)| *k).collect::<Vec<_>>(),
+                    (0..=5).collect::<Vec<_>>()
+                );
+                assert!(out[..5].iter().all(|(_, d)| !d.found) && out[5].1.found);
+                let (out, passed) = judge_in_order(&prep, &params, &items, true, make(&[]));
+                assert!(!passed && out.len() == 12 && out.iter().enumerate().all(|(i, (k, _))| i == *k));
+                let (out, passed) = judge_in_order(&prep, &params, &items, false, make(&[0]));
+                assert!(!passed && out.len() == 12 && out[0].1.found);
+            });
+        }
+    }
 }
