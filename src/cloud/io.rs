@@ -1,17 +1,17 @@
 //! Point-cloud file IO: PLY, PCD and plain text.
 //!
 //! # Formats
-//! - **PLY** ([`read_ply`], [`write_ply`]): `ascii`, `binary_little_endian` and (read only)
+//! - **PLY** ([`read_ply`](super::read_ply), [`write_ply`](super::write_ply)): `ascii`, `binary_little_endian` and (read only)
 //!   `binary_big_endian`. The `vertex` element gives the points: its `x y z` properties (any scalar
 //!   type; `double` is rounded to `f32`) are the coordinates and every other scalar property becomes
-//!   a [`Field`] of the same name and type (`red`, `nx`, `intensity`, `label`, ...). List properties
+//!   a [`Field`](super::Field) of the same name and type (`red`, `nx`, `intensity`, `label`, ...). List properties
 //!   of the vertex element and all other elements (faces, edges, ...) are parsed past and dropped.
 //!   Type names `char uchar short ushort int uint float double` and `int8 ... float64` are read;
 //!   the former are written. Writing emits one `vertex` element: `x y z` as `float`, then each field
 //!   with its type; a field with `count = k > 1` becomes `k` properties `name_0 .. name_{k-1}` (they
 //!   read back as `k` separate fields). PLY has no notion of an organized cloud, so the writer records
 //!   `width x height` in an `obj_info sqscan width W height H` line, which the reader honours.
-//! - **PCD** ([`read_pcd`], [`write_pcd`]) as PCL writes it: v0.7 headers and older ones without
+//! - **PCD** ([`read_pcd`](super::read_pcd), [`write_pcd`](super::write_pcd)) as PCL writes it: v0.7 headers and older ones without
 //!   `VERSION`/`VIEWPOINT`/`COUNT` (`COLUMNS` is accepted for `FIELDS`, missing `SIZE`/`TYPE` mean
 //!   4-byte floats), `DATA ascii`, `binary` (point-major records) and `binary_compressed` (LZF, see
 //!   [`super::lzf`], over field-major data). `x y z` may be anywhere in the field list and of any
@@ -22,8 +22,8 @@
 //!   packed colours are NaN as floats. The viewpoint is checked but not kept (written as identity).
 //!   Writing puts `x y z` (`F 4`) first, then the fields in order.
 //! - **MCAP** (the `mcap` feature, read only): the first `sensor_msgs/msg/PointCloud2` in CDR,
-//!   that of `/sqscan/points` where there is one (see [`super::mcap`]).
-//! - **Plain text** ([`read_text`], [`write_text`]): one point per line, `x y z [more columns]`,
+//!   that of `/sqscan/points` where there is one (see `cloud/mcap.rs`).
+//! - **Plain text** ([`read_text`](super::read_text), [`write_text`](super::write_text)): one point per line, `x y z [more columns]`,
 //!   separated by whitespace and/or commas; `#` starts a comment, lines starting with `//` (e.g.
 //!   CloudCompare's column header) are ignored. Every line must have the same number of columns.
 //!   Extra columns become `F64` fields `c3`, `c4`, ... (0-based column index), except that exactly

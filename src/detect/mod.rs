@@ -3,8 +3,8 @@
 //! these stages in order, each in its own module, each handing a struct to the next:
 //!
 //! 1. `prepare`: drop non-finite, out-of-range and wild points, remove the dominant plane
-//!    ([`plane`]), which also gives the noise estimate, and subsample and grid the rest
-//!    ([`grid`]) -> `Prepared`;
+//!    ([`plane`](crate::cloud::plane)), which also gives the noise estimate, and subsample and grid the rest
+//!    ([`grid`](crate::cloud::grid)) -> `Prepared`;
 //! 2. `anchor`: the largest part searched over the whole scene by the hierarchical search
 //!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), the best of
 //!    each hypothesis refined on a denser subsample), its hypotheses scored and ranked by the

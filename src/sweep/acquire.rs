@@ -1,5 +1,5 @@
 //! One sweep with real devices: drive the PTU through the tilt range while reading profiles,
-//! then [`assemble`](super::assemble) them.
+//! then [`assemble`] them.
 //!
 //! The order of events:
 //!
