@@ -2,9 +2,9 @@
 //! give its 6-DoF pose, as Biegelbauer & Vincze (ICRA 2007) do, then further. [`detect`] runs
 //! these stages in order, each in its own module, each handing a struct to the next:
 //!
-//! 1. `prepare`: drop non-finite, out-of-range and wild points, remove the dominant plane
-//!    ([`plane`](crate::cloud::plane)), which also gives the noise estimate, and subsample and grid the rest
-//!    ([`grid`](crate::cloud::grid)) -> `Prepared`;
+//! 1. `prepare`: drop non-finite, out-of-range and wild points (`input`), remove the dominant
+//!    plane ([`plane`](crate::cloud::plane)), which also gives the noise estimate, and subsample
+//!    and grid the rest ([`grid`](crate::cloud::grid)) -> `Prepared`;
 //! 2. `anchor`: the largest part searched over the whole scene by the hierarchical search
 //!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), the best of
 //!    each hypothesis refined on a denser subsample), its hypotheses scored and ranked by the
@@ -30,6 +30,7 @@ mod anchor;
 mod base;
 mod compound;
 mod fit;
+mod input;
 pub mod output;
 mod params;
 mod plane_check;

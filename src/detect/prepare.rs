@@ -1,8 +1,9 @@
-//! The first stage: the cloud as the detector works on it. Non-finite points and points out of
-//! range are dropped, the dominant (support) plane is removed and gives the noise estimate, and
-//! the rest is subsampled and put into grids for the search and the checks.
+//! The first stage: the cloud as the detector works on it. The points the detector takes
+//! ([`input`]) lose the dominant (support) plane, which gives the noise estimate, and the rest is
+//! subsampled and put into grids for the search and the checks.
 
 use super::Params;
+use super::input;
 use super::search::{PlaneCheck, SearchSettings, SearchSpace, morton_order};
 use super::verify::{SurfaceSamples, median_spacing};
 use crate::cloud::grid::{Grid, voxel_subsample};
@@ -98,9 +99,9 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         .iter()
         .filter(|p| (p[0] - p[0]) + (p[1] - p[1]) + (p[2] - p[2]) == 0.0)
         .count();
-    let stride = thinning_stride(cloud, origin);
+    let stride = input::thinning_stride(cloud, origin);
     if !params.remove_plane {
-        let points = without_wild_points(filtered(cloud, stride, input_points, params, origin));
+        let points = input::points(cloud, stride, input_points, params);
         let all_grid = sight_grid(&points);
         return Scene {
             input_points,
@@ -114,9 +115,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     // The plane is found on an even sample of the points: taken from the cloud on this core
     // while the other converts every point and builds the grid of the lines of sight, which
     // needs nothing of the plane.
-    let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
-    let in_range = |p: &Point3<f64>| params.max_range.is_none_or(|r| (p - origin).norm() <= r);
-    let kept = || cloud.iter().step_by(stride).filter(finite).map(to_f64).filter(in_range);
+    let kept = || input::kept(cloud, stride, params);
     let n = if stride == 1 && params.max_range.is_none() {
         input_points
     } else {
@@ -130,7 +129,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
             })
         },
         || {
-            let points = without_wild_points(filtered(cloud, stride, input_points, params, origin));
+            let points = input::points(cloud, stride, input_points, params);
             let all_grid = sight_grid(&points);
             (points, all_grid)
         },
@@ -170,132 +169,6 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
         plane: removal.plane,
         noise,
     }
-}
-
-fn to_f64(p: &[f32; 3]) -> Point3<f64> {
-    Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)
-}
-
-/// Every `stride`-th point of the cloud that is finite and within range, in double precision.
-fn filtered(
-    cloud: &[[f32; 3]],
-    stride: usize,
-    input_points: usize,
-    params: &Params,
-    origin: Point3<f64>,
-) -> Vec<Point3<f64>> {
-    let finite = |p: &&[f32; 3]| p.iter().all(|v| v.is_finite());
-    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len() / stride + 1);
-    if input_points == cloud.len() {
-        // Every point finite: a plain conversion, without the test that keeps the loop from
-        // being vectorized.
-        points.extend(cloud.iter().step_by(stride).map(to_f64));
-    } else {
-        points.extend(cloud.iter().step_by(stride).filter(finite).map(to_f64));
-    }
-    match params.max_range {
-        Some(r) => points.into_iter().filter(|p| (p - origin).norm() <= r).collect(),
-        None => points,
-    }
-}
-
-/// The spacing (m) along a sensor's rows below which points are thinned: finer than any model's
-/// subsamples (at least 2 mm for the search, a twelfth of the smallest part for the refinement)
-/// and than the depth noise of a triangulating sensor at a metre.
-const THIN_SPACING: f64 = 0.002;
-
-/// Every how many points of the cloud the detector keeps: 1, unless the cloud's rows are much
-/// denser than [`THIN_SPACING`]. A profile sensor with 4096 columns, or a depth camera close to
-/// its target, gives points a fraction of a millimetre apart along a row, many times what any
-/// model's fit can use, and every stage would pay for them. The rows are seen in the file's own
-/// order: the median distance between consecutive finite points, over up to 2,000 pairs spread
-/// over the cloud, across the line of sight from `origin` (along it, a triangulating sensor's
-/// depth noise would hide how close the rows are). In an organized cloud consecutive points are
-/// neighbours along a row, and keeping every k-th thins the rows evenly; in an unorganized cloud
-/// consecutive points are far apart and nothing is thinned.
-fn thinning_stride(cloud: &[[f32; 3]], origin: Point3<f64>) -> usize {
-    const PAIRS: usize = 2_000;
-    if cloud.len() < 4 * PAIRS {
-        return 1;
-    }
-    let step = (cloud.len() - 1) / PAIRS;
-    let point = |p: &[f32; 3]| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-    let mut gaps: Vec<f64> = (0..PAIRS)
-        .map(|i| (&cloud[i * step], &cloud[i * step + 1]))
-        .filter(|(a, b)| a.iter().chain(b.iter()).all(|v| v.is_finite()))
-        .filter_map(|(a, b)| {
-            let (a, b) = (point(a), point(b));
-            let sight = (a - origin).try_normalize(1e-9)?;
-            Some((b - a).cross(&sight).norm())
-        })
-        .collect();
-    if gaps.len() < PAIRS / 4 {
-        return 1;
-    }
-    let n = gaps.len();
-    let median = *gaps.select_nth_unstable_by(n / 2, f64::total_cmp).1;
-    tracing::debug!("median gap between consecutive points {median:.5} m over {n} pairs");
-    if median <= 0.0 {
-        // Repeated points: nothing says how dense the rows are.
-        return 1;
-    }
-    ((THIN_SPACING / median).floor() as usize).clamp(1, 64)
-}
-
-/// How far beyond the box of the middle 98 % of the points (per axis), in multiples of that
-/// box's size, a point is taken for a wild return and dropped.
-const WILD_REACH: f64 = 2.0;
-
-/// Where wild returns lie (a reflection, a window, a corrupt value 30 m or 3e38 m away): a few
-/// such points are nothing a detector can use, and stretch every grid and bounding box over
-/// empty space. Outside the box of the 1st to 99th percentile of each coordinate, widened by
-/// twice its size (at least 1 cm) on each side; the room behind a table stays.
-struct WildBounds([(f64, f64); 3]);
-
-impl WildBounds {
-    /// The bounds of `n` finite points (`None` below 100, too few to tell). The percentiles are
-    /// those of an even share of 2 000 of them: a bound widened by twice the box does not need
-    /// them closer than that.
-    fn of(points: impl Iterator<Item = Point3<f64>>, n: usize) -> Option<WildBounds> {
-        if n < 100 {
-            return None;
-        }
-        let stride = n.div_ceil(2_000).max(1);
-        let mut v: [Vec<f64>; 3] = std::array::from_fn(|_| Vec::with_capacity(2_000));
-        for p in points.step_by(stride) {
-            for (k, c) in v.iter_mut().enumerate() {
-                c.push(p[k]);
-            }
-        }
-        Some(WildBounds(v.map(|mut v| {
-            let n = v.len();
-            let lo = *v.select_nth_unstable_by(n / 100, f64::total_cmp).1;
-            let hi = *v.select_nth_unstable_by(n - 1 - n / 100, f64::total_cmp).1;
-            let reach = WILD_REACH * (hi - lo).max(0.01);
-            (lo - reach, hi + reach)
-        })))
-    }
-
-    /// 1 for a point outside the box, 0 inside, without branches: the count over every point,
-    /// which nearly always finds none, vectorizes. The points are finite: outside is below the
-    /// low bound or above the high one.
-    #[inline]
-    fn outside(&self, p: &Point3<f64>) -> usize {
-        let b = &self.0;
-        let out = |k: usize| usize::from(p[k] < b[k].0) | usize::from(p[k] > b[k].1);
-        out(0) | out(1) | out(2)
-    }
-}
-
-/// The points without wild returns ([`WildBounds`]).
-fn without_wild_points(points: Vec<Point3<f64>>) -> Vec<Point3<f64>> {
-    let Some(wild) = WildBounds::of(points.iter().copied(), points.len()) else {
-        return points;
-    };
-    if points.iter().map(|p| wild.outside(p)).sum::<usize>() == 0 {
-        return points;
-    }
-    points.into_iter().filter(|p| wild.outside(p) == 0).collect()
 }
 
 /// The grid the free-space check looks along the lines of sight in.
@@ -484,52 +357,12 @@ pub(super) fn simulated(scene: &str, sim_seed: u64, name: &str) -> (Model, Param
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Vector3;
-
-    /// Rows of a plane 1 m away, `gap` apart along the row, with depth noise along the line of
-    /// sight, in the sensor's order.
-    fn rows(gap: f64, columns: usize, rows: usize, noise: f64) -> Vec<[f32; 3]> {
-        use rand::{RngExt, SeedableRng};
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-        let mut out = Vec::new();
-        for r in 0..rows {
-            for c in 0..columns {
-                let x = (c as f64 - columns as f64 / 2.0) * gap;
-                let y = r as f64 * 0.003;
-                let p = Vector3::new(x, y, 1.0);
-                let p = p * (1.0 + rng.random_range(-noise..noise) / p.norm());
-                out.push([p.x as f32, p.y as f32, p.z as f32]);
-            }
-        }
-        out
-    }
-
-    /// Rows 0.2 mm apart are thinned to about THIN_SPACING, however noisy their depth; rows at a
-    /// depth camera's 1.5 mm are not; the same points in no order are not either.
-    #[test]
-    fn dense_rows_are_thinned_along_the_row() {
-        let dense = rows(0.0002, 4096, 10, 0.002);
-        assert_eq!(thinning_stride(&dense, Point3::origin()), 10);
-        let sparse = rows(0.0015, 640, 20, 0.002);
-        assert_eq!(thinning_stride(&sparse, Point3::origin()), 1);
-        let mut shuffled = dense.clone();
-        use rand::{SeedableRng, seq::SliceRandom};
-        shuffled.shuffle(&mut rand_chacha::ChaCha8Rng::seed_from_u64(2));
-        assert_eq!(thinning_stride(&shuffled, Point3::origin()), 1);
-        // Mostly holes (no return): nothing to judge by.
-        let holes: Vec<[f32; 3]> = dense
-            .iter()
-            .enumerate()
-            .map(|(i, p)| if i % 8 == 0 { *p } else { [f32::NAN; 3] })
-            .collect();
-        assert_eq!(thinning_stride(&holes, Point3::origin()), 1);
-    }
 
     /// The scene reports every finite input point, thinned or not, and keeps about one in the
     /// stride.
     #[test]
     fn a_thinned_scene_counts_every_input_point() {
-        let mut dense = rows(0.0002, 4096, 10, 0.001);
+        let mut dense = input::rows(0.0002, 4096, 10, 0.001);
         dense[5] = [f32::NAN, 0.0, 0.0];
         dense[6] = [0.0, f32::INFINITY, 0.0];
         let params = Params {
@@ -561,13 +394,13 @@ mod tests {
         let k = wild.iter().position(|p| p[0].is_finite()).unwrap();
         wild[k] = [3e4, -2e4, 5e4];
         let finite: Vec<[f32; 3]> = plain.iter().copied().filter(|p| p[0].is_finite()).collect();
-        let dense: Vec<[f32; 3]> = rows(0.0002, 4096, 30, 0.0005);
-        let cases: [(&str, &[[f32; 3]], Option<f64>); 5] = [
-            ("sweep", &plain, None),
-            ("wild return", &wild, None),
-            ("range cut", &plain, Some(1.0)),
-            ("every point finite", &finite, None),
-            ("thinned rows", &dense, None),
+        let dense: Vec<[f32; 3]> = input::rows(0.0002, 4096, 30, 0.0005);
+        let cases = [
+            ("sweep", &plain[..], None),
+            ("wild return", &wild[..], None),
+            ("range cut", &plain[..], Some(1.0)),
+            ("every point finite", &finite[..], None),
+            ("thinned rows", &dense[..], None),
         ];
         for (name, cloud, max_range) in cases {
             let params = Params {
@@ -577,9 +410,9 @@ mod tests {
             };
             let s = scene(cloud, &params);
             let origin = params.viewpoint.unwrap_or(Point3::origin());
-            let stride = thinning_stride(cloud, origin);
-            let input = cloud.iter().filter(|p| p.iter().all(|v| v.is_finite())).count();
-            let points = without_wild_points(filtered(cloud, stride, input, &params, origin));
+            let stride = input::thinning_stride(cloud, origin);
+            let finite = cloud.iter().filter(|p| p.iter().all(|v| v.is_finite())).count();
+            let points = input::points(cloud, stride, finite, &params);
             let removal = remove_dominant_plane(&points, false, params.viewpoint);
             assert!(removal.plane.is_some(), "{name}: no plane");
             assert_eq!(s.points, points, "{name}");
