@@ -110,7 +110,7 @@ pub fn remove_dominant_plane(points: &[Point3<f64>], keep_below: bool, viewpoint
         let sample: Vec<Point3<f64>> = points.iter().step_by(stride).copied().collect();
         find_dominant_plane(&sample, viewpoint)
     });
-    split_at_plane(points, found, keep_below, viewpoint)
+    split_at_plane(points, found, keep_below)
 }
 
 /// A plane found on an even sample of the points ([`find_dominant_plane`]), before the points
@@ -144,12 +144,7 @@ pub fn find_dominant_plane(sample: &[Point3<f64>], viewpoint: Option<Point3<f64>
 
 /// Split `points` at the plane found on their sample, or keep them all when none was found or it
 /// holds too few of them. `keep_below` as for [`remove_dominant_plane`].
-pub fn split_at_plane(
-    points: &[Point3<f64>],
-    found: Option<FoundPlane>,
-    keep_below: bool,
-    viewpoint: Option<Point3<f64>>,
-) -> PlaneRemoval {
+pub fn split_at_plane(points: &[Point3<f64>], found: Option<FoundPlane>, keep_below: bool) -> PlaneRemoval {
     // Nothing removed: every point kept.
     let no_plane = |inliers: usize, band: f64, range_scale: RangeScale| PlaneRemoval {
         plane: None,
@@ -179,7 +174,7 @@ pub fn split_at_plane(
     // Orient the normal towards the objects: towards the sensor, which sees the plane's top
     // (a wall or floor behind the table must not decide it); without a viewpoint, towards the
     // side with more off-plane points.
-    let flip = match viewpoint {
+    let flip = match range_scale.viewpoint {
         Some(v) => plane.signed_distance(&v) < 0.0,
         None => {
             let above = dist.iter().filter(|&&d| d >= band).count();

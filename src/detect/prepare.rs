@@ -136,7 +136,7 @@ pub fn scene(cloud: &[[f32; 3]], params: &Params) -> Scene {
     );
     // Wild points dropped: the plane is found again on the sample of the points that stay.
     let removal = if points.len() == n {
-        split_at_plane(&points, found, false, params.viewpoint)
+        split_at_plane(&points, found, false)
     } else {
         remove_dominant_plane(&points, false, params.viewpoint)
     };
