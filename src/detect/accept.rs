@@ -76,7 +76,8 @@ pub fn assess(
         margins.push((b - MIN_BASE_RECESS) / MIN_BASE_RECESS);
     }
     margins.extend(connection_margins(model, &connection_errors, acc));
-    tracing::trace!("{}", Margins(&margins));
+    let t = pose.translation.vector;
+    tracing::trace!("at ({:.3} {:.3} {:.3}) {}", t.x, t.y, t.z, Margins(&margins));
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
@@ -229,7 +230,8 @@ pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
             prep.scene.plane.as_ref(),
             &prep.samples[k],
         );
-        tracing::debug!("visibility {} {vis}", part.name);
+        let t = placed.pose.translation.vector;
+        tracing::debug!("visibility {} at ({:.3} {:.3} {:.3}) {vis}", part.name, t.x, t.y, t.z);
         let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
         if margin < 0.0 {
             d.found = false;

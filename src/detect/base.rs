@@ -14,6 +14,10 @@ pub fn window(shape: &Superquadric, band: f64) -> f64 {
     (0.2 * shape.a[2]).max(3.0 * band)
 }
 
+/// How far across the end (1 at its edge) what stands on the base may reach: the bottom of what
+/// stands there may be as wide as the end itself (a can on an upturned bowl).
+const STANDING_ON_RADIUS: f64 = 1.25;
+
 /// How far from its end plane, as a share of the half-height, the model's surface may lie and
 /// still be the foot it stands on.
 const FOOT_DEPTH: f64 = 0.05;
@@ -27,6 +31,9 @@ const FOOT_DEPTH: f64 = 0.05;
 pub struct BaseCap {
     window: f64,
     middle: Vec<f64>,
+    /// Points over the middle of the foot, above the top by more than the window and by less
+    /// than the part's height: something standing on the base.
+    standing_on: usize,
     ring: Vec<(f64, f64)>,
     shape: Superquadric,
     /// The superellipse's section at the foot's height, as a share of its middle section.
@@ -38,6 +45,7 @@ impl BaseCap {
         BaseCap {
             window: window(shape, band),
             middle: Vec::new(),
+            standing_on: 0,
             ring: Vec::new(),
             shape: *shape,
             foot_scale: (1.0 - (1.0 - FOOT_DEPTH).powf(2.0 / shape.e1))
@@ -50,7 +58,11 @@ impl BaseCap {
     /// ring's outer edge.
     pub fn add(&mut self, q: &Vector3<f64>) -> bool {
         let h = -q.z;
-        if (h - self.shape.a[2]).abs() > self.window {
+        let above = h - self.shape.a[2];
+        if above.abs() > self.window {
+            if above > self.window && above < 2.0 * self.shape.a[2] && self.end_radius(q) < STANDING_ON_RADIUS {
+                self.standing_on += 1;
+            }
             return false;
         }
         let r = self.foot_radius(q);
@@ -61,6 +73,14 @@ impl BaseCap {
             self.ring.push((r, h));
         }
         r < 0.88
+    }
+
+    /// The radius of a local point across the model's end (its cross-section there, before the
+    /// end is rounded off), 1 on its edge.
+    fn end_radius(&self, q: &Vector3<f64>) -> f64 {
+        let s = &self.shape;
+        let at_end = s.untaper(&Vector3::new(q.x, q.y, -s.a[2]));
+        s.section_radius(at_end.x, at_end.y)
     }
 
     /// The radius of a local point across the model's foot, 1 on its edge: the outline of the
@@ -74,9 +94,14 @@ impl BaseCap {
     }
 
     /// The highest annulus minus the middle (m); minus infinity (no sign of a base) with fewer
-    /// than 10 points in the middle or in every annulus.
+    /// than 10 points in the middle or in every annulus, plus infinity when the middle is
+    /// unseen because something stands on the base (an upturned bowl under a can): then
+    /// nothing can be told either way, and what stands on it is not held against the vessel.
     pub fn recess(&mut self) -> f64 {
         const MIN: usize = 10;
+        if self.middle.len() < MIN && self.standing_on >= MIN {
+            return f64::INFINITY;
+        }
         if self.middle.len() < MIN || self.ring.len() < MIN {
             return f64::NEG_INFINITY;
         }

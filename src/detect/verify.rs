@@ -126,6 +126,7 @@ pub fn score(
         kernel,
         reach,
         search,
+        support,
     } = Around::new(space, placed, gamma, samples);
     let shape = &placed.shape;
     let (mut s, mut i) = (0usize, 0usize);
@@ -154,7 +155,7 @@ pub fn score(
             let d = PlacedSuperquadric::distance_from(rg);
             // The raised middle of a vessel's base lies inside the model's end, which is flat.
             let in_base = on_rim && base.add(q);
-            if opening_up && d.abs() < band && crate::model::is_lid(&rg.grad) {
+            if opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
                 // On the lid of an open container, where there is nothing to see: a closed lookalike
                 // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
                 lid += 1;
@@ -173,7 +174,7 @@ pub fn score(
                 }
             } else if d < tolerance {
                 tolerated.push(*p);
-            } else if d < shell {
+            } else if d < shell && !support.holds(p) {
                 outside_near.push(*p);
             }
         });
@@ -237,6 +238,23 @@ pub fn score(
 }
 }
 
+/// Across the middle of an open part's opening, within this share of its cross-section: where a
+/// closed lookalike's lid has points and a vessel has none.
+const LID_MIDDLE: f64 = 0.7;
+
+/// Whether a local point, at the surface with the local normal `grad`, lies on the lid of an
+/// open part: where the surface faces out of the opening, across its middle. A rounded top (a
+/// bowl's superellipsoid, e1 = 1/3) curves into the opening's plane over its outer part, which
+/// is where the vessel's rim is: the rim of the mOSD white bowl seen steeply from above gave
+/// a sixth as many points there as on its wall.
+fn on_lid(shape: &crate::geometry::Superquadric, q: &Vector3<f64>, grad: &Vector3<f64>) -> bool {
+    if !crate::model::is_lid(grad) {
+        return false;
+    }
+    let u = shape.untaper(q);
+    shape.section_radius(u.x, u.y) < LID_MIDDLE
+}
+
 /// Where [`score`] and [`votes`] look around a placement, and how they tell the points apart.
 struct Around {
     centre: Point3<f64>,
@@ -257,6 +275,42 @@ struct Around {
     reach: Vector3<f64>,
     /// The radius about the centre holding them.
     search: f64,
+    /// Where whatever the part rests on would lie.
+    support: Support,
+}
+
+/// The surface a part may rest on: the plane through its lowest point along the support
+/// plane's normal, parallel to it. The top of a box, a tin or a book that an object stands on
+/// continues outwards from its base, just outside its surface; it is not the object's own
+/// surface going on past the model's edge (a larger object of the same shape), and it is not
+/// counted in the shell. The side wall of a larger object around a too-small fit goes on past
+/// the base's height, and still counts there.
+#[derive(Clone, Copy)]
+struct Support {
+    /// The support plane's normal (towards the objects) and the part's lowest height along it;
+    /// `None` without a support plane.
+    base: Option<(Vector3<f64>, f64)>,
+    /// How far from that height (m) a point is on the support.
+    band: f64,
+}
+
+impl Support {
+    fn new(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Support {
+        let base = space.plane.map(|plane| {
+            let n = plane.normal;
+            let r = placed.pose.rotation.to_rotation_matrix();
+            let half = placed.shape.local_half_extents();
+            let depth: f64 = (0..3).map(|i| n.dot(&r.matrix().column(i)).abs() * half[i]).sum();
+            (n, n.dot(&placed.pose.translation.vector) - depth)
+        });
+        Support { base, band }
+    }
+
+    /// Whether a point lies on the surface the part may rest on.
+    fn holds(&self, p: &Point3<f64>) -> bool {
+        self.base
+            .is_some_and(|(n, h)| (n.dot(&p.coords) - h).abs() <= self.band)
+    }
 }
 
 impl Around {
@@ -312,6 +366,7 @@ impl Around {
             kernel,
             reach,
             search: radius.max(shape.bounding_radius() + shell),
+            support: Support::new(space, placed, band + super::search::approximation_tolerance(shape)),
         }
     }
 }
@@ -346,7 +401,7 @@ pub fn votes(
         (kernel.level_box(1.0 + gamma), 1.01 * radius)
     };
     let (mut s, mut i, mut lid) = (0usize, 0usize, 0usize);
-    let mut batch = NearBatch::within(kernel, reach, |k, _, rg| {
+    let mut batch = NearBatch::within(kernel, reach, |k, q, rg| {
         if (space.points[k] - centre).norm() <= radius {
             let g = rg.residual + 1.0;
             if g < 1.0 - gamma {
@@ -357,7 +412,7 @@ pub fn votes(
         }
         if opening_up
             && PlacedSuperquadric::distance_from(rg).abs() < band
-            && crate::model::is_lid(&rg.grad)
+            && on_lid(&placed.shape, q, &rg.grad)
         {
             lid += 1;
         }

@@ -1,5 +1,7 @@
-//! `sqscan eval-real`: the detector on real scans labelled by object class: recall, false
-//! answers and time per query, with the misses and false answers by scene.
+//! `sqscan eval-real`: the detector on real scans labelled by object: recall (by pose and by
+//! support), false answers and time per query, with the misses and false answers by scene. A
+//! query asks for a class of objects or for one physical object (an identity); both are scored
+//! by the same rule (`sqscan::eval::real`).
 
 use crate::detect::params_for;
 use anyhow::{Context, Result, bail};
@@ -8,16 +10,21 @@ use serde_json::{Value, json};
 use sqscan::cloud;
 use sqscan::detect;
 use sqscan::eval::median_p95;
-use sqscan::eval::real::{Answer, FalseAnswer, SceneScore, read_labels, score_scene};
+use sqscan::eval::real::{
+    Answer, Catalogue, FalseAnswer, LabelledObject, Rule, SceneLabels, SceneScore, Target, read_labels,
+    score_scene,
+};
 use sqscan::model::Model;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 #[derive(Args)]
+#[command(group(clap::ArgGroup::new("asked").required(true).args(["class", "identity"])))]
 pub struct EvalRealArgs {
     #[command(flatten)]
     pub models: crate::ModelsDirArg,
-    /// Labels file (JSON: one entry a scene, its objects with class, centroid, visible, upright)
+    /// Labels file (JSON: one entry a scene, its objects with class, identity, pose, support,
+    /// centroid, visible, upright)
     #[arg(long, value_name = "FILE.json")]
     labels: PathBuf,
     /// Directory of the scenes' clouds (SCENE.pcd for each labelled scene)
@@ -28,7 +35,19 @@ pub struct EvalRealArgs {
     model: String,
     /// The labelled class the model should find (e.g. mug, white_bowl)
     #[arg(long)]
-    class: String,
+    class: Option<String>,
+    /// The labelled identity (one physical object) the model should find (e.g. biscuit_tin)
+    #[arg(long)]
+    identity: Option<String>,
+    /// The objects' sizes by identity, a markdown table with LxWxH in mm (an answer is on an
+    /// object within max(5 cm, half its largest size)) [default: CATALOGUE.md in the labels
+    /// file's directory or its parent, where there is one]
+    #[arg(long, value_name = "FILE.md")]
+    catalogue: Option<PathBuf>,
+    /// The view the model was learned from, SCENE:GROUP: answers there are neutral and it is
+    /// not counted in recall
+    #[arg(long, value_name = "SCENE:GROUP", value_parser = parse_learned_from)]
+    learned_from: Option<(String, i64)>,
     /// Seed of every random choice of the search
     #[arg(long, default_value_t = 5)]
     seed: u64,
@@ -40,6 +59,34 @@ pub struct EvalRealArgs {
     json: bool,
 }
 
+fn parse_learned_from(s: &str) -> Result<(String, i64), String> {
+    let (scene, group) = s
+        .rsplit_once(':')
+        .ok_or_else(|| format!("{s:?}: give SCENE:GROUP, e.g. learn36:2"))?;
+    let group = group
+        .parse()
+        .map_err(|_| format!("{s:?}: the group {group:?} is not a whole number"))?;
+    if scene.is_empty() {
+        return Err(format!("{s:?}: no scene before the colon"));
+    }
+    Ok((scene.to_string(), group))
+}
+
+/// The catalogue asked for, else the one beside the labels, else none.
+fn catalogue(a: &EvalRealArgs) -> Result<(Catalogue, Option<PathBuf>)> {
+    if let Some(p) = &a.catalogue {
+        return Ok((Catalogue::read(p)?, Some(p.clone())));
+    }
+    let dir = a.labels.parent().unwrap_or(Path::new("."));
+    for d in [Some(dir), dir.parent()].into_iter().flatten() {
+        let p = d.join("CATALOGUE.md");
+        if p.is_file() {
+            return Ok((Catalogue::read(&p)?, Some(p)));
+        }
+    }
+    Ok((Catalogue::default(), None))
+}
+
 pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
     if a.max_range.is_some_and(|r| !(r.is_finite() && r > 0.0)) {
         bail!("--max-range: give a distance > 0 m");
@@ -49,6 +96,22 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
     if scenes.is_empty() {
         bail!("{}: no scenes", a.labels.display());
     }
+    let target = match (&a.class, &a.identity) {
+        (Some(c), _) => Target::Class(c.clone()),
+        (None, Some(id)) => Target::Identity(id.clone()),
+        (None, None) => bail!("give --class or --identity"),
+    };
+    if let Target::Identity(id) = &target {
+        if !scenes.iter().flat_map(|s| &s.objects).any(|o| o.identity.as_deref() == Some(id)) {
+            bail!("{}: no object has the identity {id:?}", a.labels.display());
+        }
+    }
+    let (catalogue, catalogue_path) = catalogue(&a)?;
+    let rule = Rule {
+        target,
+        catalogue,
+        learned_from: a.learned_from.clone(),
+    };
     let mut times = Vec::new();
     let mut rows = Vec::new();
     for s in &scenes {
@@ -74,10 +137,11 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
                 }),
             })
             .collect();
-        let score = score_scene(&s.objects, &a.class, &answers);
+        let score = score_scene(s, &rule, &answers);
         rows.push((s, answers, score));
     }
-    let summary = summarise(&rows, &a.class, &times);
+    let mut summary = summarise(&rows, &rule, &times);
+    summary["catalogue"] = json!(catalogue_path.map(|p| p.display().to_string()));
     if a.json {
         println!("{summary}");
     } else {
@@ -86,13 +150,14 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
     Ok(())
 }
 
-fn reason(f: &FalseAnswer, objects: &[sqscan::eval::real::LabelledObject]) -> String {
+fn reason(f: &FalseAnswer, objects: &[LabelledObject]) -> String {
     let what = |i: usize| {
         let o = &objects[i];
+        let name = o.identity.clone().unwrap_or_else(|| o.class.clone());
         if o.what.is_empty() {
-            o.class.clone()
+            name
         } else {
-            format!("{} ({})", o.what, o.class)
+            format!("{} ({name})", o.what)
         }
     };
     match f {
@@ -103,56 +168,81 @@ fn reason(f: &FalseAnswer, objects: &[sqscan::eval::real::LabelledObject]) -> St
     }
 }
 
-type Row<'a> = (&'a sqscan::eval::real::SceneLabels, Vec<Answer>, SceneScore);
+type Row<'a> = (&'a SceneLabels, Vec<Answer>, SceneScore);
 
-fn summarise(rows: &[Row], class: &str, times: &[f64]) -> Value {
-    // (found, total) overall, upright, upside-down, and by visibility.
-    let mut all = (0, 0);
-    let mut upright = (0, 0);
-    let mut upside_down = (0, 0);
-    let mut by_visibility: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+/// (found, of) counts under a key.
+#[derive(Default)]
+struct Tally(BTreeMap<String, (usize, usize)>);
+
+impl Tally {
+    fn add(&mut self, key: &str, found: bool) {
+        let c = self.0.entry(key.to_string()).or_default();
+        c.0 += usize::from(found);
+        c.1 += 1;
+    }
+
+    fn json(&self) -> Value {
+        Value::Object(self.0.iter().map(|(k, &c)| (k.clone(), rate(c))).collect())
+    }
+}
+
+fn rate(c: (usize, usize)) -> Value {
+    json!({"found": c.0, "of": c.1})
+}
+
+fn summarise(rows: &[Row], rule: &Rule, times: &[f64]) -> Value {
+    let mut all = Tally::default();
+    let mut by_upright = Tally::default();
+    let mut by_visibility = Tally::default();
+    let mut by_pose = Tally::default();
+    let mut by_support = Tally::default();
     let mut misses = Vec::new();
     let mut false_answers = Vec::new();
     let mut scenes_with_false = 0;
+    let mut neutral = 0;
     for (s, answers, score) in rows {
         for &(i, found) in &score.targets {
             let o = &s.objects[i];
-            let add = |c: &mut (usize, usize)| {
-                c.0 += usize::from(found);
-                c.1 += 1;
-            };
-            add(&mut all);
-            add(if o.is_upright() { &mut upright } else { &mut upside_down });
-            add(by_visibility
-                .entry(o.visible.clone().unwrap_or_else(|| "unknown".into()))
-                .or_default());
+            all.add("all", found);
+            by_upright.add(if o.is_upright() { "upright" } else { "upside_down" }, found);
+            by_visibility.add(o.visible.as_deref().unwrap_or("unknown"), found);
+            by_pose.add(&o.pose_name(), found);
+            by_support.add(if o.is_stacked() { "stacked" } else { "table" }, found);
             if !found {
-                misses.push(
-                    json!({"scene": s.scene, "what": o.what, "visible": o.visible, "upright": o.is_upright(),
-                    "centroid": o.centroid}),
-                );
+                misses.push(json!({"scene": s.scene, "what": o.what, "identity": o.identity,
+                    "pose": o.pose_name(), "support": o.support, "visible": o.visible,
+                    "upright": o.is_upright(), "centroid": o.centroid}));
             }
         }
         scenes_with_false += usize::from(!score.false_answers.is_empty());
+        neutral += score.neutral.len();
         for (k, f) in &score.false_answers {
             let p = answers[*k].position;
             false_answers.push(json!({"scene": s.scene, "why": reason(f, &s.objects),
                 "position": [p.x, p.y, p.z], "upright": answers[*k].upright}));
         }
     }
-    let rate = |c: (usize, usize)| json!({"found": c.0, "of": c.1});
+    let count = |t: &Tally, k: &str| rate(t.0.get(k).copied().unwrap_or_default());
     let (median, p95) = median_p95(times);
+    let (kind, asked) = match &rule.target {
+        Target::Class(c) => ("class", c),
+        Target::Identity(id) => ("identity", id),
+    };
     json!({
-        "class": class,
+        kind: asked,
         "scenes": rows.len(),
+        "learned_from": rule.learned_from.as_ref().map(|(s, g)| format!("{s}:{g}")),
         "recall": {
-            "all": rate(all),
-            "upright": rate(upright),
-            "upside_down": rate(upside_down),
-            "by_visibility": by_visibility.into_iter().map(|(k, v)| (k, rate(v))).collect::<serde_json::Map<_, _>>(),
+            "all": count(&all, "all"),
+            "upright": count(&by_upright, "upright"),
+            "upside_down": count(&by_upright, "upside_down"),
+            "by_visibility": by_visibility.json(),
+            "by_pose": by_pose.json(),
+            "by_support": by_support.json(),
         },
         "false_answers": false_answers.len(),
         "scenes_with_false_answers": scenes_with_false,
+        "neutral_answers": neutral,
         "time_ms": {"median": median, "p95": p95},
         "misses": misses,
         "false": false_answers,
@@ -161,26 +251,33 @@ fn summarise(rows: &[Row], class: &str, times: &[f64]) -> Value {
 
 fn print_text(s: &Value, a: &EvalRealArgs) {
     let r = |v: &Value| format!("{} of {}", v["found"], v["of"]);
-    println!(
-        "{} as {} over {} scenes of {}",
-        a.model,
-        a.class,
-        s["scenes"],
-        a.labels.display()
-    );
+    let breakdown = |v: &Value| -> String {
+        v.as_object()
+            .map(|m| m.iter().map(|(k, v)| format!("{k} {}", r(v))).collect::<Vec<_>>().join(", "))
+            .unwrap_or_default()
+    };
+    let asked = match (&a.class, &a.identity) {
+        (Some(c), _) => format!("class {c}"),
+        (None, Some(id)) => format!("identity {id}"),
+        (None, None) => String::new(),
+    };
+    println!("{} as {asked} over {} scenes of {}", a.model, s["scenes"], a.labels.display());
+    match s["catalogue"].as_str() {
+        Some(c) => println!("match radius: max(5 cm, half the size in {c})"),
+        None => println!("match radius: 5 cm (no catalogue of sizes)"),
+    }
     println!(
         "found: {} (upright {}, upside-down {})",
         r(&s["recall"]["all"]),
         r(&s["recall"]["upright"]),
         r(&s["recall"]["upside_down"])
     );
-    if let Some(m) = s["recall"]["by_visibility"].as_object() {
-        let parts: Vec<String> = m.iter().map(|(k, v)| format!("{k} {}", r(v))).collect();
-        println!("by visibility: {}", parts.join(", "));
-    }
+    println!("by pose: {}", breakdown(&s["recall"]["by_pose"]));
+    println!("by support: {}", breakdown(&s["recall"]["by_support"]));
+    println!("by visibility: {}", breakdown(&s["recall"]["by_visibility"]));
     println!(
-        "false answers: {} in {} scenes",
-        s["false_answers"], s["scenes_with_false_answers"]
+        "false answers: {} in {} scenes ({} neutral answers)",
+        s["false_answers"], s["scenes_with_false_answers"], s["neutral_answers"]
     );
     println!(
         "time per query: median {:.1} ms, p95 {:.1} ms",
@@ -189,15 +286,12 @@ fn print_text(s: &Value, a: &EvalRealArgs) {
     );
     for m in s["misses"].as_array().into_iter().flatten() {
         println!(
-            "missed: {} {} ({}{})",
+            "missed: {} {} ({}, {}, on {})",
             m["scene"].as_str().unwrap_or(""),
             m["what"].as_str().unwrap_or(""),
+            m["pose"].as_str().unwrap_or("?"),
             m["visible"].as_str().unwrap_or("?"),
-            if m["upright"] == json!(false) {
-                ", upside-down"
-            } else {
-                ""
-            }
+            m["support"].as_str().unwrap_or("the table"),
         );
     }
     for f in s["false"].as_array().into_iter().flatten() {
