@@ -166,7 +166,10 @@ pub fn score(
             } else if d < 0.0 {
                 // Inside an open container is its inner wall, seen through the opening.
                 if !opening_up {
-                    if !in_base {
+                    // A vessel on its rim shows only its outside, which its model follows to
+                    // within the approximation tolerance (the plane check allows as much): the
+                    // upturned mOSD white bowl's wall lay 3-6 mm inside the model's near its base.
+                    if !in_base && !(on_rim && d > -tolerance) {
                         inside_points += 1;
                     }
                 } else if d > -tolerance {
