@@ -321,3 +321,45 @@ fn eval_real_by_identity_on_stacked_mosd_scenes() {
     assert_eq!(mug["recall"]["all"], json!({"found": 1, "of": 1}), "{mug}");
     assert_eq!(mug["false_answers"], 0, "{mug}");
 }
+
+/// The plain mug of mOSD learn39 (skipped without the shared set), a few millimetres taller than
+/// the `mug` model: on seed 4 its fit, axis held on the table's normal, settled 16 mm above the
+/// table with its top above the rim, and the mug was missed. Fitted again from where it would
+/// rest on the table, it is found (both mugs of the scene, on seeds 1-8).
+#[test]
+fn the_floating_mug_of_learn39_rests_on_the_table() {
+    let Some(dir) = common::shared_data("data/mosd_learn", "the_floating_mug_of_learn39_rests_on_the_table") else {
+        return;
+    };
+    let labels: Value = serde_json::from_slice(&std::fs::read(dir.join("labels.json")).unwrap()).unwrap();
+    let subset: Vec<&Value> = labels
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| s["scene"] == "learn39")
+        .collect();
+    let file = std::env::temp_dir().join(format!("sqscan-eval-learn39-{}.json", std::process::id()));
+    std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
+    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/mug.toml");
+    for seed in 1..=8 {
+        let out = sqscan(&[
+            "eval-real",
+            "--labels",
+            file.to_str().unwrap(),
+            "--clouds",
+            dir.to_str().unwrap(),
+            "--model",
+            model.to_str().unwrap(),
+            "--class",
+            "mug",
+            "--seed",
+            &seed.to_string(),
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(r["recall"]["all"], json!({"found": 2, "of": 2}), "seed {seed}: {r}");
+        assert_eq!(r["false_answers"], 0, "seed {seed}: {r}");
+    }
+    let _ = std::fs::remove_file(&file);
+}
