@@ -282,16 +282,16 @@ struct Around {
     support: Support,
 }
 
-/// The surface a part may rest on: the plane through its lowest point along the support
-/// plane's normal, parallel to it. The top of a box, a tin or a book that an object stands on
-/// continues outwards from its base, just outside its surface; it is not the object's own
-/// surface going on past the model's edge (a larger object of the same shape), and it is not
-/// counted in the shell. The side wall of a larger object around a too-small fit goes on past
-/// the base's height, and still counts there.
+/// The surface a part may rest on, where it is not the support plane: the plane through its
+/// lowest point along the support plane's normal, parallel to it. The top of a box, a tin or a
+/// book that an object stands on continues outwards from its base, just outside its surface; it
+/// is not the object's own surface going on past the model's edge (a larger object of the same
+/// shape), and it is not counted in the shell. The side wall of a larger object around a
+/// too-small fit goes on past the base's height, and still counts there.
 #[derive(Clone, Copy)]
 struct Support {
     /// The support plane's normal (towards the objects) and the part's lowest height along it;
-    /// `None` without a support plane.
+    /// `None` without a support plane, or where the part rests on it.
     base: Option<(Vector3<f64>, f64)>,
     /// How far from that height (m) a point is on the support.
     band: f64,
@@ -299,12 +299,16 @@ struct Support {
 
 impl Support {
     fn new(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Support {
-        let base = space.plane.map(|plane| {
+        let base = space.plane.and_then(|plane| {
             let n = plane.normal;
             let r = placed.pose.rotation.to_rotation_matrix();
             let half = placed.shape.local_half_extents();
             let depth: f64 = (0..3).map(|i| n.dot(&r.matrix().column(i)).abs() * half[i]).sum();
-            (n, n.dot(&placed.pose.translation.vector) - depth)
+            let lowest = n.dot(&placed.pose.translation.vector) - depth;
+            // On the support plane itself there is nothing to leave out: the plane's points are
+            // gone, and what is left at the base's height there is other objects' walls (a
+            // larger box's, around a fit on its lower part).
+            (lowest + plane.d > band).then_some((n, lowest))
         });
         Support { base, band }
     }
