@@ -385,7 +385,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__eval__subcmd__real)
-            opts="-h --models-dir --labels --clouds --model --class --seed --max-range --json --help"
+            opts="-h --models-dir --labels --clouds --model --class --identity --catalogue --learned-from --seed --max-range --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -408,6 +408,18 @@ _sqscan() {
                     return 0
                     ;;
                 --class)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --identity)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --catalogue)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --learned-from)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;
@@ -859,7 +871,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__learn)
-            opts="-h --models-dir --cloud --name --parts --out --force --label --segmented --viewpoint --up --max-range --no-mirror --silhouette --cost --no-rays --shape --simulate --seed --sweeps --rpy --help"
+            opts="-h --models-dir --cloud --name --parts --out --force --label --at --box --segmented --viewpoint --up --max-range --no-mirror --silhouette --cost --no-rays --shape --simulate --seed --sweeps --rpy --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -886,6 +898,14 @@ _sqscan() {
                     return 0
                     ;;
                 --label)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --at)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --box)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;

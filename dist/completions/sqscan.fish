@@ -77,6 +77,8 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l name -d 'Name of
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l parts -d 'Superquadric parts (1, 2 or 3)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l out -d 'Model file to write [default: MODELS_DIR/NAME.toml, unless that is the package\'s /usr/share/sqscan/models]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l label -d 'Use the points labelled as object N (mOSD labels: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l at -d 'Learn the object shown by a point "x,y,z" of the cloud\'s frame: the connected points off the supporting plane nearest to it (within 5 cm; objects that touch are one)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l box -d 'Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud\'s frame)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l viewpoint -d 'Sensor position "x,y,z" [default: the file\'s VIEWPOINT, else the origin]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l up -d 'Up direction "x,y,z" when there is no supporting plane in the cloud' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r
@@ -108,10 +110,13 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l absent -d 'Remove
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l json -d 'Print one JSON object instead of a table'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
-complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l labels -d 'Labels file (JSON: one entry a scene, its objects with class, centroid, visible, upright)' -r -F
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l labels -d 'Labels file (JSON: one entry a scene, its objects with class, identity, pose, support, centroid, visible, upright)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l clouds -d 'Directory of the scenes\' clouds (SCENE.pcd for each labelled scene)' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l model -d 'Model name (looked up in the models directory) or model file' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l class -d 'The labelled class the model should find (e.g. mug, white_bowl)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l identity -d 'The labelled identity (one physical object) the model should find (e.g. biscuit_tin)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l catalogue -d 'The objects\' sizes by identity, a markdown table with LxWxH in mm (an answer is on an object within max(5 cm, half its largest size)) [default: CATALOGUE.md in the labels file\'s directory or its parent, where there is one]' -r -F
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l learned-from -d 'The view the model was learned from, SCENE:GROUP: answers there are neutral and it is not counted in recall' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l seed -d 'Seed of every random choice of the search' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l json -d 'Print one JSON object instead of the text report'

@@ -84,7 +84,9 @@ _arguments "${_arguments_options[@]}" : \
 '--name=[Name of the learned model]:NAME:_default' \
 '--parts=[Superquadric parts (1, 2 or 3)]:PARTS:_default' \
 '--out=[Model file to write \[default\: MODELS_DIR/NAME.toml, unless that is the package'\''s /usr/share/sqscan/models\]]:FILE.toml:_files' \
-'--label=[Use the points labelled as object N (mOSD labels\: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9]:N:_default' \
+'(--at --box --segmented)--label=[Use the points labelled as object N (mOSD labels\: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9]:N:_default' \
+'(--box --segmented)--at=[Learn the object shown by a point "x,y,z" of the cloud'\''s frame\: the connected points off the supporting plane nearest to it (within 5 cm; objects that touch are one)]:X,Y,Z:_default' \
+'(--segmented)--box=[Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud'\''s frame)]:MIN,MAX:_default' \
 '--viewpoint=[Sensor position "x,y,z" \[default\: the file'\''s VIEWPOINT, else the origin\]]:X,Y,Z:_default' \
 '--up=[Up direction "x,y,z" when there is no supporting plane in the cloud]:X,Y,Z:_default' \
 '--max-range=[Ignore points farther than this from the viewpoint (m)]:M:_default' \
@@ -126,10 +128,13 @@ _arguments "${_arguments_options[@]}" : \
 (eval-real)
 _arguments "${_arguments_options[@]}" : \
 '--models-dir=[Directory of object models \[default\: \$SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists\]]:DIR:_files' \
-'--labels=[Labels file (JSON\: one entry a scene, its objects with class, centroid, visible, upright)]:FILE.json:_files' \
+'--labels=[Labels file (JSON\: one entry a scene, its objects with class, identity, pose, support, centroid, visible, upright)]:FILE.json:_files' \
 '--clouds=[Directory of the scenes'\'' clouds (SCENE.pcd for each labelled scene)]:DIR:_files' \
 '--model=[Model name (looked up in the models directory) or model file]:MODEL:_default' \
 '--class=[The labelled class the model should find (e.g. mug, white_bowl)]:CLASS:_default' \
+'--identity=[The labelled identity (one physical object) the model should find (e.g. biscuit_tin)]:IDENTITY:_default' \
+'--catalogue=[The objects'\'' sizes by identity, a markdown table with LxWxH in mm (an answer is on an object within max(5 cm, half its largest size)) \[default\: CATALOGUE.md in the labels file'\''s directory or its parent, where there is one\]]:FILE.md:_files' \
+'--learned-from=[The view the model was learned from, SCENE\:GROUP\: answers there are neutral and it is not counted in recall]:SCENE:GROUP:_default' \
 '--seed=[Seed of every random choice of the search]:SEED:_default' \
 '--max-range=[Ignore points farther than this from the viewpoint (m)]:M:_default' \
 '--json[Print one JSON object instead of the text report]' \

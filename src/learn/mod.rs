@@ -41,7 +41,7 @@ use stages::fit_superquadric;
 pub use compound::learn_parts;
 pub use model_file::{Provenance, model_pose, model_toml};
 pub use seen::seen_extent;
-pub use segment::{Segmentation, segment, support_below};
+pub use segment::{AT_REACH, Segmentation, segment, segment_at, segment_box, support_below};
 
 /// Which residual the LM minimises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

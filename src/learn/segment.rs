@@ -18,18 +18,7 @@ pub struct Segmentation {
 
 /// Remove the supporting plane and keep the largest connected cluster standing on it.
 pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
-    let (plane, kept): (Option<Plane>, Vec<usize>) = match params.plane {
-        Some(pl) => {
-            let kept = (0..points.len())
-                .filter(|&i| pl.signed_distance(&points[i]) > 0.004)
-                .collect();
-            (Some(pl), kept)
-        }
-        None => {
-            let r = remove_dominant_plane(points, false, params.viewpoint);
-            (r.plane, r.kept)
-        }
-    };
+    let (plane, kept) = off_the_plane(points, params);
     let clusters = clusters(points, &kept, params.cluster_voxel);
     // Standing on the plane: the cluster's lowest seen point is within 6 cm of it (a bowl hides
     // its foot under its rim).
@@ -54,6 +43,67 @@ pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
     };
     let object = with_nearby_clusters(points, &clusters, best, MERGE_GAP, plane.as_ref());
     Segmentation { plane, object }
+}
+
+/// How far (m) from the point given to [`segment_at`] an object's nearest point may lie.
+pub const AT_REACH: f64 = 0.05;
+
+/// The object shown by a point: the supporting plane removed, the connected cluster (of at least
+/// 10 points) with a point nearest to `at`, within [`AT_REACH`], and the clusters that belong
+/// to it as in [`segment`] (an open container's inside). Objects that touch each other (a mug
+/// standing on a tin) are one cluster. `Err` says how far the nearest object is.
+pub fn segment_at(points: &[Point3<f64>], params: &LearnParams, at: &Point3<f64>) -> Result<Segmentation, String> {
+    let (plane, kept) = off_the_plane(points, params);
+    let clusters = clusters(points, &kept, params.cluster_voxel);
+    let nearest = clusters
+        .iter()
+        .enumerate()
+        .filter(|(_, c)| c.len() >= 10)
+        .map(|(k, c)| {
+            let d = c.iter().map(|&i| (points[i] - at).norm()).fold(f64::INFINITY, f64::min);
+            (k, d)
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1));
+    match nearest {
+        Some((k, d)) if d <= AT_REACH => Ok(Segmentation {
+            object: with_nearby_clusters(points, &clusters, k, MERGE_GAP, plane.as_ref()),
+            plane,
+        }),
+        Some((_, d)) => Err(format!(
+            "the nearest object's points are {:.0} mm away (at most {:.0} mm)",
+            d * 1e3,
+            AT_REACH * 1e3
+        )),
+        None => Err("no object off the supporting plane".into()),
+    }
+}
+
+/// The object's points in an axis-aligned box of the cloud's frame (`min`, `max` corners), off
+/// the supporting plane.
+pub fn segment_box(points: &[Point3<f64>], params: &LearnParams, min: &Point3<f64>, max: &Point3<f64>) -> Segmentation {
+    let (plane, kept) = off_the_plane(points, params);
+    let object = kept
+        .into_iter()
+        .filter(|&i| (0..3).all(|k| points[i][k] >= min[k] && points[i][k] <= max[k]))
+        .collect();
+    Segmentation { plane, object }
+}
+
+/// The supporting plane (given or found) and the indices of the points off it, on the objects'
+/// side.
+fn off_the_plane(points: &[Point3<f64>], params: &LearnParams) -> (Option<Plane>, Vec<usize>) {
+    match params.plane {
+        Some(pl) => {
+            let kept = (0..points.len())
+                .filter(|&i| pl.signed_distance(&points[i]) > 0.004)
+                .collect();
+            (Some(pl), kept)
+        }
+        None => {
+            let r = remove_dominant_plane(points, false, params.viewpoint);
+            (r.plane, r.kept)
+        }
+    }
 }
 
 /// Clusters this close to the object's, seen from above, are the object's too; for a large

@@ -56,8 +56,18 @@ pub struct LearnArgs {
     force: bool,
     /// Use the points labelled as object N (mOSD labels: label >= 20 and label / 10 == N); the
     /// table is fitted to the points labelled 1-9
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", conflicts_with_all = ["at", "within", "segmented"])]
     label: Option<u32>,
+    /// Learn the object shown by a point "x,y,z" of the cloud's frame: the connected points off
+    /// the supporting plane nearest to it (within 5 cm; objects that touch are one)
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true,
+          conflicts_with_all = ["within", "segmented"])]
+    at: Option<Point3<f64>>,
+    /// Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its
+    /// opposite corners, in the cloud's frame)
+    #[arg(id = "within", long = "box", value_name = "MIN,MAX", value_parser = parse_box,
+          allow_hyphen_values = true, conflicts_with = "segmented")]
+    within: Option<(Point3<f64>, Point3<f64>)>,
     /// The cloud holds the object only (already segmented): no plane removal, no clustering;
     /// with --up it stands on the plane across up at its lowest points
     #[arg(long)]
@@ -202,6 +212,36 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             table.len()
         );
         learn::learn_parts(&points, Segmentation { plane, object }, &params, a.parts as usize)?
+    } else if let Some(at) = &a.at {
+        let segmentation =
+            learn::segment_at(&points, &params, at).map_err(|e| anyhow::anyhow!("--at {},{},{}: {e}", at.x, at.y, at.z))?;
+        selection = format!(
+            "the {} points of the object nearest to ({}, {}, {}) off the supporting plane",
+            segmentation.object.len(),
+            at.x,
+            at.y,
+            at.z
+        );
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
+    } else if let Some((min, max)) = &a.within {
+        let segmentation = learn::segment_box(&points, &params, min, max);
+        if segmentation.object.len() < 10 {
+            bail!(
+                "--box: {} points off the supporting plane inside it; give a box around the object",
+                segmentation.object.len()
+            );
+        }
+        selection = format!(
+            "the {} points off the supporting plane in the box ({}, {}, {}) - ({}, {}, {})",
+            segmentation.object.len(),
+            min.x,
+            min.y,
+            min.z,
+            max.x,
+            max.y,
+            max.z
+        );
+        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
     } else if a.segmented {
         params.segment = false;
         selection = format!("all {} finite points (segmented input)", points.len());
@@ -270,6 +310,27 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         })
     );
     Ok(())
+}
+
+/// "x0,y0,z0,x1,y1,z1": two opposite corners of a box, as (min, max).
+fn parse_box(s: &str) -> Result<(Point3<f64>, Point3<f64>), String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("{s:?}: give six numbers x0,y0,z0,x1,y1,z1"))?;
+    let [x0, y0, z0, x1, y1, z1] = v.as_slice() else {
+        return Err(format!("{s:?}: give six numbers x0,y0,z0,x1,y1,z1"));
+    };
+    if !v.iter().all(|c| c.is_finite()) {
+        return Err(format!("{s:?}: not finite"));
+    }
+    let (a, b) = (Point3::new(*x0, *y0, *z0), Point3::new(*x1, *y1, *z1));
+    let (min, max) = (a.inf(&b), a.sup(&b));
+    if (0..3).any(|k| max[k] - min[k] <= 0.0) {
+        return Err(format!("{s:?}: the box is empty along one axis"));
+    }
+    Ok((min, max))
 }
 
 fn simulate(
