@@ -177,7 +177,7 @@ pub fn score(
                 }
             } else if d < tolerance {
                 tolerated.push(*p);
-            } else if d < shell && !support.holds(p) {
+            } else if d < shell && !support.holds(space, p) {
                 outside_near.push(*p);
             }
         });
@@ -288,6 +288,10 @@ struct Around {
 /// is not the object's own surface going on past the model's edge (a larger object of the same
 /// shape), and it is not counted in the shell. The side wall of a larger object around a
 /// too-small fit goes on past the base's height, and still counts there.
+/// The radius (m) of the patch around a point that tells a surface parallel to the support
+/// plane from a wall.
+const SUPPORT_PATCH: f64 = 0.012;
+
 #[derive(Clone, Copy)]
 struct Support {
     /// The support plane's normal (towards the objects) and the part's lowest height along it;
@@ -313,10 +317,25 @@ impl Support {
         Support { base, band }
     }
 
-    /// Whether a point lies on the surface the part may rest on.
-    fn holds(&self, p: &Point3<f64>) -> bool {
-        self.base
-            .is_some_and(|(n, h)| (n.dot(&p.coords) - h).abs() <= self.band)
+    /// Whether a point lies on the surface the part may rest on: at the base's height, on a
+    /// surface parallel to the support plane there. Most of its neighbours within
+    /// [`SUPPORT_PATCH`] (four in five) lie within half that of its height; on the side wall of
+    /// a larger object around the fit, which also crosses the base's height, they spread over
+    /// the whole patch. (So does the top of a support next to its edge, where its side wall
+    /// drops away: an upturned bowl whose rim rests near the edge of a tin is held to its shell
+    /// test there.)
+    fn holds(&self, space: &SearchSpace<'_>, p: &Point3<f64>) -> bool {
+        let Some((n, h)) = self.base else { return false };
+        let height = n.dot(&p.coords);
+        if (height - h).abs() > self.band {
+            return false;
+        }
+        let (mut level, mut all) = (0usize, 0usize);
+        space.grid.for_each_within(space.points, p, SUPPORT_PATCH, |k| {
+            all += 1;
+            level += usize::from((n.dot(&space.points[k].coords) - height).abs() <= 0.5 * SUPPORT_PATCH);
+        });
+        5 * level >= 4 * all
     }
 }
 
