@@ -12,11 +12,11 @@ fn sqscan(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sqscan")).args(args).output().unwrap()
 }
 
-/// `sqscan eval-real` of the shipped model `model` as `class` over `labels` and the clouds in
-/// `clouds`, with `--json` when `json`.
-fn eval_real(labels: &Path, clouds: &Path, model: &str, class: &str, json: bool) -> std::process::Output {
+/// `sqscan eval-real` of the shipped model `model` over `labels` and the clouds in `clouds`, with
+/// `args` (what is asked for and how).
+fn eval_real_with(labels: &Path, clouds: &Path, model: &str, args: &[&str]) -> std::process::Output {
     let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("models/{model}.toml"));
-    let mut args = vec![
+    let mut all = vec![
         "eval-real",
         "--labels",
         labels.to_str().unwrap(),
@@ -24,13 +24,31 @@ fn eval_real(labels: &Path, clouds: &Path, model: &str, class: &str, json: bool)
         clouds.to_str().unwrap(),
         "--model",
         model.to_str().unwrap(),
-        "--class",
-        class,
     ];
-    if json {
-        args.push("--json");
-    }
-    sqscan(&args)
+    all.extend_from_slice(args);
+    sqscan(&all)
+}
+
+/// `sqscan eval-real` of the shipped model `model` as `class`, with `--json` when `json`.
+fn eval_real(labels: &Path, clouds: &Path, model: &str, class: &str, json: bool) -> std::process::Output {
+    let json = if json { &["--json"][..] } else { &[] };
+    eval_real_with(labels, clouds, model, &[&["--class", class][..], json].concat())
+}
+
+/// A labels file in the temporary directory holding the entries of `dir/labels.json` for the
+/// `scenes` chosen (each must be there), named after `test`.
+fn labels_of(dir: &Path, scenes: &[&str], test: &str) -> PathBuf {
+    let labels: Value = serde_json::from_slice(&std::fs::read(dir.join("labels.json")).unwrap()).unwrap();
+    let subset: Vec<&Value> = labels
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|s| scenes.contains(&s["scene"].as_str().unwrap()))
+        .collect();
+    assert_eq!(subset.len(), scenes.len(), "{scenes:?} in {}", dir.display());
+    let file = std::env::temp_dir().join(format!("sqscan-{test}-{}.json", std::process::id()));
+    std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
+    file
 }
 
 #[test]
@@ -121,17 +139,7 @@ fn eval_real_on_mosd_scenes() {
     let Some(dir) = common::shared_data("data/mosd_learn", "eval_real_on_mosd_scenes") else {
         return;
     };
-    let labels: Value = serde_json::from_slice(&std::fs::read(dir.join("labels.json")).unwrap()).unwrap();
-    let chosen = ["learn8", "learn30", "learn38", "learn44"];
-    let subset: Vec<&Value> = labels
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|s| chosen.contains(&s["scene"].as_str().unwrap()))
-        .collect();
-    assert_eq!(subset.len(), chosen.len());
-    let file = std::env::temp_dir().join(format!("sqscan-eval-real-mosd-{}.json", std::process::id()));
-    std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
+    let file = labels_of(&dir, &["learn8", "learn30", "learn38", "learn44"], "eval-real-mosd");
     let out = eval_real(&file, &dir, "mug", "mug", true);
     let _ = std::fs::remove_file(&file);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -146,26 +154,11 @@ fn eval_real_on_mosd_scenes() {
     assert_eq!(summary["false_answers"], 0, "{summary}");
 }
 
-/// `sqscan eval-real` of `model` asking for `--identity identity` (with `extra` arguments), as
-/// JSON.
+/// `sqscan eval-real` of the shipped model `model` asking for `--identity identity` on seed 1
+/// (with `extra` arguments), as JSON.
 fn eval_identity(labels: &Path, clouds: &Path, model: &str, identity: &str, extra: &[&str]) -> Value {
-    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(format!("models/{model}.toml"));
-    let mut args = vec![
-        "eval-real",
-        "--labels",
-        labels.to_str().unwrap(),
-        "--clouds",
-        clouds.to_str().unwrap(),
-        "--model",
-        model.to_str().unwrap(),
-        "--identity",
-        identity,
-        "--seed",
-        "1",
-        "--json",
-    ];
-    args.extend_from_slice(extra);
-    let out = sqscan(&args);
+    let args = [&["--identity", identity, "--seed", "1", "--json"][..], extra].concat();
+    let out = eval_real_with(labels, clouds, model, &args);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     serde_json::from_slice(&out.stdout).unwrap()
 }
@@ -245,8 +238,10 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
             labelled.push(o);
         }
         for (part, centroid, pose) in parts {
-            labelled.push(json!({"class": "other", "identity": part, "pose": pose, "support": "table",
-                "centroid": centroid, "visible": "full", "size": 0.2}));
+            labelled.push(
+                json!({"class": "other", "identity": part, "pose": pose, "support": "table",
+                "centroid": centroid, "visible": "full", "size": 0.2}),
+            );
         }
         labels.push(json!({"scene": name, "objects": labelled}));
     }
@@ -270,11 +265,19 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
     let r = eval_identity(&file, &dir, "learned_cylinder", "learned_cylinder", &[]);
     assert_eq!(r["recall"]["all"], json!({"found": 2, "of": 2}), "{r}");
     assert_eq!(r["recall"]["by_pose"]["lying"], json!({"found": 1, "of": 1}), "{r}");
-    assert_eq!(r["recall"]["by_support"]["stacked"], json!({"found": 2, "of": 2}), "{r}");
+    assert_eq!(
+        r["recall"]["by_support"]["stacked"],
+        json!({"found": 2, "of": 2}),
+        "{r}"
+    );
     assert_eq!(r["false_answers"], 0, "{r}");
 
     let r = eval_identity(&file, &dir, "mug", "mug", &[]);
-    assert_eq!(r["recall"]["by_support"], json!({"stacked": {"found": 1, "of": 1}}), "{r}");
+    assert_eq!(
+        r["recall"]["by_support"],
+        json!({"stacked": {"found": 1, "of": 1}}),
+        "{r}"
+    );
     assert_eq!(r["false_answers"], 0, "{r}");
 
     let r = eval_identity(&file, &dir, "learned_box", "learned_box", &[]);
@@ -283,9 +286,19 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
 
     // Learned from the box's view in the second scene (its group 4): that answer is neutral,
     // and nothing is left to find.
-    let r = eval_identity(&file, &dir, "learned_box", "learned_box", &["--learned-from", "bowl_on_pot:4"]);
+    let r = eval_identity(
+        &file,
+        &dir,
+        "learned_box",
+        "learned_box",
+        &["--learned-from", "bowl_on_pot:4"],
+    );
     assert_eq!(r["recall"]["all"], json!({"found": 0, "of": 0}), "{r}");
-    assert_eq!((&r["neutral_answers"], &r["false_answers"]), (&json!(1), &json!(0)), "{r}");
+    assert_eq!(
+        (&r["neutral_answers"], &r["false_answers"]),
+        (&json!(1), &json!(0)),
+        "{r}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -299,23 +312,21 @@ fn eval_real_by_identity_on_stacked_mosd_scenes() {
         return;
     };
     let catalogue = dir.join("../CATALOGUE.md");
-    let labels: Value = serde_json::from_slice(&std::fs::read(dir.join("labels.json")).unwrap()).unwrap();
-    let chosen = ["test32", "test42", "test56", "test58", "test60"];
-    let subset: Vec<&Value> = labels
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|s| chosen.contains(&s["scene"].as_str().unwrap()))
-        .collect();
-    assert_eq!(subset.len(), chosen.len());
-    let file = std::env::temp_dir().join(format!("sqscan-eval-stacked-mosd-{}.json", std::process::id()));
-    std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
+    let file = labels_of(
+        &dir,
+        &["test32", "test42", "test56", "test58", "test60"],
+        "eval-stacked-mosd",
+    );
     let cat = ["--catalogue", catalogue.to_str().unwrap()];
     let bowl = eval_identity(&file, &dir, "white_bowl", "white_bowl", &cat);
     let mug = eval_identity(&file, &dir, "mug", "mug_printed", &cat);
     let _ = std::fs::remove_file(&file);
     assert_eq!(bowl["recall"]["all"], json!({"found": 4, "of": 4}), "{bowl}");
-    assert_eq!(bowl["recall"]["by_support"]["stacked"], json!({"found": 3, "of": 3}), "{bowl}");
+    assert_eq!(
+        bowl["recall"]["by_support"]["stacked"],
+        json!({"found": 3, "of": 3}),
+        "{bowl}"
+    );
     assert_eq!(bowl["recall"]["upside_down"], json!({"found": 2, "of": 2}), "{bowl}");
     assert_eq!(bowl["false_answers"], 0, "{bowl}");
     assert_eq!(mug["recall"]["all"], json!({"found": 1, "of": 1}), "{mug}");
@@ -331,31 +342,10 @@ fn the_floating_mug_of_learn39_rests_on_the_table() {
     let Some(dir) = common::shared_data("data/mosd_learn", "the_floating_mug_of_learn39_rests_on_the_table") else {
         return;
     };
-    let labels: Value = serde_json::from_slice(&std::fs::read(dir.join("labels.json")).unwrap()).unwrap();
-    let subset: Vec<&Value> = labels
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|s| s["scene"] == "learn39")
-        .collect();
-    let file = std::env::temp_dir().join(format!("sqscan-eval-learn39-{}.json", std::process::id()));
-    std::fs::write(&file, serde_json::to_vec(&subset).unwrap()).unwrap();
-    let model = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models/mug.toml");
+    let file = labels_of(&dir, &["learn39"], "eval-learn39");
     for seed in 1..=8 {
-        let out = sqscan(&[
-            "eval-real",
-            "--labels",
-            file.to_str().unwrap(),
-            "--clouds",
-            dir.to_str().unwrap(),
-            "--model",
-            model.to_str().unwrap(),
-            "--class",
-            "mug",
-            "--seed",
-            &seed.to_string(),
-            "--json",
-        ]);
+        let seed_arg = seed.to_string();
+        let out = eval_real_with(&file, &dir, "mug", &["--class", "mug", "--seed", &seed_arg, "--json"]);
         assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
         let r: Value = serde_json::from_slice(&out.stdout).unwrap();
         assert_eq!(r["recall"]["all"], json!({"found": 2, "of": 2}), "seed {seed}: {r}");

@@ -110,7 +110,11 @@ pub fn read_labels(path: &Path) -> Result<Vec<SceneLabels>, SpecError> {
                 "not finite",
             ));
         }
-        if let Some(k) = s.objects.iter().position(|o| o.size.is_some_and(|v| !(v.is_finite() && v > 0.0))) {
+        if let Some(k) = s
+            .objects
+            .iter()
+            .position(|o| o.size.is_some_and(|v| !(v.is_finite() && v > 0.0)))
+        {
             return Err(SpecError::invalid(
                 path,
                 format!("{}.objects[{k}].size", s.scene),
@@ -147,7 +151,9 @@ impl Catalogue {
     pub fn parse(text: &str) -> Catalogue {
         let mut sizes = BTreeMap::new();
         for line in text.lines() {
-            let Some(row) = line.trim().strip_prefix('|') else { continue };
+            let Some(row) = line.trim().strip_prefix('|') else {
+                continue;
+            };
             let cells: Vec<&str> = row.split('|').map(str::trim).collect();
             let Some(id) = cells.first().filter(|c| !c.is_empty() && !c.contains(' ')) else {
                 continue;
@@ -415,7 +421,10 @@ mod tests {
         // A size in the labels wins over the catalogue's.
         let mut o = object("mug", "mug_plain", [0.0, 0.0, 1.0], None);
         o.size = Some(0.3);
-        assert_eq!(score_scene(&scene(vec![o]), &r, &[answer(0.14, true)]).targets, vec![(0, true)]);
+        assert_eq!(
+            score_scene(&scene(vec![o]), &r, &[answer(0.14, true)]).targets,
+            vec![(0, true)]
+        );
     }
 
     /// Answers on an `unknown` or `mixed` object, or on the view the model was learned from, are
@@ -435,7 +444,12 @@ mod tests {
         ]);
         let mut r = rule(Target::Identity("tea_box".into()));
         r.learned_from = Some(("s".into(), 2));
-        let answers = [answer(0.0, true), answer(0.3, true), answer(0.6, true), answer(0.9, true)];
+        let answers = [
+            answer(0.0, true),
+            answer(0.3, true),
+            answer(0.6, true),
+            answer(0.9, true),
+        ];
         let sc = score_scene(&s, &r, &answers);
         assert_eq!(sc.targets, vec![(4, false)]);
         assert!(sc.false_answers.is_empty(), "{sc:?}");

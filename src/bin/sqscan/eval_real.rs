@@ -11,8 +11,7 @@ use sqscan::cloud;
 use sqscan::detect;
 use sqscan::eval::median_p95;
 use sqscan::eval::real::{
-    Answer, Catalogue, FalseAnswer, LabelledObject, Rule, SceneLabels, SceneScore, Target, read_labels,
-    score_scene,
+    Answer, Catalogue, FalseAnswer, LabelledObject, Rule, SceneLabels, SceneScore, Target, read_labels, score_scene,
 };
 use sqscan::model::Model;
 use std::collections::BTreeMap;
@@ -102,7 +101,11 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         (None, None) => bail!("give --class or --identity"),
     };
     if let Target::Identity(id) = &target {
-        if !scenes.iter().flat_map(|s| &s.objects).any(|o| o.identity.as_deref() == Some(id)) {
+        if !scenes
+            .iter()
+            .flat_map(|s| &s.objects)
+            .any(|o| o.identity.as_deref() == Some(id))
+        {
             bail!("{}: no object has the identity {id:?}", a.labels.display());
         }
     }
@@ -253,7 +256,12 @@ fn print_text(s: &Value, a: &EvalRealArgs) {
     let r = |v: &Value| format!("{} of {}", v["found"], v["of"]);
     let breakdown = |v: &Value| -> String {
         v.as_object()
-            .map(|m| m.iter().map(|(k, v)| format!("{k} {}", r(v))).collect::<Vec<_>>().join(", "))
+            .map(|m| {
+                m.iter()
+                    .map(|(k, v)| format!("{k} {}", r(v)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            })
             .unwrap_or_default()
     };
     let asked = match (&a.class, &a.identity) {
@@ -261,7 +269,12 @@ fn print_text(s: &Value, a: &EvalRealArgs) {
         (None, Some(id)) => format!("identity {id}"),
         (None, None) => String::new(),
     };
-    println!("{} as {asked} over {} scenes of {}", a.model, s["scenes"], a.labels.display());
+    println!(
+        "{} as {asked} over {} scenes of {}",
+        a.model,
+        s["scenes"],
+        a.labels.display()
+    );
     match s["catalogue"].as_str() {
         Some(c) => println!("match radius: max(5 cm, half the size in {c})"),
         None => println!("match radius: 5 cm (no catalogue of sizes)"),

@@ -213,8 +213,8 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         );
         learn::learn_parts(&points, Segmentation { plane, object }, &params, a.parts as usize)?
     } else if let Some(at) = &a.at {
-        let segmentation =
-            learn::segment_at(&points, &params, at).map_err(|e| anyhow::anyhow!("--at {},{},{}: {e}", at.x, at.y, at.z))?;
+        let segmentation = learn::segment_at(&points, &params, at)
+            .map_err(|e| anyhow::anyhow!("--at {},{},{}: {e}", at.x, at.y, at.z))?;
         selection = format!(
             "the {} points of the object nearest to ({}, {}, {}) off the supporting plane",
             segmentation.object.len(),
