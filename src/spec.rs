@@ -52,7 +52,7 @@ pub fn read_text(path: &Path) -> Result<String, SpecError> {
         path: path.to_owned(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(io)?;
+    let file = open_regular(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if !meta.is_file() {
         return Err(SpecError::Syntax {
@@ -74,6 +74,18 @@ pub fn read_text(path: &Path) -> Result<String, SpecError> {
             format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to()),
         ))
     })
+}
+
+/// Open a file for reading without blocking in open(2): a FIFO (a configuration replaced by one,
+/// a `*.toml` in the models directory) would wait there for a writer, on the path a SIGHUP's
+/// reload and `sqscand --check` take. The caller still checks that what it opened is a regular
+/// file; reads of a regular file do not heed `O_NONBLOCK`.
+pub fn open_regular(path: &Path) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
 }
 
 /// Read and parse a TOML file into its serde form.

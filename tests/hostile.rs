@@ -91,6 +91,58 @@ fn a_model_path_to_dev_zero_is_refused() {
     assert!(t.elapsed().as_secs() < 10);
 }
 
+/// Runs `f` on a thread and gives its result, or fails the test when it has not come back
+/// within ten seconds (a FIFO blocks open(2) until a writer comes).
+fn within_ten_seconds<T: Send + 'static>(f: impl FnOnce() -> T + Send + 'static) -> T {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(f());
+    });
+    rx.recv_timeout(std::time::Duration::from_secs(10))
+        .expect("still blocked after 10 s")
+}
+
+fn mkfifo(path: &std::path::Path) {
+    let out = std::process::Command::new("mkfifo").arg(path).output().unwrap();
+    assert!(out.status.success(), "mkfifo: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// A FIFO where a model or configuration file should be (a configuration replaced by one before
+/// a SIGHUP, a `*.toml` in the models directory under `sqscand --check`): open(2) waited for a
+/// writer that never came, and the reload never ended. It is refused at once, by name, and a
+/// models directory holding one loads the rest.
+#[test]
+fn a_fifo_for_a_model_or_configuration_is_refused_without_blocking() {
+    let d = Scratch::new("fifo");
+    let models = d.join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    std::fs::copy(root().join("models/cup.toml"), models.join("cup.toml")).unwrap();
+    let fifo = models.join("stuck.toml");
+    mkfifo(&fifo);
+    let path = fifo.clone();
+    let e = within_ten_seconds(move || Model::from_file(&path).map(|_| ()).map_err(|e| e.to_string())).unwrap_err();
+    assert!(e.contains("stuck.toml") && e.contains("not a regular file"), "{e}");
+    let dir = models.clone();
+    let loaded = within_ten_seconds(move || {
+        sqscan::model::load_dir(&dir)
+            .unwrap()
+            .into_iter()
+            .map(|m| m.map(|m| m.name).map_err(|e| e.to_string()))
+            .collect::<Vec<_>>()
+    });
+    assert!(loaded.iter().any(|m| m.as_deref() == Ok("cup")), "{loaded:?}");
+    assert!(
+        loaded
+            .iter()
+            .any(|m| m.as_ref().is_err_and(|e| e.contains("not a regular file"))),
+        "{loaded:?}"
+    );
+    let path = fifo.clone();
+    let e = within_ten_seconds(move || sqscan::cloud::read_cloud(&path).map(|_| ()).map_err(|e| e.to_string()))
+        .unwrap_err();
+    assert!(e.contains("stuck.toml") && e.contains("not a regular file"), "{e}");
+}
+
 /// A model file over a megabyte is no model file: refused before it is parsed.
 #[test]
 fn a_model_file_over_a_megabyte_is_refused() {

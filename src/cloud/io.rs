@@ -103,7 +103,7 @@ fn sniff(bytes: &[u8]) -> Format {
 /// `PointCloud2` in it) by extension, anything else (including files without extension) by
 /// content: PLY or MCAP magic, PCD header, else plain text.
 pub fn read_cloud(path: &Path) -> Result<PointCloud, CloudError> {
-    let bytes = fs::read(path).map_err(|e| CloudError::Io(e).in_file(path))?;
+    let bytes = read_regular(path).map_err(|e| CloudError::Io(e).in_file(path))?;
     let result = match format_of(path, Some(&bytes)) {
         Format::Ply => super::ply::parse_ply(&bytes),
         Format::Pcd => super::pcd::parse_pcd(&bytes),
@@ -116,6 +116,20 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, CloudError> {
         Format::Text => super::text::parse_text(&bytes),
     };
     result.map_err(|e| e.in_file(path))
+}
+
+/// The bytes of a regular file, opened without blocking (a FIFO would wait for a writer in
+/// open(2)); anything else (a FIFO, a device, a directory) is refused as not a regular file.
+fn read_regular(path: &Path) -> io::Result<Vec<u8>> {
+    use std::io::Read;
+    let mut file = crate::spec::open_regular(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(io::Error::new(io::ErrorKind::InvalidInput, "not a regular file"));
+    }
+    let mut bytes = Vec::with_capacity(meta.len().min(1 << 30) as usize);
+    file.read_to_end(&mut bytes)?;
+    Ok(bytes)
 }
 
 /// Writes `cloud` to `path`: `.ply` as binary little-endian PLY, `.pcd` as `binary_compressed`
