@@ -42,6 +42,7 @@ mod sample_cache;
 mod search;
 mod select;
 mod shell;
+mod support;
 mod verify;
 mod visibility;
 

@@ -169,7 +169,7 @@ pub fn refine_fine(space: &SearchSpace<'_>, c: &Coarse) -> Hypothesis {
 /// eight (M 0.124 there, 0.113 resting on the table). A vessel that rests on something else (a
 /// book, a tin: [`rests_on_something`]) stays: lowered into it, its fit can take in the top of
 /// what it stands on and measure better.
-pub fn refine_fine_resting(space: &SearchSpace<'_>, check: &PlaneCheck, c: &Coarse) -> Hypothesis {
+fn refine_fine_resting(space: &SearchSpace<'_>, check: &PlaneCheck, c: &Coarse) -> Hypothesis {
     let h = refine_fine(space, c);
     if c.freedom != Freedom::AxisFixed {
         return h;
