@@ -10,7 +10,8 @@
 //!    plane, and the visible points' twins turned 180 degrees about the vertical axis (a symmetry
 //!    of any superquadric that rests on a table with one of its axes vertical). `family.rs`
 //!    chooses between a general shape and a body of revolution. An open container standing
-//!    upright is learned instead from its outer wall's profile (`profile.rs`).
+//!    upright is learned instead from its outer wall's profile (`profile.rs`), a closed object
+//!    standing on the plane with its top in view from its top's outline (`prism.rs`).
 //! 3. [`learn_parts`] (`compound.rs`): two or three parts, each fitted to what the others leave.
 //! 4. [`model_toml`] (`model_file.rs`): the result as a model file that `sqscan detect` takes as
 //!    it is.
@@ -19,6 +20,7 @@ mod compound;
 mod family;
 mod gradient;
 mod model_file;
+mod prism;
 mod profile;
 mod residual;
 mod robust;

@@ -310,6 +310,42 @@ pub(super) fn unseen_top(
     on_top * 50 < points.len()
 }
 
+/// Whether an object standing on `plane` is open at the top, judged on its points alone: the
+/// sensor is above the object, yet fewer than 2 % of the points lie in the upper 15 % of its
+/// height over the inner part of its footprint (the convex hull of all its points, shrunk to
+/// 70 % about its centre). A closed top in view shows plenty there; an open container shows its
+/// rim at the edge and its inside lower down. `None` when the sensor is not above the object.
+/// Unlike [`unseen_top`] this needs no fit: a box seen across a corner can pull the first fit's
+/// centre off to the side, so that its own top falls outside the fit's inner half.
+pub(super) fn open_top_of_points(points: &[Point3<f64>], plane: &Plane, v: &Point3<f64>) -> Option<bool> {
+    let mut h: Vec<f64> = points.iter().map(|p| plane.signed_distance(p)).collect();
+    if h.len() < 10 {
+        return None;
+    }
+    h.sort_by(f64::total_cmp);
+    let top = h[(h.len() - 1) * 99 / 100];
+    if plane.signed_distance(v) < top || top <= 0.0 {
+        return None;
+    }
+    let hull = footprint(points, &plane.normal);
+    if hull.len() < 3 {
+        return None;
+    }
+    let n = hull.len() as f64;
+    let c = hull.iter().fold((0.0, 0.0), |a, q| (a.0 + q.0 / n, a.1 + q.1 / n));
+    let (u, w) = crate::cloud::plane::orthonormal_basis(&plane.normal);
+    let band = top - (0.15 * top).max(0.008);
+    let on_top = points
+        .iter()
+        .filter(|p| plane.signed_distance(p) > band)
+        .filter(|p| {
+            let q = (p.coords.dot(&u), p.coords.dot(&w));
+            inside_convex(&hull, (c.0 + (q.0 - c.0) / 0.7, c.1 + (q.1 - c.1) / 0.7))
+        })
+        .count();
+    Some(on_top * 50 < points.len())
+}
+
 /// Free-space samples less those in or near `placed` (the inside of an open container, seen
 /// through its opening, and its rim).
 pub(super) fn drop_rays_through_top(free: &[Point3<f64>], placed: &PlacedSuperquadric) -> Vec<Point3<f64>> {

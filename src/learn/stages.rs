@@ -2,14 +2,16 @@
 //! mirrored twins, along the rays), D (the smallest equally good shape), E (along the rays again).
 
 use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
-use super::profile;
 use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
-use super::seen::{Seen, drop_rays_through_top, free_space_samples, silhouette_samples, unseen_top};
+use super::seen::{
+    Seen, drop_rays_through_top, free_space_samples, open_top_of_points, silhouette_samples, unseen_top,
+};
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
 use super::starts::{moments, starts};
 use super::state::State;
 use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
+use super::{prism, profile};
 use crate::cloud::plane::Plane;
 use crate::numeric::{huber, median};
 use nalgebra::{Point3, Vector3};
@@ -79,11 +81,23 @@ pub fn fit_superquadric(
         .filter(|r| up.is_some_and(|u| (r.1.rot * Vector3::z()).dot(&u).abs() > 0.9))
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .map(|r| r.1);
-    let open_top = match (params.viewpoint, up, upright) {
-        (Some(v), Some(u), Some(s)) => unseen_top(&s.placed(), &points, &v, &u),
+    let open_top = match (params.viewpoint, up, upright, plane) {
+        (Some(v), _, _, Some(pl)) => open_top_of_points(&points, pl, &v).unwrap_or(false),
+        (Some(v), Some(u), Some(s), None) => unseen_top(&s.placed(), &points, &v, &u),
         _ => false,
     };
-    tracing::debug!("open top: {open_top}");
+    if let Some(s) = upright {
+        let c = s.placed().pose.translation.vector;
+        tracing::debug!(
+            "open top: {open_top} (judged on the upright fit {} at ({:.3}, {:.3}, {:.3}))",
+            s.shape(),
+            c.x,
+            c.y,
+            c.z
+        );
+    } else {
+        tracing::debug!("open top: {open_top} (no upright fit)");
+    }
     // An open container standing upright is a vessel, a body of revolution: its outer wall's
     // profile gives its shape directly, where the closed shape fitted to both of its walls
     // comes out too small (see `profile.rs`).
@@ -96,6 +110,24 @@ pub fn fit_superquadric(
                 let name = "outer wall profile".to_string();
                 return Ok(recovered(&points, s, PROFILE_DELTA, name, true, up.as_ref(), params));
             }
+        }
+    }
+    // A closed object standing on the plane with its top in view is measured: the fit below
+    // fills the hidden back coarsely (see `prism.rs`).
+    if let (false, Some(pl), Some(v)) = (open_top, plane, params.viewpoint) {
+        match prism::measure(&points, pl, &v) {
+            Ok(p) if p.round || params.shape != ShapeFamily::Revolution => {
+                tracing::debug!("measured from the top: {p}");
+                let s = prism::state(&p, pl);
+                let name = "top outline".to_string();
+                // Closed by what the top showed: the walls' points seen at a grazing angle past
+                // the outline's edge face away from the sensor, which would read as an inside.
+                let mut r = recovered(&points, s, PROFILE_DELTA, name, false, up.as_ref(), params);
+                r.open = false;
+                return Ok(r);
+            }
+            Ok(p) => tracing::debug!("the top is not round, a body of revolution was asked for: fitted ({p})"),
+            Err(why) => tracing::debug!("not measured from the top: {why}"),
         }
     }
     // The free space, for the stages from here on (the profile above needs none).
@@ -455,7 +487,20 @@ pub(super) fn smallest_equally_good(problem: &Problem, best: State, min_delta: f
         };
         let s = robust_fit(&shrinking, kept, 2, 30, min_delta).0;
         let sc = score(problem, &s);
-        tracing::debug!("smallest w {w}: score {sc:.6} (base {base:.6}) {}", s.shape());
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            let mut r = Vec::new();
+            problem.residuals(&s, &mut r);
+            let (np, nf) = (problem.points.len(), problem.free.len());
+            let part = |a: usize, b: usize| r[a..b].iter().map(|v| huber(*v, 0.003)).sum::<f64>();
+            tracing::debug!(
+                "smallest w {w}: score {sc:.6} (base {base:.6}; points {:.6}, free {:.6}, rest {:.6}) {} t {:?}",
+                part(0, np),
+                part(np, np + nf),
+                part(np + nf, r.len()),
+                s.shape(),
+                s.t.as_slice()
+            );
+        }
         if sc > base * (1.0 + SMALLEST_TOLERANCE) {
             break;
         }
