@@ -293,3 +293,56 @@ fn mug_learned_from_one_scan_is_found_upside_down() {
     let m = learned_from("test34.pcd", 5, "learned_mug");
     found_standing_as("learn38.pcd", &m, &[2, 3], false, 5..6);
 }
+
+/// mOSD learn2: the gittis muesli box standing, its narrow side and its top in view. Its first
+/// fit's centre fell off to a corner, the top's points outside the fit's inner half, and the box
+/// was learned as an open round pot that was found nowhere. Measured from its top it is a closed
+/// box of its size (its top's points: about 48 by 125 mm, 214 mm above the table).
+#[test]
+fn the_gittis_box_is_learned_as_a_box() {
+    let m = learned_from("learn2.pcd", 2, "learned_gittis_box");
+    let part = &m.parts[0];
+    assert!(!part.open, "{:?}", part.shape);
+    assert!(part.shape.e2 < 0.3 && part.shape.e1 < 0.3, "{:?}", part.shape);
+    let mut full = part.shape.a.map(|a| 2.0 * a);
+    full.sort_by(f64::total_cmp);
+    for (got, want) in full.iter().zip([0.048, 0.125, 0.214]) {
+        assert!((got - want).abs() < 0.1 * want, "sizes {full:?}");
+    }
+}
+
+/// The tea box as `sqscan learn` learned it from mOSD learn6 (62 x 78 x 148 mm).
+const LEARNED_TEA_BOX: &str =
+    "name = \"tea_box\"\n[[part]]\nname = \"body\"\na = [0.031, 0.0391, 0.0738]\ne1 = 0.1\ne2 = 0.1\n";
+
+/// The tea box's model once answered on the upper part of the gittis box standing in mOSD
+/// learn3 (47 x 127 x 212 mm): it shared the box's top and the upper part of its front, and the
+/// front going on in its plane below the model's lower edge reached past the shell's first
+/// millimetres only. Over seeds 0-3 no answer lies on the gittis box (object 2); that box's own
+/// model, learned from learn2, is found there.
+#[test]
+fn the_tea_box_is_not_found_in_the_gittis_box() {
+    let cloud = read_cloud(&data("learn3.pcd")).unwrap();
+    let gittis = centroids(&cloud, &[2])[0].1;
+    let near_it = |m: &Model, seed: u64| -> Vec<(Vector3<f64>, f64)> {
+        detect(&cloud.points, m, &every_instance(seed))
+            .detections
+            .iter()
+            .filter(|d| d.found && (Point3::from(d.pose.translation.vector) - gittis).norm() < 0.05)
+            .map(|d| (d.pose.translation.vector, d.confidence))
+            .collect()
+    };
+    let tea = Model::from_toml_str(LEARNED_TEA_BOX, std::path::Path::new("tea_box.toml")).unwrap();
+    for seed in 0..4u64 {
+        let on_it = near_it(&tea, seed);
+        assert!(
+            on_it.is_empty(),
+            "seed {seed}: the tea box found on the gittis box at {on_it:?}"
+        );
+    }
+    let gittis_model = learned_from("learn2.pcd", 2, "learned_gittis_box_3");
+    assert!(
+        !near_it(&gittis_model, 5).is_empty(),
+        "the gittis box's own model does not find it"
+    );
+}

@@ -34,6 +34,7 @@ pub fn assess(
     // Pool the measures over the parts found (a hidden part lowers coverage by its share).
     let (mut covered, mut expected_weight, mut surface, mut inside, mut ss) = (0.0, 0.0, 0usize, 0usize, 0.0);
     let mut shell = 0usize;
+    let mut continued = 0usize;
     let mut faces = f64::INFINITY;
     let mut base_recess: Option<f64> = None;
     for (p, r) in model.parts.iter().zip(&parts) {
@@ -45,6 +46,7 @@ pub fn assess(
             surface += r.scores.surface_points;
             inside += r.scores.inside_points;
             shell += r.scores.shell_points;
+            continued += r.scores.continued_points;
             faces = faces.min(r.scores.faces);
             if let Some(b) = r.scores.base_recess {
                 base_recess = Some(base_recess.map_or(b, |x: f64| x.min(b)));
@@ -69,6 +71,7 @@ pub fn assess(
         (max_rms - rms) / (0.5 * max_rms),
         // A round wall that two flat faces explain better is a box's edge.
         (faces - 1.0) / 0.3,
+        (acc.max_continued_ratio - continued as f64 / (surface as f64).max(1.0)) / 0.05,
     ];
     // A container on its rim shows only its outside and its base, and only a vessel's base (its
     // middle raised inside a foot ring) tells it from a closed can or a lidded canister.
@@ -117,12 +120,12 @@ pub fn connections_hold(model: &Model, connection_errors: &[(f64, f64)], acc: &A
 }
 
 /// Each measure's margin to its threshold in units of its scale (negative: the test fails):
-/// `acceptance margins [coverage, interior, shell, rms, faces, (base,) connections..] [..]`.
+/// `acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) connections..] [..]`.
 struct Margins<'a>(&'a [f64]);
 
 impl fmt::Display for Margins<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, (base,) connections..] [")?;
+        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) connections..] [")?;
         for (k, m) in self.0.iter().enumerate() {
             if k > 0 {
                 f.write_str(", ")?;

@@ -44,6 +44,9 @@ pub struct Acceptance {
     pub max_interior_ratio: f64,
     /// Most points just outside the surface per surface point.
     pub max_shell_ratio: f64,
+    /// Most points continuing the explained surface's plane past the model's edge per surface
+    /// point (see [`super::verify::Scores::continued_points`]).
+    pub max_continued_ratio: f64,
     /// Least share of each part's visible side that, where the sensor could have seen it, it
     /// did (see [`super::visibility::Visibility::seen_ratio`]).
     pub min_seen: f64,
@@ -61,6 +64,7 @@ impl Default for Acceptance {
             min_coverage: 0.45,
             max_interior_ratio: 0.15,
             max_shell_ratio: 0.08,
+            max_continued_ratio: 0.1,
             min_seen: 0.5,
             max_rms_sigmas: 1.6,
             max_angle_error: 25f64.to_radians(),

@@ -52,6 +52,10 @@ pub struct Scores {
     /// Points just outside the band (within 0.3 of the sample radius) that continue the explained
     /// surface: a larger object of the same shape around a too-small fit leaves its surface here.
     pub shell_points: usize,
+    /// Points up to [`CONTINUATION`] outside the surface that lie in the plane of the explained
+    /// surface next to them: a face of a larger object going on past the model's edge (a small
+    /// box's model on a large box's face), which the shell sees only in its first millimetres.
+    pub continued_points: usize,
     /// For a part with a rounded cross-section: the RMS distance of its side wall's points from
     /// the best two straight lines across the axis, over their RMS distance from the model's
     /// surface (see [`flat_faces`]). Below 1 the wall is better explained by flat faces: a box
@@ -89,7 +93,7 @@ impl fmt::Display for Scores {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} faces {:.2} base {}",
+            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} continued {} faces {:.2} base {}",
             self.m,
             self.s,
             self.i,
@@ -98,6 +102,7 @@ impl fmt::Display for Scores {
             self.surface_points,
             self.inside_points,
             self.shell_points,
+            self.continued_points,
             self.faces,
             match self.base_recess {
                 Some(r) => format!("{:.1} mm", r * 1e3),
@@ -122,6 +127,7 @@ pub fn score(
         band,
         tolerance,
         shell,
+        wide,
         up_sign,
         opening_up,
         kernel,
@@ -132,6 +138,7 @@ pub fn score(
     let shape = &placed.shape;
     let (mut s, mut i) = (0usize, 0usize);
     let mut near_surface: Vec<Point3<f64>> = Vec::new();
+    let mut beyond: Vec<Point3<f64>> = Vec::new();
     // Their surface distances, for the faces test.
     let mut near_distance: Vec<f64> = Vec::new();
     let mut ss = 0.0;
@@ -180,6 +187,9 @@ pub fn score(
                 tolerated.push(*p);
             } else if d < shell && !support.holds(space, p) {
                 outside_near.push(*p);
+                beyond.push(*p);
+            } else if d < wide && !support.holds(space, p) {
+                beyond.push(*p);
             }
         });
     space.grid.for_each_within_box(
@@ -212,6 +222,7 @@ pub fn score(
             band + super::search::approximation_tolerance(shape),
             up_sign,
         );
+    let continued_points = continued(&near_surface, &beyond, band);
     let faces = flat_faces(placed, &near_surface, &near_distance);
     let surface_points = near_surface.len();
     let rms = if surface_points > 0 {
@@ -236,11 +247,67 @@ pub fn score(
         surface_points,
         inside_points,
         shell_points,
+        continued_points,
         faces,
         base_recess: on_rim.then(|| base.recess()),
     }
 }
 }
+
+/// How far past the model's surface (beyond the tolerance) [`continued`] looks (m): the size
+/// difference of two boxes of a shelf that the shell's first millimetres do not see.
+pub const CONTINUATION: f64 = 0.02;
+
+/// Of the points `beyond` the surface, those that lie in the plane of the explained surface
+/// next to them: within `band` (and a tenth of the distance, for a gently curved face) of the
+/// plane through the nearest point of `near_surface` within [`CONTINUATION`] and its neighbours
+/// there. The face of a larger object goes on in its plane past the model's edge; another
+/// object touching it and the table below it leave the plane. (The data's plane, not the
+/// model's: near its edges a model's normal turns towards the next face.)
+fn continued(near_surface: &[Point3<f64>], beyond: &[Point3<f64>], band: f64) -> usize {
+    if near_surface.is_empty() || beyond.is_empty() {
+        return 0;
+    }
+    let grid = Grid::new(near_surface, CONTINUATION);
+    let mut normals: std::collections::HashMap<usize, Option<Vector3<f64>>> = std::collections::HashMap::new();
+    let mut normal_at = |i: usize| -> Option<Vector3<f64>> {
+        *normals.entry(i).or_insert_with(|| {
+            let mut near: Vec<Vector3<f64>> = Vec::new();
+            grid.for_each_within(near_surface, &near_surface[i], NORMAL_RADIUS, |k| {
+                near.push(near_surface[k].coords)
+            });
+            if near.len() < 6 {
+                return None;
+            }
+            let n = near.len() as f64;
+            let mean = near.iter().sum::<Vector3<f64>>() / n;
+            let cov = near.iter().fold(nalgebra::Matrix3::zeros(), |c, q| {
+                c + (q - mean) * (q - mean).transpose()
+            }) / n;
+            let eig = cov.symmetric_eigen();
+            let k = eig.eigenvalues.imin();
+            Some(eig.eigenvectors.column(k).into_owned())
+        })
+    };
+    beyond
+        .iter()
+        .filter(|p| {
+            let mut nearest: Option<(f64, usize)> = None;
+            grid.for_each_within(near_surface, p, CONTINUATION, |i| {
+                let d2 = (near_surface[i] - *p).norm_squared();
+                if nearest.is_none_or(|(b, _)| d2 < b) {
+                    nearest = Some((d2, i));
+                }
+            });
+            nearest.is_some_and(|(d2, i)| {
+                normal_at(i).is_some_and(|n| (*p - near_surface[i]).dot(&n).abs() < band + 0.1 * d2.sqrt())
+            })
+        })
+        .count()
+}
+
+/// The radius of the neighbourhood whose plane [`continued`] takes (m).
+const NORMAL_RADIUS: f64 = 0.01;
 
 /// Across the middle of an open part's opening, within this share of its cross-section: where a
 /// closed lookalike's lid has points and a vessel has none.
@@ -270,6 +337,8 @@ struct Around {
     tolerance: f64,
     /// How far outside the surface data past the model's edge counts against it.
     shell: f64,
+    /// How far outside the surface a face going on past the model's edge is looked for.
+    wide: f64,
     /// For an open container on the support plane, the sign of its axis along the plane's normal.
     up_sign: Option<f64>,
     /// An open container seen from above (or off any plane): its I counts its lid points.
@@ -305,6 +374,7 @@ impl Around {
             band
         };
         let shell = tolerance + 0.3 * super::search::sample_radius(shape);
+        let wide = shell.max(tolerance + CONTINUATION);
         // A container standing on its rim shows neither its inside nor its opening: its points
         // are scored as those of a closed part.
         let up_sign = if samples.open {
@@ -324,18 +394,19 @@ impl Around {
         // decimetres off a box-like part's face could pass for one a few millimetres off.)
         let reach = kernel
             .level_box(1.0 + gamma)
-            .sup(&shape.local_half_extents().add_scalar(shell));
+            .sup(&shape.local_half_extents().add_scalar(wide));
         Around {
             centre,
             radius,
             band,
             tolerance,
             shell,
+            wide,
             up_sign,
             opening_up,
             kernel,
             reach,
-            search: radius.max(shape.bounding_radius() + shell),
+            search: radius.max(shape.bounding_radius() + wide),
             support: Support::new(space, placed, band + super::search::approximation_tolerance(shape)),
         }
     }
