@@ -17,6 +17,7 @@
 //!    it is.
 
 mod compound;
+mod convex;
 mod family;
 mod gradient;
 mod model_file;
@@ -100,6 +101,9 @@ pub struct LearnParams {
     pub along_rays: bool,
     /// Which shape families the fit may return.
     pub shape: ShapeFamily,
+    /// A closed object standing on the plane with its top in view is measured from its top's
+    /// outline rather than fitted (see `prism.rs`).
+    pub measure_top: bool,
     /// At most this many points go into the fit (voxel subsampling).
     pub max_points: usize,
     /// Voxel of the cluster flood fill (m).
@@ -120,6 +124,7 @@ impl Default for LearnParams {
             silhouette: false,
             cost: Cost::Radial,
             along_rays: true,
+            measure_top: true,
             max_points: 1200,
             cluster_voxel: 0.01,
             max_range: None,

@@ -26,7 +26,7 @@ const WALL_MARGIN: f64 = 0.01;
 /// leaves the two medians within a millimetre or two.
 const FLAT_DROP: f64 = 0.004;
 /// Share of the wall points that must lie within the grown outline.
-const WALL_SHARE: f64 = 0.95;
+const WALL_SHARE: f64 = 0.9;
 /// A convex outline filling less than this share of its smallest bounding rectangle is round
 /// (an ellipse fills pi/4 = 0.785 of it, a rectangle all of it).
 const ROUND_BELOW: f64 = 0.88;

@@ -50,8 +50,10 @@ pub const AT_REACH: f64 = 0.05;
 
 /// The object shown by a point: the supporting plane removed, the connected cluster (of at least
 /// 10 points) with a point nearest to `at`, within [`AT_REACH`], and the clusters that belong
-/// to it as in [`segment`] (an open container's inside). Objects that touch each other (a mug
-/// standing on a tin) are one cluster. `Err` says how far the nearest object is.
+/// to it as in [`segment`] (an open container's inside); of that cluster only what reaches the
+/// point without crossing a concave crease ([`super::convex::convex_region`]): objects that
+/// touch each other (a mug standing on a tin) meet in one. `Err` says how far the nearest
+/// object is.
 pub fn segment_at(points: &[Point3<f64>], params: &LearnParams, at: &Point3<f64>) -> Result<Segmentation, String> {
     let (plane, kept) = off_the_plane(points, params);
     let clusters = clusters(points, &kept, params.cluster_voxel);
@@ -65,10 +67,36 @@ pub fn segment_at(points: &[Point3<f64>], params: &LearnParams, at: &Point3<f64>
         })
         .min_by(|a, b| a.1.total_cmp(&b.1));
     match nearest {
-        Some((k, d)) if d <= AT_REACH => Ok(Segmentation {
-            object: with_nearby_clusters(points, &clusters, k, MERGE_GAP, plane.as_ref()),
-            plane,
-        }),
+        Some((k, d)) if d <= AT_REACH => {
+            // Of that cluster, the part that reaches the point without crossing a concave crease:
+            // what touches the object (the book a mug stands on) stays out.
+            let v = params.viewpoint.unwrap_or_else(Point3::origin);
+            let whole = clusters[k].len();
+            let object = match &plane {
+                Some(pl) => {
+                    let object = super::convex::object_at(points, &clusters[k], at, &v, &pl.normal);
+                    tracing::debug!(
+                        "at: {} of the {whole} points of the nearest cluster belong to the object by local convexity",
+                        object.len()
+                    );
+                    // Other clusters, as an open container's inside seen through its opening,
+                    // by the same rule.
+                    let others: Vec<Vec<usize>> = clusters
+                        .into_iter()
+                        .enumerate()
+                        .filter(|(j, c)| *j != k && c.len() >= 10)
+                        .map(|(_, c)| c)
+                        .collect();
+                    super::convex::merge_belonging(points, object, others, &pl.normal)
+                }
+                None => {
+                    let mut clusters = clusters;
+                    clusters[k] = super::convex::convex_region(points, &clusters[k], at, &v);
+                    with_nearby_clusters(points, &clusters, k, MERGE_GAP, None)
+                }
+            };
+            Ok(Segmentation { object, plane })
+        }
         Some((_, d)) => Err(format!(
             "the nearest object's points are {:.0} mm away (at most {:.0} mm)",
             d * 1e3,

@@ -114,7 +114,7 @@ pub fn fit_superquadric(
     }
     // A closed object standing on the plane with its top in view is measured: the fit below
     // fills the hidden back coarsely (see `prism.rs`).
-    if let (false, Some(pl), Some(v)) = (open_top, plane, params.viewpoint) {
+    if let (false, true, Some(pl), Some(v)) = (open_top, params.measure_top, plane, params.viewpoint) {
         match prism::measure(&points, pl, &v) {
             Ok(p) if p.round || params.shape != ShapeFamily::Revolution => {
                 tracing::debug!("measured from the top: {p}");

@@ -59,7 +59,8 @@ pub struct LearnArgs {
     #[arg(long, value_name = "N", conflicts_with_all = ["at", "within", "segmented"])]
     label: Option<u32>,
     /// Learn the object shown by a point "x,y,z" of the cloud's frame: the connected points off
-    /// the supporting plane nearest to it (within 5 cm; objects that touch are one)
+    /// the supporting plane nearest to it (within 5 cm), cut from what touches it where the two
+    /// meet in a concave crease
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true,
           conflicts_with_all = ["within", "segmented"])]
     at: Option<Point3<f64>>,
