@@ -376,3 +376,52 @@ fn a_carton_seen_at_its_corner_is_a_box() {
     assert!(err.contains("--rpy") && err.contains("three finite numbers"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The everyday shapes of a table, each learned from one simulated view through the CLI: a box
+/// lying flat and turned, a can lying on its side and a flat round tin come back in the right
+/// family (a box's cross-section square, e2 below 0.3; a can's and a tin's round, e2 above 0.8)
+/// and with every size within 10 % of the truth.
+#[test]
+fn a_box_a_lying_can_and_a_flat_tin_are_learned_from_one_view() {
+    use std::process::Command;
+    let bin = env!("CARGO_BIN_EXE_sqscan");
+    let dir = std::env::temp_dir().join(format!("sqscan-learn-everyday-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let shapes = [
+        ("box", "[0.06, 0.04, 0.03]", 0.1, "0,0,30"),
+        ("lying_can", "[0.035, 0.035, 0.1]", 1.0, "90,0,20"),
+        ("flat_tin", "[0.09, 0.09, 0.035]", 1.0, "0,0,0"),
+    ];
+    for (name, a, e2, rpy) in shapes {
+        std::fs::write(
+            dir.join(format!("{name}.toml")),
+            format!("name = \"{name}\"\n[[part]]\nname = \"body\"\na = {a}\ne1 = 0.1\ne2 = {e2}\n"),
+        )
+        .unwrap();
+        let o = Command::new(bin)
+            .args(["learn", "--simulate", name, "--rpy", rpy, "--seed", "1"])
+            .arg("--models-dir")
+            .arg(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let learned_e2 = r["learned"]["e2"].as_f64().unwrap();
+        if e2 < 0.5 {
+            assert!(learned_e2 < 0.3, "{name}: {r}");
+        } else {
+            assert!(learned_e2 > 0.8, "{name}: {r}");
+        }
+        for k in 0..3 {
+            let truth = r["truth"]["a"][k].as_f64().unwrap();
+            let axis = r["errors"]["axis_of"][k].as_u64().unwrap() as usize;
+            let got = r["learned"]["a"][axis].as_f64().unwrap();
+            assert!(
+                (got - truth).abs() < 0.1 * truth,
+                "{name}: axis {k}: {got} for {truth}: {r}"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

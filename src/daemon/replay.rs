@@ -127,7 +127,9 @@ fn index(dir: &Path) -> Result<Vec<Item>> {
     let mut claimed: Vec<String> = Vec::new();
     for n in names.iter().filter(|n| n.starts_with("sweep-") && n.ends_with(".json")) {
         let path = dir.join(n);
-        let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
+        // Bounded and without blocking: a FIFO named like a recording would hold the daemon's
+        // start for a writer that never comes.
+        let text = crate::spec::read_text(&path).with_context(|| format!("cannot read {}", path.display()))?;
         let meta: RecordingMeta =
             serde_json::from_str(&text).with_context(|| format!("{}: not a sweep recording", path.display()))?;
         // The cloud lies beside its JSON: a name, not a path that could lead anywhere else.
@@ -311,6 +313,36 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    /// A FIFO named like a sweep recording: reading it waited for a writer that never came,
+    /// and the daemon never started. It is refused at once, by name.
+    #[test]
+    fn a_fifo_named_like_a_recording_is_refused_without_blocking() {
+        let d = tmp("fifo");
+        let out = std::process::Command::new("mkfifo")
+            .arg(d.join("sweep-000001.json"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "mkfifo: {}", String::from_utf8_lossy(&out.stderr));
+        let (tx, rx) = std::sync::mpsc::channel();
+        let dir = d.clone();
+        std::thread::spawn(move || {
+            let _ = tx.send(
+                ReplayBackend::new(&dir, 1.0, false)
+                    .map(|_| ())
+                    .map_err(|e| format!("{e:#}")),
+            );
+        });
+        let e = rx
+            .recv_timeout(Duration::from_secs(10))
+            .expect("still blocked after 10 s")
+            .unwrap_err();
+        assert!(
+            e.contains("sweep-000001.json") && e.contains("not a regular file"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&d);
     }
 
     fn organized(rows: usize, cols: usize) -> PointCloud {
