@@ -101,7 +101,7 @@ impl Listeners {
 /// Accepts clients until shutdown.
 pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     // Fixed for the daemon's life: a reload does not resize the server.
-    let slots = Arc::new(Semaphore::new(shared.config().max_clients));
+    let slots = Arc::new(Semaphore::new(slots_total(&shared)));
     let idle: Idle = Arc::default();
     let mut shutdown = shared.shutdown.subscribe();
     let (unix, socket_path) = match listeners.unix {
@@ -212,9 +212,73 @@ fn give_back_memory() {
     }
 }
 
-/// The number of client slots the server was started with.
+/// The number of client slots the server was started with: `server.max_clients`, unless the
+/// descriptors the process may open (its soft limit, raised to the hard one at the first call)
+/// cannot hold that many clients besides the daemon's own files; then as many as they can.
 fn slots_total(shared: &Shared) -> usize {
-    shared.config().max_clients
+    static LIMIT: std::sync::OnceLock<Option<u64>> = std::sync::OnceLock::new();
+    let limit = *LIMIT.get_or_init(|| {
+        let l = raise_descriptor_limit();
+        if let Some(l) = l {
+            tracing::info!("open file limit {l}");
+        }
+        l
+    });
+    let wanted = shared.config().max_clients;
+    let slots = client_slots(wanted, limit);
+    if slots < wanted {
+        static WARNED: std::sync::Once = std::sync::Once::new();
+        WARNED.call_once(|| {
+            tracing::warn!(
+                "server.max_clients = {wanted}, but the open file limit ({}) holds {slots} clients besides the daemon's own {OWN_DESCRIPTORS} descriptors: serving {slots} (raise LimitNOFILE)",
+                limit.unwrap_or(0)
+            )
+        });
+    }
+    slots
+}
+
+/// Descriptors kept for the daemon's own files and sockets (serial lines, the sensor's sockets,
+/// recordings, models, DDS and the live view), beside one per client.
+const OWN_DESCRIPTORS: u64 = 128;
+
+/// Client slots for `max_clients` under a descriptor limit (`None`: unknown, no bound).
+fn client_slots(max_clients: usize, limit: Option<u64>) -> usize {
+    match limit {
+        Some(l) => max_clients.min(l.saturating_sub(OWN_DESCRIPTORS).max(1) as usize),
+        None => max_clients,
+    }
+}
+
+/// Raise the soft limit of open files to the hard one (systemd's default soft limit, 1024, is
+/// the default `max_clients` with nothing to spare), and return the soft limit in force.
+fn raise_descriptor_limit() -> Option<u64> {
+    let mut r = libc::rlimit {
+        rlim_cur: 0,
+        rlim_max: 0,
+    };
+    // SAFETY: getrlimit writes only into the struct given.
+    if unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) } != 0 {
+        return None;
+    }
+    // An unlimited hard limit is no number the kernel takes for open files (fs.nr_open bounds
+    // it): ask for a million.
+    let target = if r.rlim_max == libc::RLIM_INFINITY {
+        1 << 20
+    } else {
+        r.rlim_max
+    };
+    if r.rlim_cur < target {
+        let raised = libc::rlimit {
+            rlim_cur: target,
+            rlim_max: r.rlim_max,
+        };
+        // SAFETY: setrlimit reads only the struct given.
+        if unsafe { libc::setrlimit(libc::RLIMIT_NOFILE, &raised) } == 0 {
+            r.rlim_cur = target;
+        }
+    }
+    Some(r.rlim_cur as u64)
 }
 
 /// A client's outbound queue: lines, and the bytes they hold.
@@ -627,6 +691,35 @@ fn models_reply(shared: &Shared) -> Reply {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Under systemd's default soft limit of 1024 open files, 1,024 idle clients took every
+    /// descriptor: accept failed ("Too many open files") and nobody else got in. The slots
+    /// leave the daemon its own descriptors.
+    #[test]
+    fn client_slots_leave_the_daemon_its_own_descriptors() {
+        assert_eq!(client_slots(1024, Some(1024)), 1024 - OWN_DESCRIPTORS as usize);
+        assert_eq!(client_slots(1024, Some(524_288)), 1024);
+        assert_eq!(client_slots(1024, None), 1024);
+        assert_eq!(client_slots(10, Some(3)), 1);
+        assert_eq!(client_slots(1024, Some(0)), 1);
+    }
+
+    #[test]
+    fn the_descriptor_limit_is_raised_to_the_hard_one() {
+        let l = raise_descriptor_limit().expect("getrlimit");
+        let mut r = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        // SAFETY: getrlimit writes only into the struct given.
+        assert_eq!(unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) }, 0);
+        assert_eq!(r.rlim_cur as u64, l);
+        assert!(
+            r.rlim_max == libc::RLIM_INFINITY || r.rlim_cur == r.rlim_max,
+            "{l} of {}",
+            r.rlim_max
+        );
+    }
 
     #[tokio::test]
     async fn watch_updates_to_a_full_queue_are_skipped_not_waited_for() {
