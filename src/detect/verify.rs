@@ -279,14 +279,7 @@ fn continued(near_surface: &[Point3<f64>], beyond: &[Point3<f64>], band: f64) ->
             if near.len() < 6 {
                 return None;
             }
-            let n = near.len() as f64;
-            let mean = near.iter().sum::<Vector3<f64>>() / n;
-            let cov = near.iter().fold(nalgebra::Matrix3::zeros(), |c, q| {
-                c + (q - mean) * (q - mean).transpose()
-            }) / n;
-            let eig = cov.symmetric_eigen();
-            let k = eig.eigenvalues.imin();
-            Some(eig.eigenvectors.column(k).into_owned())
+            Some(crate::numeric::least_spread_direction(&near))
         })
     };
     beyond

@@ -4,7 +4,7 @@
 //! curved; where a mug stands on a book, a box leans on a box or a can touches a tin, the two
 //! surfaces meet in a concave crease.
 
-use nalgebra::{Matrix3, Point3, Vector3};
+use nalgebra::{Point3, Vector3};
 use std::collections::{HashMap, VecDeque};
 
 /// Voxel side (m).
@@ -69,12 +69,7 @@ impl Voxels {
                 if near.len() < 5 {
                     return None;
                 }
-                let mean = near.iter().sum::<Vector3<f64>>() / near.len() as f64;
-                let cov = near
-                    .iter()
-                    .fold(Matrix3::zeros(), |s, q| s + (q - mean) * (q - mean).transpose());
-                let eig = cov.symmetric_eigen();
-                let n: Vector3<f64> = eig.eigenvectors.column(eig.eigenvalues.imin()).into_owned();
+                let n = crate::numeric::least_spread_direction(&near);
                 let n = if n.dot(&(viewpoint.coords - x)) < 0.0 { -n } else { n };
                 n.iter().all(|v| v.is_finite()).then_some((*c, n))
             })

@@ -65,11 +65,10 @@ impl std::fmt::Display for Prism {
     }
 }
 
-/// The `f`-quantile (0..1) of `v`, by sorting a copy.
+/// The `f`-quantile (0..1) of `v`, as [`crate::numeric::quantile`] picks it, of a copy (the
+/// callers keep their order; an empty `v` gives NaN).
 fn quantile(v: &[f64], f: f64) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    s[((s.len() - 1) as f64 * f).round() as usize]
+    crate::numeric::quantile(&mut v.to_vec(), f).unwrap_or(f64::NAN)
 }
 
 /// Measure the object as a prism standing on `plane`, seen from `viewpoint`; the reason it is
@@ -109,12 +108,13 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
     let level = quantile(&near_top, 0.5);
     let (u, w) = orthonormal_basis(&plane.normal);
     let flat = |p: &Point3<f64>| Vector2::new(p.coords.dot(&u), p.coords.dot(&w));
-    let top_xy: Vec<Vector2<f64>> = points
+    // The top's points, in the plane's basis, with their heights.
+    let (top_xy, top_z): (Vec<Vector2<f64>>, Vec<f64>) = points
         .iter()
         .zip(&h)
         .filter(|(_, z)| (**z - level).abs() < TOP_BAND)
-        .map(|(p, _)| flat(p))
-        .collect();
+        .map(|(p, z)| (flat(p), *z))
+        .unzip();
     if top_xy.len() < 50 || top_xy.len() * 10 < points.len() {
         return Err(format!(
             "{} of {} points on a level top: not a closed top in view",
@@ -176,12 +176,11 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
     // A flat top is as high at its edges as in its middle; a dome (a ball, a mouse) or a lying
     // cylinder is not, and its outline at the top is no cross-section. Each pair of edges on its
     // own: along a lying shaft the top is level, across it it falls away.
-    let top_local: Vec<(Vector2<f64>, f64)> = points
+    let top_local: Vec<(Vector2<f64>, f64)> = top_xy
         .iter()
-        .zip(&h)
-        .filter(|(_, z)| (**z - level).abs() < TOP_BAND)
-        .map(|(p, z)| {
-            let l = local(&flat(p));
+        .zip(&top_z)
+        .map(|(q, z)| {
+            let l = local(q);
             (Vector2::new(l.x / half[0], l.y / half[1]), *z)
         })
         .collect();

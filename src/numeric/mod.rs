@@ -8,7 +8,7 @@ pub mod lm;
 pub mod stats;
 
 pub use lm::{Budget, Damping, LeastSquares, LmSettings, Minimum, minimize};
-pub use stats::{huber, huber_weight, median, quantile};
+pub use stats::{huber, huber_weight, least_spread_direction, median, quantile};
 
 /// Mix a seed and an index into an independent stream seed (SplitMix64 finaliser), so profiles,
 /// hypotheses or trials can be drawn in any order, in parallel, with the same result.

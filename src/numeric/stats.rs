@@ -11,6 +11,18 @@ pub fn quantile(values: &mut [f64], q: f64) -> Option<f64> {
     Some(*values.select_nth_unstable_by(k, f64::total_cmp).1)
 }
 
+/// The direction in which `points` spread least (unit length, either sign): the normal of the
+/// plane through them. `points` must not be empty.
+pub fn least_spread_direction(points: &[nalgebra::Vector3<f64>]) -> nalgebra::Vector3<f64> {
+    let n = points.len() as f64;
+    let mean = points.iter().sum::<nalgebra::Vector3<f64>>() / n;
+    let cov = points.iter().fold(nalgebra::Matrix3::zeros(), |c, q| {
+        c + (q - mean) * (q - mean).transpose()
+    }) / n;
+    let eig = cov.symmetric_eigen();
+    eig.eigenvectors.column(eig.eigenvalues.imin()).into_owned()
+}
+
 /// The median of `values` (the upper middle one for an even count); `None` when empty.
 /// Reorders `values`.
 pub fn median(values: &mut [f64]) -> Option<f64> {
