@@ -62,6 +62,24 @@ where
     }
 }
 
+/// The fields of events and spans as `tracing`'s default writes them, with control characters
+/// escaped: messages carry a client's request or a file's token, and a line break or a terminal
+/// escape sequence in them must not forge a log line or recolour the terminal.
+#[derive(Default)]
+struct EscapedFields(tracing_subscriber::fmt::format::DefaultFields);
+
+impl<'w> FormatFields<'w> for EscapedFields {
+    fn format_fields<R: tracing_subscriber::field::RecordFields>(
+        &self,
+        mut writer: Writer<'w>,
+        fields: R,
+    ) -> fmt::Result {
+        let mut text = String::new();
+        self.0.format_fields(Writer::new(&mut text), fields)?;
+        writer.write_str(&crate::spec::escape_controls(&text))
+    }
+}
+
 /// Whether stderr is the journal stream systemd connected (`JOURNAL_STREAM` is its
 /// `DEVICE:INODE`): only then do the priority prefixes mean anything to the reader.
 pub fn stderr_is_journal() -> bool {
@@ -92,6 +110,7 @@ pub fn init(default: tracing::Level) {
         .and_then(|l| l.parse().ok())
         .unwrap_or(default);
     let builder = tracing_subscriber::fmt()
+        .fmt_fields(EscapedFields::default())
         .with_writer(std::io::stderr)
         .with_max_level(level)
         .with_target(false);

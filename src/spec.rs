@@ -126,11 +126,12 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Re
     })
 }
 
-/// `text` with its control characters (a terminal's escape sequences among them) escaped.
+/// `text` with its control characters (a terminal's escape sequences among them, line breaks,
+/// and the bidirectional overrides that reorder what a terminal shows) escaped as `\u{1b}`.
 pub fn escape_controls(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for c in text.chars() {
-        if c.is_control() {
+        if c.is_control() || matches!(c, '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}') {
             out.extend(c.escape_default());
         } else {
             out.push(c);

@@ -1412,6 +1412,27 @@ fn models_with_a_broken_one(dir: &Path) -> PathBuf {
     models
 }
 
+/// A model file named with a terminal's escape sequence and a line break was logged raw: the
+/// terminal cleared and a forged log line.
+#[test]
+fn a_file_name_with_escape_sequences_and_a_line_break_is_logged_escaped() {
+    let dir = tmpdir("log-escaped");
+    let models = models_with_a_broken_one(&dir);
+    std::fs::rename(models.join("broken.toml"), models.join("b\u{1b}[2J\nforged line.toml")).unwrap();
+    let config = format!("{}\n[server]\nmodels_dir = \"{}\"\n", sim_config(), models.display());
+    let (d, socket) = start_daemon(&dir, &config, &[]);
+    Client::connect(&socket).ask(json!({"cmd":"status"}));
+    drop(d);
+    let text = log(&dir);
+    let line = text
+        .lines()
+        .find(|l| l.contains("skipping a model"))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(line.contains("[2J\\nforged line.toml"), "{line}");
+    assert!(!text.contains('\u{1b}'), "an escape byte in the log: {text:?}");
+    assert!(!text.lines().any(|l| l.starts_with("forged")), "a forged line: {text}");
+}
+
 #[test]
 fn logs_carry_no_colour_codes_and_journal_lines_carry_their_priority() {
     use std::os::unix::fs::MetadataExt;

@@ -205,6 +205,35 @@ fn control_characters_from_a_file_are_escaped_in_errors() {
     assert!(!e.chars().any(|c| c.is_control()), "{e:?}");
 }
 
+/// `sqscan info` and `detect` printed an error about a file's token raw: its escape sequences
+/// cleared the terminal and recoloured it.
+#[test]
+fn an_error_about_a_token_holding_escape_sequences_is_printed_escaped() {
+    let d = Scratch::new("esc-cli");
+    let path = d.join("evil.pcd");
+    std::fs::write(
+        &path,
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\n\
+         POINTS 1\nDATA \u{1b}[2J\u{1b}[31mevil\u{202e}\n1 2 3\n",
+    )
+    .unwrap();
+    for args in [&["info"][..], &["detect", "--model", "cup", "--cloud"][..]] {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_sqscan"))
+            .args(args)
+            .arg(&path)
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .output()
+            .unwrap();
+        let e = String::from_utf8(out.stderr).unwrap();
+        assert!(!out.status.success(), "{args:?}: {e}");
+        assert!(
+            e.contains("DATA \\u{1b}[2J\\u{1b}[31mevil\\u{202e} is not"),
+            "{args:?}: {e}"
+        );
+        assert!(!e.contains('\u{1b}') && !e.contains('\u{202e}'), "{args:?}: {e:?}");
+    }
+}
+
 /// A header of `n` distinct column names with one point, in each format that names its fields.
 fn wide_headers(n: usize) -> Vec<(&'static str, Vec<u8>)> {
     let names: Vec<String> = (0..n).map(|i| format!("f{i}")).collect();

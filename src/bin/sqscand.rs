@@ -125,7 +125,12 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("sqscand: error: {}", format!("{e:#}").replace('\n', " "));
+            // A file's or a peer's text in the chain is printed with its control characters
+            // escaped: no terminal escape sequences.
+            eprintln!(
+                "sqscand: error: {}",
+                sqscan::spec::escape_controls(&format!("{e:#}").replace('\n', " "))
+            );
             ExitCode::FAILURE
         }
     }

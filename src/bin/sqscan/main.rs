@@ -179,7 +179,12 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             // One line: the chain of contexts, outermost first.
-            eprintln!("sqscan: error: {}", format!("{e:#}").replace('\n', " "));
+            // A file's or a peer's text in the chain is printed with its control characters
+            // escaped: no terminal escape sequences.
+            eprintln!(
+                "sqscan: error: {}",
+                sqscan::spec::escape_controls(&format!("{e:#}").replace('\n', " "))
+            );
             ExitCode::FAILURE
         }
     }
