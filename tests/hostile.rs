@@ -234,6 +234,88 @@ fn an_error_about_a_token_holding_escape_sequences_is_printed_escaped() {
     }
 }
 
+/// `sqscan` with `args`, its exit status, its stderr and its peak resident memory in bytes
+/// (getrusage of the child, reaped here).
+fn sqscan_with_peak_memory(args: &[&std::ffi::OsStr]) -> (bool, String, u64) {
+    use std::io::Read;
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .args(args)
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
+        .env_remove("SQSCAN_MAX_POINTS")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    let mut status = 0;
+    // SAFETY: a zeroed rusage is a valid value to be filled in; the pid is our own child's.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = unsafe { libc::wait4(child.id() as libc::pid_t, &mut status, 0, &mut usage) };
+    assert_eq!(pid, child.id() as libc::pid_t);
+    let ok = libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0;
+    (ok, err, usage.ru_maxrss as u64 * 1024)
+}
+
+/// A binary_compressed PCD of `n` points at the origin in LZF's densest form: one literal byte,
+/// then back-references of 264 bytes each, three bytes a reference.
+fn lzf_bomb(n: usize) -> Vec<u8> {
+    let raw = n * 12;
+    let mut body = vec![0u8, 0];
+    let mut done = 1;
+    while done < raw {
+        let len = (raw - done).min(264);
+        if len < 3 {
+            body.push(len as u8 - 1);
+            body.extend(std::iter::repeat_n(0, len));
+        } else if len - 2 >= 7 {
+            body.extend([0xe0, (len - 9) as u8, 0]);
+        } else {
+            body.extend([((len - 2) << 5) as u8, 0]);
+        }
+        done += len;
+    }
+    let mut file = format!(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH {n}\nHEIGHT 1\n\
+         VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA binary_compressed\n"
+    )
+    .into_bytes();
+    file.extend((body.len() as u32).to_le_bytes());
+    file.extend((raw as u32).to_le_bytes());
+    file.extend(body);
+    file
+}
+
+/// A 1 MB LZF-compressed PCD declaring 7.3 M points took `detect` to 370 MB in a second: the
+/// declared count is now checked against the points cap before anything is expanded.
+#[test]
+fn a_one_megabyte_lzf_pcd_declaring_seven_million_points_is_refused_before_it_is_expanded() {
+    let d = Scratch::new("lzf-bomb");
+    let path = d.join("bomb.pcd");
+    let file = lzf_bomb(7_300_000);
+    assert!(file.len() < 1_100_000, "{}", file.len());
+    std::fs::write(&path, file).unwrap();
+    let (ok, err, peak) = sqscan_with_peak_memory(&[
+        "detect".as_ref(),
+        "--model".as_ref(),
+        "cup".as_ref(),
+        "--cloud".as_ref(),
+        path.as_os_str(),
+    ]);
+    assert!(!ok, "{err}");
+    assert!(
+        err.contains("7300000 points, more than the 4194304 a cloud may have"),
+        "{err}"
+    );
+    assert!(peak < 100 << 20, "peak {} MB: {err}", peak >> 20);
+
+    // Under the cap the same kind of file is read whole: the cap, not the format, refused it.
+    let path = d.join("under.pcd");
+    std::fs::write(&path, lzf_bomb(100_000)).unwrap();
+    let (ok, err, _) = sqscan_with_peak_memory(&["info".as_ref(), path.as_os_str()]);
+    assert!(ok, "{err}");
+}
+
 /// A header of `n` distinct column names with one point, in each format that names its fields.
 fn wide_headers(n: usize) -> Vec<(&'static str, Vec<u8>)> {
     let names: Vec<String> = (0..n).map(|i| format!("f{i}")).collect();
@@ -288,7 +370,8 @@ fn a_header_of_a_hundred_thousand_fields_is_checked_in_linear_time() {
 fn a_ply_with_a_list_does_not_reserve_from_its_header_count() {
     let d = Scratch::new("plylist");
     let path = d.join("list.ply");
-    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\n\
+    // 4 M vertices, under the points cap: the list's bound is what is tested, not the cap's.
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000\n\
 property float x\nproperty float y\nproperty float z\n"
         .to_vec();
     for i in 0..100 {
@@ -297,12 +380,13 @@ property float x\nproperty float y\nproperty float z\n"
     bytes.extend(b"property list uchar float l\nend_header\n");
     bytes.resize(bytes.len() + 10_000_000, 0);
     std::fs::write(&path, bytes).unwrap();
-    // Reserved memory is not touched memory: under overcommit the 8 GB reservation passes
-    // unnoticed, so the reader runs under a 4 GB address-space limit, where it aborts.
+    // Reserved memory is not touched memory: under overcommit a reservation of 100 double
+    // columns for 4 M vertices (3.2 GB) passes unnoticed, so the reader runs under a 2 GB
+    // address-space limit, where it would abort.
     let t = std::time::Instant::now();
     let out = std::process::Command::new("sh")
         .arg("-c")
-        .arg("ulimit -v 4000000 && exec \"$0\" info \"$1\"")
+        .arg("ulimit -v 2000000 && exec \"$0\" info \"$1\"")
         .arg(env!("CARGO_BIN_EXE_sqscan"))
         .arg(&path)
         .output()

@@ -43,6 +43,8 @@
 //! Readers take the whole input into memory and parse it from a byte slice. No input makes them
 //! panic, and no allocation is sized by a header count alone: sizes are checked against the bytes
 //! actually present (for LZF, against the largest expansion the format allows) before allocating.
+//! A file holding or declaring more points than [`max_points`](super::max_points) (4 Mi, or
+//! `SQSCAN_MAX_POINTS`) is refused before its data is read.
 //! Errors ([`CloudError`]) say what is wrong and where: the file (when read through [`read_cloud`]),
 //! the header line, or the point/vertex index (with the line for text data), and the field.
 

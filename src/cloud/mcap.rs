@@ -175,6 +175,7 @@ pub fn parse_mcap(bytes: &[u8]) -> Result<PointCloud, CloudError> {
         return Err(bad(format!("no {} message in CDR", schema::POINT_CLOUD2)));
     };
     let mut cloud = ros::read_point_cloud2(message).map_err(|e| bad(format!("{topic}: {e}")))?;
+    super::check_point_count(cloud.points.len()).map_err(|msg| bad(format!("{topic}: {msg}")))?;
     cloud.viewpoint = found.viewpoint;
     Ok(cloud)
 }

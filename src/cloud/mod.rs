@@ -26,6 +26,36 @@ pub use pcd::{read_pcd, write_pcd};
 pub use ply::{read_ply, write_ply};
 pub use text::{read_text, write_text};
 
+/// The most points a cloud file may hold unless `SQSCAN_MAX_POINTS` says otherwise: 4 Mi, more
+/// than any scanner's single frame we read (a Kinect's 307,200, a Ranger3 sweep of 2,560 columns
+/// by 1,000 profiles) and the count at which the detector's working set reaches about 200 MB.
+/// A compressed file's declared count is checked against it before anything is expanded.
+pub const DEFAULT_MAX_POINTS: usize = 4 << 20;
+
+/// The points cap of [`DEFAULT_MAX_POINTS`], or `SQSCAN_MAX_POINTS` when that is a count of at
+/// least one (for a user whose scanner gives larger frames; an unreadable value is ignored).
+pub fn max_points() -> usize {
+    static CAP: std::sync::OnceLock<usize> = std::sync::OnceLock::new();
+    *CAP.get_or_init(|| {
+        std::env::var("SQSCAN_MAX_POINTS")
+            .ok()
+            .and_then(|v| v.trim().parse::<usize>().ok())
+            .filter(|&n| n > 0)
+            .unwrap_or(DEFAULT_MAX_POINTS)
+    })
+}
+
+/// The error for a file declaring (or holding) `count` points, more than [`max_points`].
+pub(crate) fn check_point_count(count: usize) -> Result<(), String> {
+    let cap = max_points();
+    if count > cap {
+        return Err(format!(
+            "{count} points, more than the {cap} a cloud may have (SQSCAN_MAX_POINTS sets the cap)"
+        ));
+    }
+    Ok(())
+}
+
 /// The scalar type of an extra per-point field, as PCD (`TYPE`/`SIZE`) and PLY name them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScalarKind {

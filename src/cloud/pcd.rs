@@ -281,6 +281,7 @@ fn finish_header(raw: RawHeader, data: PcdData, data_start: usize, data_line: us
             return Err(CloudError::header(data_line, "no WIDTH or POINTS before DATA"));
         }
     };
+    super::check_point_count(points).map_err(|msg| CloudError::header(data_line, msg))?;
     Ok(Header {
         fields: out,
         width,
@@ -610,8 +611,10 @@ mod tests {
 
     #[test]
     fn huge_counts_do_not_allocate() {
-        let e = err(&format!("{HEAD}WIDTH 1000000000000\nDATA binary\n0123"));
+        let e = err(&format!("{HEAD}WIDTH 4000000\nDATA binary\n0123"));
         assert!(e.starts_with("point 0: unexpected end of file"), "{e}");
+        let e = err(&format!("{HEAD}WIDTH 1000000000000\nDATA binary\n0123"));
+        assert!(e.contains("1000000000000 points, more than the 4194304"), "{e}");
         let mut file = format!("{HEAD}WIDTH 1000000\nDATA binary_compressed\n").into_bytes();
         file.extend_from_slice(&16u32.to_le_bytes());
         file.extend_from_slice(&12_000_000u32.to_le_bytes());
@@ -625,7 +628,7 @@ mod tests {
         assert!(e.contains("LZF data corrupt at byte"), "{e}");
         let e = err(&format!("{HEAD}WIDTH 1000000000000\nHEIGHT 1000000000\nDATA binary\n"));
         assert!(e.contains("overflows"), "{e}");
-        let e = err(&format!("{HEAD}WIDTH 1000000000\nDATA ascii\n1 2 3\n"));
+        let e = err(&format!("{HEAD}WIDTH 4000000\nDATA ascii\n1 2 3\n"));
         assert!(e.contains("point 1"), "{e}");
         let huge_count = "FIELDS x y z n\nCOUNT 1 1 1 1000000000000000000\nWIDTH 9\nDATA";
         let e = err(&format!("{huge_count} ascii\n1 2 3 4\n"));

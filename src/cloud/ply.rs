@@ -141,6 +141,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                     .map_err(|_| err(format!("element count {} is not a count", quote(count))))?;
                 if *name == "vertex" && vertex_line == 0 {
                     vertex_line = line_no;
+                    super::check_point_count(count).map_err(err)?;
                 }
                 elements.push(Element {
                     name: name.to_string(),
@@ -531,8 +532,11 @@ mod tests {
             property float z\nend_header\n1 2 3\n4 5",
         );
         assert_eq!(e, "vertex 1 (line 9), field `z`: unexpected end of file");
-        let e = err(b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n\
+        let e = err(b"ply\nformat binary_little_endian 1.0\nelement vertex 4000000\n\
             property float x\nproperty float y\nproperty float z\nend_header\n");
         assert_eq!(e, "vertex 0: unexpected end of file");
+        let e = err(b"ply\nformat binary_little_endian 1.0\nelement vertex 1000000000000\n\
+            property float x\nproperty float y\nproperty float z\nend_header\n");
+        assert!(e.contains("1000000000000 points, more than the 4194304"), "{e}");
     }
 }

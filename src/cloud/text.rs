@@ -95,6 +95,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
         if tokens.is_empty() {
             continue;
         }
+        super::check_point_count(point + 1).map_err(|msg| err(None, msg))?;
         match layout {
             None => {
                 if tokens.len() < 3 {
