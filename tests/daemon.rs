@@ -533,6 +533,58 @@ fn a_sweep_completed_just_before_sigterm_is_still_recorded() {
     }
 }
 
+/// A recording whose last file could not be written (a full disk) left its PCD behind without
+/// the JSON, and the loss was not counted. A directory where the JSON (or, with MCAP, the MCAP)
+/// must go makes that file fail here: the sweep's other files are removed, the loss is a fault
+/// and counted in `status`, and the next sweep is recorded whole.
+#[test]
+fn a_recording_that_cannot_be_completed_leaves_no_part_and_is_a_fault() {
+    let mcap = if cfg!(feature = "mcap") {
+        "mcap = true\n[watch]\nobjects = [\"cup\"]\n"
+    } else {
+        ""
+    };
+    let dir = tmpdir("partrec");
+    let rec = dir.join("rec");
+    let blocked = if mcap.is_empty() { "json" } else { "mcap" };
+    std::fs::create_dir_all(rec.join(format!("sweep-00000001.{blocked}"))).unwrap();
+    let config = format!(
+        "{}\n[acquisition]\nmode = \"on_demand\"\n[record]\ndir = \"rec\"\n{mcap}",
+        sim_config()
+    );
+    let (_d, socket) = start_daemon(&dir, &config, &[]);
+    let mut c = Client::connect(&socket);
+    for _ in 0..2 {
+        assert_eq!(c.ask(json!({"cmd":"scan","timeout_s":30}))["class"], "sweep");
+    }
+    wait_for("the second recording", Duration::from_secs(30), || {
+        rec.join("sweep-00000002.json").is_file()
+    });
+    let status = c.ask(json!({"cmd":"status"}));
+    assert_eq!(status["sweeps"]["not_recorded"], 1, "{status}\n{}", log(&dir));
+    let faults = status["faults"].to_string();
+    assert!(faults.contains("sweep 1 not recorded"), "{status}");
+    assert!(log(&dir).contains("sweep 1 not recorded"), "{}", log(&dir));
+    let mut left: Vec<String> = std::fs::read_dir(&rec)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .filter(|n| n.contains("00000001") || n.starts_with('.'))
+        .collect();
+    left.sort();
+    assert_eq!(
+        left,
+        [format!("sweep-00000001.{blocked}")],
+        "only the blocking directory is left"
+    );
+    let exts: &[&str] = if mcap.is_empty() { &["pcd"] } else { &["pcd", "mcap"] };
+    for ext in exts {
+        assert!(
+            rec.join(format!("sweep-00000002.{ext}")).is_file(),
+            "no sweep-00000002.{ext}"
+        );
+    }
+}
+
 /// SIGHUP re-reads the configuration and the models while clients stay connected (a watcher
 /// keeps its updates); a broken configuration, or one naming an unknown object, is refused and
 /// the old one stays in use; a setting that needs a restart keeps its old value; systemd hears

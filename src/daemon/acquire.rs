@@ -115,17 +115,26 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
     }
     let (keep, frame) = (config.record_keep, config.frame_id.clone());
     let e = entry.clone();
-    let written = tokio::task::spawn_blocking(move || record::write_sweep(&dir, &e, keep, &frame, extras)).await;
-    let failure = match written {
-        Ok(Ok(())) => None,
-        Ok(Err(err)) => Some(format!("{err:#}")),
-        Err(join) => Some(format!("the recording task failed: {join}")),
-    };
-    if let Some(err) = failure {
-        tracing::error!("recording sweep {}: {err}", entry.id);
-        shared
-            .stats
-            .record_fault(format!("recording sweep {}: {err}", entry.id));
+    let id = entry.id;
+    // (whether the sweep's recording is lost, what failed)
+    let written = tokio::task::spawn_blocking(move || {
+        record::write_sweep(&dir, &e, &frame, extras)
+            .map_err(|err| (true, format!("sweep {id} not recorded: {err:#}")))?;
+        record::prune(&dir, keep).map_err(|err| (false, format!("pruning the recordings: {err:#}")))
+    })
+    .await
+    .unwrap_or_else(|join| {
+        Err((
+            true,
+            format!("sweep {id} not recorded: the recording task failed: {join}"),
+        ))
+    });
+    if let Err((lost, err)) = written {
+        if lost {
+            shared.stats.recordings_lost.fetch_add(1, Ordering::Relaxed);
+        }
+        tracing::error!("{err}");
+        shared.stats.record_fault(err);
     }
 }
 

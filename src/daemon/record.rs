@@ -36,9 +36,21 @@ pub struct Extras {
     pub mount: Option<super::backend::Mount>,
 }
 
-/// Records one sweep and prunes the directory to the newest `keep` (0 keeps all).
-pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str, extras: Extras) -> Result<()> {
+/// Records one sweep whole or not at all: when any of its files cannot be written (a full disk),
+/// those already written are removed, so no PCD or MCAP is left without its JSON.
+pub fn write_sweep(dir: &Path, entry: &SweepEntry, frame: &str, extras: Extras) -> Result<()> {
     fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let written = write_files(dir, entry, frame, extras);
+    if written.is_err() {
+        let stem = stem(entry.id);
+        for ext in ["json", "mcap", "pcd"] {
+            let _ = fs::remove_file(dir.join(format!("{stem}.{ext}")));
+        }
+    }
+    written
+}
+
+fn write_files(dir: &Path, entry: &SweepEntry, frame: &str, extras: Extras) -> Result<()> {
     let stem = stem(entry.id);
     write_atomic(&dir.join(format!("{stem}.pcd")), |w| {
         write_pcd(w, &entry.sweep.cloud, PcdData::BinaryCompressed)?;
@@ -69,15 +81,15 @@ pub fn write_sweep(dir: &Path, entry: &SweepEntry, keep: usize, frame: &str, ext
         serde_json::to_writer_pretty(&mut *w, &meta)?;
         w.write_all(b"\n")?;
         Ok(())
-    })?;
-    if keep > 0 {
-        prune(dir, keep)?;
-    }
-    Ok(())
+    })
 }
 
-/// Removes all but the newest `keep` recordings (by id in the name), PCD and JSON together.
-fn prune(dir: &Path, keep: usize) -> Result<()> {
+/// Removes all but the newest `keep` recordings (by id in the name), PCD and JSON together;
+/// `keep` 0 keeps all.
+pub fn prune(dir: &Path, keep: usize) -> Result<()> {
+    if keep == 0 {
+        return Ok(());
+    }
     let mut ids: Vec<u64> = fs::read_dir(dir)
         .with_context(|| format!("cannot list {}", dir.display()))?
         .filter_map(|e| e.ok())
@@ -143,7 +155,8 @@ mod tests {
                     recorded: None,
                 },
             );
-            write_sweep(&dir, &e, 2, "base_link", Extras::default()).unwrap();
+            write_sweep(&dir, &e, "base_link", Extras::default()).unwrap();
+            prune(&dir, 2).unwrap();
         }
         let mut names: Vec<String> = fs::read_dir(&dir)
             .unwrap()

@@ -173,6 +173,9 @@ pub enum DeviceState {
 pub struct SweepCounts {
     pub completed: u64,
     pub dropped: u64,
+    /// Sweeps that were to be recorded but could not be (a full disk, a removed directory); each
+    /// is a fault too, and none leaves a partial recording.
+    pub not_recorded: u64,
     /// Median rate of the recent sweeps; `null` before two have completed.
     pub per_minute: Option<f64>,
 }

@@ -231,6 +231,8 @@ pub fn round3(x: f64) -> f64 {
 pub struct Stats {
     pub sweeps_completed: AtomicU64,
     pub sweeps_dropped: AtomicU64,
+    /// Sweeps whose recording failed (and was removed).
+    pub recordings_lost: AtomicU64,
     pub requests: AtomicU64,
     pub errors_sent: AtomicU64,
     pub watch_skipped: AtomicU64,
@@ -456,6 +458,7 @@ impl Shared {
             sweeps: SweepCounts {
                 completed: s.sweeps_completed.load(Ordering::Relaxed),
                 dropped: s.sweeps_dropped.load(Ordering::Relaxed),
+                not_recorded: s.recordings_lost.load(Ordering::Relaxed),
                 per_minute: sweep_rate,
             },
             detections: DetectionCounts {
