@@ -59,8 +59,13 @@ pub async fn run(shared: Arc<Shared>, listen: SocketAddr) {
 async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
     let mount = shared.mount;
     let ctx = foxglove::Context::new();
+    // A viewer that does not read loses its oldest messages once its queue holds this many
+    // bytes: the crate's own bound counts messages (1024 of them: a thousand sweeps when only
+    // the points are subscribed to).
+    let backlog = shared.config().foxglove_backlog_bytes;
     let server = WebSocketServer::new()
         .name("sqscand")
+        .message_backlog_bytes(backlog)
         .bind(listen.ip().to_string(), listen.port())
         .context(&ctx)
         .start()

@@ -167,6 +167,8 @@ struct RecordFile {
 struct FoxgloveFile {
     /// Where the Foxglove WebSocket server listens: a loopback address and port.
     listen: String,
+    /// The most a viewer's queue of unsent messages may hold (MB).
+    backlog_mb: Option<usize>,
 }
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -240,6 +242,8 @@ pub struct Config {
     pub record_mcap: bool,
     /// Where the live view (Foxglove WebSocket) listens; `None`: no view.
     pub foxglove_listen: Option<std::net::SocketAddr>,
+    /// The bytes a Foxglove viewer's queue of unsent messages holds at most (plus one message).
+    pub foxglove_backlog_bytes: usize,
     /// The ROS 2 node; `None`: none.
     pub ros2: Option<Ros2Config>,
     pub watch: Vec<String>,
@@ -289,6 +293,8 @@ pub mod limits {
     pub const CLIENT_QUEUE: (usize, usize) = (4, 65_536);
     /// How long a client may sit idle (s): a day at most.
     pub const IDLE_TIMEOUT_S: (f64, f64) = (0.1, 86_400.0);
+    /// A Foxglove viewer's queue of unsent messages (MB).
+    pub const VIEW_BACKLOG_MB: (usize, usize) = (1, 1024);
     /// Detections run at once.
     pub const WORKERS: (usize, usize) = (1, 256);
     /// Profiles a sweep needs at least.
@@ -396,6 +402,7 @@ impl Config {
             record_keep: 20,
             record_mcap: false,
             foxglove_listen: None,
+            foxglove_backlog_bytes: 32 << 20,
             ros2: None,
             watch: Vec::new(),
             frame_id: "base_link".into(),
@@ -685,6 +692,9 @@ impl Config {
                 ));
             }
             c.foxglove_listen = Some(addr);
+            if let Some(mb) = count_within(path, "foxglove.backlog_mb", f.backlog_mb, limits::VIEW_BACKLOG_MB)? {
+                c.foxglove_backlog_bytes = mb << 20;
+            }
         }
         if let Some(r) = &raw.ros2 {
             c.ros2 = Some(ros2_config(path, r)?);

@@ -307,6 +307,21 @@ fn the_live_view_listens_on_loopback_only() {
     assert_eq!(parse("").unwrap().foxglove_listen, None);
 }
 
+/// `[foxglove] backlog_mb`: a viewer's queue bound, 1 to 1024 MB, 32 by default.
+#[test]
+fn the_view_backlog_is_bounded() {
+    if !cfg!(feature = "foxglove") {
+        return;
+    }
+    let view = |extra: &str| parse(&format!("[foxglove]\nlisten = \"127.0.0.1:8765\"\n{extra}"));
+    assert_eq!(view("").unwrap().foxglove_backlog_bytes, 32 << 20);
+    assert_eq!(view("backlog_mb = 4").unwrap().foxglove_backlog_bytes, 4 << 20);
+    for bad in ["0", "1025", "-1", "1e12"] {
+        let e = view(&format!("backlog_mb = {bad}")).unwrap_err().to_string();
+        assert!(e.contains("backlog_mb"), "{bad}: {e}");
+    }
+}
+
 /// `[ros2]`: names as ROS 2 takes them, a domain whose ports exist, a depth within bounds and
 /// the QoS words ROS 2 uses; each refused value names its key. Without the `ros2` feature the
 /// table itself is refused, naming the feature.
