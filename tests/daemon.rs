@@ -533,6 +533,48 @@ fn a_sweep_completed_just_before_sigterm_is_still_recorded() {
     }
 }
 
+/// A thousand clients each sending 200 `models` requests and never reading took the daemon to
+/// 937 MB: each held its queue of 64 replies and 64 more in flight. A client's queue is now
+/// bounded in bytes and its next request is not read while it is full, so they cost a bounded
+/// share each, and an honest client is answered meanwhile.
+#[test]
+fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
+    let limit = common::raise_open_files();
+    if limit < 1200 {
+        eprintln!("SKIPPED: this process may open {limit} files, fewer than the 1,000 clients need");
+        return;
+    }
+    let dir = tmpdir("nonreaders");
+    let config = format!("{}\n[server]\nmax_clients = 1100\n", sim_config());
+    let (d, socket) = start_daemon(&dir, &config, &[]);
+    let pid = d.0.id();
+    let base = common::rss(pid);
+    let requests = "{\"cmd\":\"models\"}\n".repeat(200);
+    let mut clients = Vec::new();
+    let mut peak = base;
+    for k in 0..1000 {
+        let mut c = UnixStream::connect(&socket).unwrap();
+        c.write_all(requests.as_bytes()).unwrap();
+        clients.push(c);
+        if k % 50 == 0 {
+            peak = peak.max(common::rss(pid));
+        }
+    }
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(5) {
+        peak = peak.max(common::rss(pid));
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    let t = Instant::now();
+    let status = Client::connect(&socket).ask(json!({"cmd":"status"}));
+    assert_eq!(status["class"], "status", "{status}");
+    assert!(t.elapsed() < Duration::from_secs(5), "status took {:?}", t.elapsed());
+    eprintln!("RSS {} MB at start, peak {} MB", base >> 20, peak >> 20);
+    // About 100 MB here: 4x that.
+    assert!(peak < 400 << 20, "peak RSS {} MB from {} MB", peak >> 20, base >> 20);
+    drop(clients);
+}
+
 /// A recording whose last file could not be written (a full disk) left its PCD behind without
 /// the JSON, and the loss was not counted. A directory where the JSON (or, with MCAP, the MCAP)
 /// must go makes that file fail here: the sweep's other files are removed, the loss is a fault

@@ -12,7 +12,7 @@ use std::time::Duration;
 use serde_json::{Value, json};
 
 mod common;
-use common::{Proc, ask, free_port, python, root, sqscand, tmpdir, wait_for};
+use common::{Proc, ask, free_port, python, root, rss, sqscand, tmpdir, wait_for};
 
 /// A client that connects and subscribes sees the server's info, the three advertised channels,
 /// then the sweep a `find` asked for (organized, in the configured frame, as many points as the
@@ -205,17 +205,6 @@ fn a_foxglove_client_sees_the_sweep_and_the_detection() {
     let table = -found["plane"][3].as_f64().unwrap() / found["plane"][2].as_f64().unwrap();
     assert!((z - table).abs() < 0.01, "plane at {z}, the table at {table}");
     let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// The daemon's resident memory (bytes), from /proc.
-fn rss(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
-    let kb: u64 = status
-        .lines()
-        .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .unwrap();
-    kb * 1024
 }
 
 /// Four viewers subscribed to the points that never read took the daemon from 15 MB to 3.2 GB

@@ -2,10 +2,11 @@
 //!
 //! Each connection has a reader (requests), a writer (one task that owns the socket's write
 //! half) and a bounded queue between them. Every request runs in its own task so a `find`
-//! waiting on the next sweep does not hold up a `status` on the same connection. Replies to
-//! requests wait for room in the queue (a client that does not read only stalls itself);
-//! `watch` updates never wait: when the queue is full, or holds [`MAX_QUEUED_BYTES`], they are
-//! skipped and counted. A writer that cannot write for [`WRITE_TIMEOUT`] drops the client. A
+//! waiting on the next sweep does not hold up a `status` on the same connection. The queue is
+//! bounded by its count of lines and by [`MAX_QUEUED_BYTES`]: replies to requests wait for room
+//! in it, and no further request of the connection is read while it is full (a client that does
+//! not read only stalls itself, and costs the daemon that much); `watch` updates never wait:
+//! when the queue is full they are skipped and counted. A writer that cannot write for [`WRITE_TIMEOUT`] drops the client. A
 //! client with nothing in flight and no watch is idle: it is closed after the configured idle
 //! timeout (a line sent only in part does not count as activity), and when every slot is taken
 //! the longest-idle client is closed to make room for a new one. Nothing here can block
@@ -43,16 +44,17 @@ pub const MAX_IN_FLIGHT: usize = 64;
 /// A client that cannot take a line for this long is dropped.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// Bytes queued for one client at most before its `watch` updates are skipped: a slow reader
-/// costs the daemon this much, whatever its ids and however many objects it watches.
-pub const MAX_QUEUED_BYTES: usize = 256 * 1024;
+/// Bytes of replies and updates queued for one client at most (one larger reply goes alone): a
+/// client that does not read costs the daemon this much, whatever its ids, however many
+/// requests it sends and objects it watches. Sixteen `models` replies of the shipped models.
+pub const MAX_QUEUED_BYTES: usize = 64 * 1024;
 
-/// A queued message: its bytes, the share of them counted against [`MAX_QUEUED_BYTES`] (a
-/// cloud's payload is bounded by its slots instead), and the `cloud` slots it holds until
-/// written.
+/// A queued message: its bytes, its share of the connection's [`MAX_QUEUED_BYTES`] (a cloud's
+/// payload is bounded by its slots instead), and the `cloud` slots it holds; both are given
+/// back when it has been written, or dropped with the connection.
 struct Outgoing {
     bytes: Vec<u8>,
-    counted: usize,
+    _room: tokio::sync::OwnedSemaphorePermit,
     _slots: Vec<tokio::sync::OwnedSemaphorePermit>,
 }
 
@@ -281,21 +283,32 @@ fn raise_descriptor_limit() -> Option<u64> {
     Some(r.rlim_cur as u64)
 }
 
-/// A client's outbound queue: lines, and the bytes they hold.
+/// A client's outbound queue: lines, and the room left of its [`MAX_QUEUED_BYTES`] (a permit a
+/// byte).
 #[derive(Clone)]
 struct Outbox {
     tx: mpsc::Sender<Outgoing>,
-    queued: Arc<std::sync::atomic::AtomicUsize>,
+    room: Arc<Semaphore>,
     shared: Arc<Shared>,
+}
+
+/// The permits a line of `n` bytes takes: all of them for a line larger than the bound.
+fn room_for(n: usize) -> u32 {
+    n.clamp(1, MAX_QUEUED_BYTES) as u32
 }
 
 impl Outbox {
     fn new(tx: mpsc::Sender<Outgoing>, shared: Arc<Shared>) -> Outbox {
         Outbox {
             tx,
-            queued: Arc::default(),
+            room: Arc::new(Semaphore::new(MAX_QUEUED_BYTES)),
             shared,
         }
+    }
+
+    /// Waits until the queue has room again (the client has read), or the connection is gone.
+    async fn drained(&self) {
+        let _ = self.room.acquire().await;
     }
 
     /// A reply: waits for room (only this client is held up by its own slowness).
@@ -310,7 +323,9 @@ impl Outbox {
             self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
         }
         let mut l = v.line().into_bytes();
-        let counted = l.len();
+        let Ok(room) = self.room.clone().acquire_many_owned(room_for(l.len())).await else {
+            return;
+        };
         let mut slots = Vec::new();
         if let Some(p) = payload {
             l.extend_from_slice(&p.bytes);
@@ -318,32 +333,26 @@ impl Outbox {
         }
         let l = Outgoing {
             bytes: l,
-            counted,
+            _room: room,
             _slots: slots,
         };
-        self.queued.fetch_add(counted, Ordering::Relaxed);
-        if self.tx.send(l).await.is_err() {
-            self.queued.store(0, Ordering::Relaxed);
-        }
+        let _ = self.tx.send(l).await;
     }
 
-    /// An unsolicited update: skipped when the client is behind (its queue full, or holding
-    /// [`MAX_QUEUED_BYTES`]).
+    /// An unsolicited update: skipped when the client is behind (its queue full in lines or in
+    /// bytes).
     fn update(&self, v: Reply) {
         let l = v.line().into_bytes();
-        let n = l.len();
-        if self.queued.load(Ordering::Relaxed) + n > MAX_QUEUED_BYTES {
+        let Ok(room) = self.room.clone().try_acquire_many_owned(room_for(l.len())) else {
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
             return;
-        }
-        self.queued.fetch_add(n, Ordering::Relaxed);
+        };
         let message = Outgoing {
             bytes: l,
-            counted: n,
+            _room: room,
             _slots: Vec::new(),
         };
         if self.tx.try_send(message).is_err() {
-            self.queued.fetch_sub(n, Ordering::Relaxed);
             self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
         }
     }
@@ -356,9 +365,10 @@ where
 {
     let (tx, mut rx) = mpsc::channel::<Outgoing>(shared.config().client_queue);
     let out = Outbox::new(tx, shared.clone());
-    // The writer holds only the byte count, not a sender: the queue closes when the last
-    // sender (the connection's and its tasks') is gone, and the writer ends with it.
-    let queued = out.queued.clone();
+    // The writer holds no sender: the queue closes when the last sender (the connection's and
+    // its tasks') is gone, and the writer ends with it. Each message gives its room back when
+    // written (or dropped).
+    let room = out.room.clone();
     let writer = tokio::spawn(async move {
         'messages: while let Some(l) = rx.recv().await {
             // In chunks, each with the timeout: a client that reads a large cloud slowly but
@@ -367,12 +377,12 @@ where
                 let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(chunk)).await;
                 if !matches!(r, Ok(Ok(()))) {
                     // Gone, or not reading: either way this client is done.
-                    queued.fetch_sub(l.counted, Ordering::Relaxed);
                     break 'messages;
                 }
             }
-            queued.fetch_sub(l.counted, Ordering::Relaxed);
         }
+        // Whatever waits for room (the reader, a reply) is let go: the connection is over.
+        room.close();
     });
     out.reply(Reply::Version(Version::now())).await;
     let evict = Arc::new(Notify::new());
@@ -440,13 +450,18 @@ where
             .await;
             break;
         }
-        // Stop reading from a client with MAX_IN_FLIGHT requests unanswered (it is not reading
-        // its replies): backpressure on that client alone. Its writer's timeout ends it if it
-        // never reads again.
+        // Stop reading from a client with MAX_IN_FLIGHT requests unanswered, or whose queue is
+        // full (it is not reading its replies): backpressure on that client alone. Its writer's
+        // timeout ends it if it never reads again.
         while tasks.len() > MAX_IN_FLIGHT {
             if tasks.join_next().await.is_none() {
                 break;
             }
+        }
+        tokio::select! {
+            () = out.drained() => {}
+            // Its queue is full: no goodbye would reach it.
+            () = stopped(&mut shutdown) => break,
         }
         let buf = std::mem::take(&mut lines.buf);
         let req = match got {
@@ -506,6 +521,15 @@ where
                     enable: false,
                 }))
                 .await;
+            }
+            // Answered at once: here, so that a client sending these and not reading waits
+            // for its own queue instead of piling up replies in tasks.
+            Command::Status | Command::Models => {
+                let reply = answer(&shared, &req).await.with_id(req.id.clone());
+                tokio::select! {
+                    () = out.reply(reply) => {}
+                    () = stopped(&mut shutdown) => break,
+                }
             }
             _ => {
                 let (s, o, gate) = (shared.clone(), out.clone(), cloud_gate.clone());
@@ -750,7 +774,7 @@ mod tests {
         for _ in 0..1000 {
             out.update(update.clone());
         }
-        let queued = out.queued.load(Ordering::Relaxed);
+        let queued = MAX_QUEUED_BYTES - out.room.available_permits();
         assert_eq!(queued, MAX_QUEUED_BYTES / n * n);
         let skipped = shared.stats.watch_skipped.load(Ordering::Relaxed) as usize;
         assert_eq!(skipped, 1000 - MAX_QUEUED_BYTES / n);
