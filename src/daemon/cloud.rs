@@ -1,7 +1,9 @@
 //! `cloud`: a sweep's points handed out after a reply's line, as a binary PCD. Clouds are large
 //! (a 600 000-point sweep is about 10 MB), so how many are in memory at once is bounded: one of a
 //! connection and [`CLOUD_SLOTS`] in all, each held from its encoding until the client's writer
-//! has written it.
+//! has written it. The slots are shared fairly: a connection waits for one only once its client
+//! has read everything sent to it before (a client that does not read takes none), and a
+//! transfer that stalls while others wait loses its slot within seconds (the server's writer).
 
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -16,6 +18,25 @@ use super::state::Shared;
 /// the client's writer has written it (or given up on a client that does not read, after
 /// [`WRITE_TIMEOUT`]), so clients that ask for clouds and never read cannot pile them up.
 pub const CLOUD_SLOTS: usize = 4;
+
+/// How often a `cloud` request looks whether its client has read what was sent to it.
+const READ_POLL: Duration = Duration::from_millis(20);
+
+/// A request counted in [`Shared::cloud_waiting`] while it lives.
+struct Waiting<'a>(&'a Shared);
+
+impl<'a> Waiting<'a> {
+    fn new(shared: &'a Shared) -> Self {
+        shared.cloud_waiting.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Waiting(shared)
+    }
+}
+
+impl Drop for Waiting<'_> {
+    fn drop(&mut self) {
+        self.0.cloud_waiting.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+    }
+}
 
 /// A payload after a reply's line, and the `cloud` slots it holds (the daemon's and the
 /// connection's).
@@ -33,6 +54,7 @@ pub(super) async fn cloud(
     max_age_s: f64,
     timeout_s: f64,
     gate: Arc<Semaphore>,
+    all_read: &(dyn Fn() -> bool + Send + Sync),
 ) -> (Reply, Option<Payload>) {
     let asked = Instant::now();
     let deadline = asked + Duration::from_secs_f64(timeout_s);
@@ -43,13 +65,17 @@ pub(super) async fn cloud(
     };
     let slots = async {
         let mine = gate.acquire_owned().await.ok()?;
+        while !all_read() {
+            tokio::time::sleep(READ_POLL).await;
+        }
+        let _waiting = Waiting::new(shared);
         let daemon = shared.cloud_slots.clone().acquire_owned().await.ok()?;
         Some(vec![mine, daemon])
     };
     let Ok(Some(slots)) = tokio::time::timeout_at(deadline.into(), slots).await else {
         let msg = format!(
-            "cloud: no room before the timeout: this connection's earlier cloud, or the daemon's {CLOUD_SLOTS}, \
-             are still on their way to clients"
+            "cloud: no room before the timeout: this connection's earlier replies are unread, or its \
+             earlier cloud, or the daemon's {CLOUD_SLOTS}, are still on their way to clients"
         );
         return (Reply::error(None, ErrorCode::Busy, msg), None);
     };

@@ -15,6 +15,7 @@
 //! Over 600 lines, of which a fifth are its tests: a connection's reader, queue and writer, and
 //! the requests answered on them, are one piece; `cloud`'s points are in `cloud.rs`.
 
+use std::os::fd::{AsRawFd, RawFd};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
@@ -43,6 +44,13 @@ pub const MAX_IN_FLIGHT: usize = 64;
 
 /// A client that cannot take a line for this long is dropped.
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(10);
+
+/// A client that takes nothing of its cloud for this long while another `cloud` request waits
+/// for a slot is dropped, so clients that stop reading cannot keep the slots from others.
+pub const STALL_WHILE_WANTED: Duration = Duration::from_secs(2);
+
+/// How often a stalled write looks at the clock.
+const STALL_POLL: Duration = Duration::from_millis(250);
 
 /// Bytes of replies and updates queued for one client at most (one larger reply goes alone): a
 /// client that does not read costs the daemon this much, whatever its ids, however many
@@ -118,8 +126,9 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
         tokio::select! {
             r = accept_unix(unix.as_ref()) => match r {
                 Ok(stream) => {
+                    let fd = stream.as_raw_fd();
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&mut clients, &shared, &slots, &idle, rd, wr);
+                    spawn_client(&mut clients, &shared, &slots, &idle, (rd, wr, fd));
                 }
                 Err(e) => {
                     tracing::warn!("accept on {}: {e}", socket_path.display());
@@ -129,8 +138,9 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
             r = accept_tcp(tcp.as_ref()) => match r {
                 Ok(stream) => {
                     let _ = stream.set_nodelay(true);
+                    let fd = stream.as_raw_fd();
                     let (rd, wr) = stream.into_split();
-                    spawn_client(&mut clients, &shared, &slots, &idle, rd, wr);
+                    spawn_client(&mut clients, &shared, &slots, &idle, (rd, wr, fd));
                 }
                 Err(e) => {
                     tracing::warn!("accept on tcp: {e}");
@@ -167,8 +177,7 @@ fn spawn_client<R, W>(
     shared: &Arc<Shared>,
     slots: &Arc<Semaphore>,
     idle: &Idle,
-    rd: R,
-    mut wr: W,
+    (rd, mut wr, fd): (R, W, RawFd),
 ) where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
@@ -196,7 +205,7 @@ fn spawn_client<R, W>(
         };
         shared.stats.clients.fetch_add(1, Ordering::Relaxed);
         shared.stats.clients_total.fetch_add(1, Ordering::Relaxed);
-        client(shared.clone(), idle, BufReader::new(rd), wr).await;
+        client(shared.clone(), idle, BufReader::new(rd), wr, fd).await;
         if shared.stats.clients.fetch_sub(1, Ordering::Relaxed) == 1 {
             give_back_memory();
         }
@@ -283,13 +292,44 @@ fn raise_descriptor_limit() -> Option<u64> {
     Some(r.rlim_cur as u64)
 }
 
+/// Writes one queued message, false when the client is gone or does not read. A client that
+/// reads slowly but steadily is not cut off: only one that makes no progress for
+/// [`WRITE_TIMEOUT`], or for [`STALL_WHILE_WANTED`] while it holds a `cloud` slot that another
+/// request waits for.
+async fn write_message<W: AsyncWrite + Unpin>(shared: &Shared, wr: &mut W, l: &Outgoing) -> bool {
+    let holds_slots = !l._slots.is_empty();
+    let mut written = 0;
+    let mut progress = Instant::now();
+    while written < l.bytes.len() {
+        let chunk = &l.bytes[written..l.bytes.len().min(written + WRITE_CHUNK)];
+        // write() gives up nothing when it times out (nothing was written), so it is tried
+        // again after each look at the clock.
+        match tokio::time::timeout(STALL_POLL, wr.write(chunk)).await {
+            Ok(Ok(0) | Err(_)) => return false,
+            Ok(Ok(n)) => {
+                written += n;
+                progress = Instant::now();
+            }
+            Err(_) => {
+                let wanted = holds_slots && shared.cloud_waiting.load(Ordering::Relaxed) > 0;
+                let limit = if wanted { STALL_WHILE_WANTED } else { WRITE_TIMEOUT };
+                if progress.elapsed() >= limit {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
 /// A client's outbound queue: lines, and the room left of its [`MAX_QUEUED_BYTES`] (a permit a
-/// byte).
+/// byte); and its socket, to ask the kernel what the client has not read yet.
 #[derive(Clone)]
 struct Outbox {
     tx: mpsc::Sender<Outgoing>,
     room: Arc<Semaphore>,
     shared: Arc<Shared>,
+    fd: Option<RawFd>,
 }
 
 /// The permits a line of `n` bytes takes: all of them for a line larger than the bound.
@@ -298,12 +338,27 @@ fn room_for(n: usize) -> u32 {
 }
 
 impl Outbox {
-    fn new(tx: mpsc::Sender<Outgoing>, shared: Arc<Shared>) -> Outbox {
+    fn new(tx: mpsc::Sender<Outgoing>, shared: Arc<Shared>, fd: Option<RawFd>) -> Outbox {
         Outbox {
             tx,
             room: Arc::new(Semaphore::new(MAX_QUEUED_BYTES)),
             shared,
+            fd,
         }
+    }
+
+    /// Whether the client has read everything sent to it: nothing queued here, and nothing
+    /// left unread in the socket's send buffer (TIOCOUTQ, for Unix and TCP sockets alike).
+    fn all_read(&self) -> bool {
+        if self.room.available_permits() < MAX_QUEUED_BYTES {
+            return false;
+        }
+        let Some(fd) = self.fd else { return true };
+        let mut unsent: libc::c_int = 0;
+        // SAFETY: TIOCOUTQ writes one int; the descriptor is this connection's socket, open
+        // while any of its tasks (the only callers) runs.
+        let r = unsafe { libc::ioctl(fd, libc::TIOCOUTQ, &mut unsent) };
+        r != 0 || unsent == 0
     }
 
     /// Waits until the queue has room again (the client has read), or the connection is gone.
@@ -358,27 +413,22 @@ impl Outbox {
     }
 }
 
-async fn client<R, W>(shared: Arc<Shared>, idle: Idle, mut rd: BufReader<R>, mut wr: W)
+async fn client<R, W>(shared: Arc<Shared>, idle: Idle, mut rd: BufReader<R>, mut wr: W, fd: RawFd)
 where
     R: AsyncRead + Unpin + Send + 'static,
     W: AsyncWrite + Unpin + Send + 'static,
 {
     let (tx, mut rx) = mpsc::channel::<Outgoing>(shared.config().client_queue);
-    let out = Outbox::new(tx, shared.clone());
+    let out = Outbox::new(tx, shared.clone(), Some(fd));
     // The writer holds no sender: the queue closes when the last sender (the connection's and
     // its tasks') is gone, and the writer ends with it. Each message gives its room back when
     // written (or dropped).
     let room = out.room.clone();
+    let s = shared.clone();
     let writer = tokio::spawn(async move {
-        'messages: while let Some(l) = rx.recv().await {
-            // In chunks, each with the timeout: a client that reads a large cloud slowly but
-            // steadily is not cut off; one that stops reading is.
-            for chunk in l.bytes.chunks(WRITE_CHUNK) {
-                let r = tokio::time::timeout(WRITE_TIMEOUT, wr.write_all(chunk)).await;
-                if !matches!(r, Ok(Ok(()))) {
-                    // Gone, or not reading: either way this client is done.
-                    break 'messages;
-                }
+        while let Some(l) = rx.recv().await {
+            if !write_message(&s, &mut wr, &l).await {
+                break;
             }
         }
         // Whatever waits for room (the reader, a reply) is let go: the connection is over.
@@ -534,7 +584,7 @@ where
             _ => {
                 let (s, o, gate) = (shared.clone(), out.clone(), cloud_gate.clone());
                 tasks.spawn(async move {
-                    let (reply, payload) = handle(&s, &req, gate).await;
+                    let (reply, payload) = handle(&s, &req, gate, &|| o.all_read()).await;
                     o.reply_with(reply.with_id(req.id.clone()), payload).await;
                 });
             }
@@ -603,9 +653,14 @@ pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bo
 
 /// Answers one request (not watch/unwatch, which change the connection): the reply, and the
 /// payload that follows its line (`cloud`'s points).
-async fn handle(shared: &Arc<Shared>, req: &Request, gate: Arc<Semaphore>) -> (Reply, Option<Payload>) {
+async fn handle(
+    shared: &Arc<Shared>,
+    req: &Request,
+    gate: Arc<Semaphore>,
+    all_read: &(dyn Fn() -> bool + Send + Sync),
+) -> (Reply, Option<Payload>) {
     match &req.command {
-        Command::Cloud { max_age_s, timeout_s } => cloud(shared, *max_age_s, *timeout_s, gate).await,
+        Command::Cloud { max_age_s, timeout_s } => cloud(shared, *max_age_s, *timeout_s, gate, all_read).await,
         _ => (answer(shared, req).await, None),
     }
 }
@@ -750,7 +805,7 @@ mod tests {
         let config = crate::daemon::config::Config::embedded_default();
         let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
         let (tx, mut rx) = mpsc::channel(2);
-        let out = Outbox::new(tx, shared.clone());
+        let out = Outbox::new(tx, shared.clone(), None);
         for k in 0..5 {
             // Returns at once even though nobody reads.
             out.update(Reply::error(None, ErrorCode::Internal, format!("k{k}")));
@@ -768,7 +823,7 @@ mod tests {
         let config = crate::daemon::config::Config::embedded_default();
         let shared = Arc::new(Shared::new(config, Default::default(), "sim"));
         let (tx, _rx) = mpsc::channel(10_000);
-        let out = Outbox::new(tx, shared.clone());
+        let out = Outbox::new(tx, shared.clone(), None);
         let update = Reply::error(None, ErrorCode::Internal, "x".repeat(10_000));
         let n = update.line().len();
         for _ in 0..1000 {

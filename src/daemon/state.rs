@@ -327,6 +327,9 @@ pub struct Shared {
     pub detect_slots: Semaphore,
     /// `cloud` payloads in memory at once (`cloud::CLOUD_SLOTS`).
     pub cloud_slots: Arc<Semaphore>,
+    /// `cloud` requests waiting for one of those slots: while there are any, a transfer that
+    /// makes no progress loses its slot sooner (`server::STALL_WHILE_WANTED`).
+    pub cloud_waiting: std::sync::atomic::AtomicUsize,
     pub started: Instant,
     /// Turns true when the daemon is stopping.
     pub shutdown: watch::Sender<bool>,
@@ -370,6 +373,7 @@ impl Shared {
             watched: Mutex::new(BTreeMap::new()),
             detect_slots: Semaphore::new(workers),
             cloud_slots: Arc::new(Semaphore::new(super::cloud::CLOUD_SLOTS)),
+            cloud_waiting: Default::default(),
             started: Instant::now(),
             shutdown: watch::channel(false).0,
             // A viewer that falls this far behind misses detections (it is told it lagged).
