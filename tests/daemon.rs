@@ -603,6 +603,69 @@ fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
     drop(clients);
 }
 
+/// Under systemd's default file limit (1024, soft and hard), 1,024 idle clients and 200 that
+/// send half a request each left a `find` unanswered for 20 s while accept failed for lack of
+/// descriptors 448 times and no idle client was closed. The daemon's slots now leave it
+/// descriptors of its own, a new client closes the longest-idle one, and a failed accept does
+/// too (with one warning in 10 s): the `find` is answered.
+#[test]
+fn a_thousand_idle_and_two_hundred_slowloris_clients_under_a_1024_file_limit_do_not_lock_out_find() {
+    use std::os::unix::process::CommandExt;
+    let limit = common::raise_open_files();
+    if limit < 1400 {
+        eprintln!("SKIPPED: this process may open {limit} files, fewer than the 1,224 clients need");
+        return;
+    }
+    let dir = tmpdir("fdlimit");
+    std::fs::write(dir.join("sqscand.toml"), sim_config()).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_sqscand"));
+    cmd.arg("--config")
+        .arg(dir.join("sqscand.toml"))
+        .arg("--socket")
+        .arg(&socket)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
+        .env_remove("NOTIFY_SOCKET")
+        .env_remove("WATCHDOG_USEC")
+        .env("SQSCAN_MODELS_DIR", root().join("models"));
+    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            let r = libc::rlimit {
+                rlim_cur: 1024,
+                rlim_max: 1024,
+            };
+            if libc::setrlimit(libc::RLIMIT_NOFILE, &r) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let _d = Proc(cmd.spawn().unwrap());
+    wait_for("the daemon's socket", Duration::from_secs(30), || {
+        UnixStream::connect(&socket).is_ok()
+    });
+    let mut clients = Vec::new();
+    for k in 0..1224 {
+        let Ok(mut c) = UnixStream::connect(&socket) else {
+            continue;
+        };
+        if k >= 1024 {
+            let _ = c.write_all(b"{\"cmd\":\"sta");
+        }
+        clients.push(c);
+    }
+    let t = Instant::now();
+    let found = common::ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":30}));
+    assert_eq!(found["class"], "detection", "{found}\n{}", log(&dir));
+    assert!(t.elapsed() < Duration::from_secs(20), "find took {:?}", t.elapsed());
+    let warnings = log(&dir).matches("accept on").count();
+    assert!(warnings <= 5, "{warnings} accept warnings: {}", log(&dir));
+    drop(clients);
+}
+
 /// A recording whose last file could not be written (a full disk) left its PCD behind without
 /// the JSON, and the loss was not counted. A directory where the JSON (or, with MCAP, the MCAP)
 /// must go makes that file fail here: the sweep's other files are removed, the loss is a fault

@@ -122,6 +122,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     // Held, not detached: on shutdown each client is told why before the process exits, and
     // the runtime's end would otherwise drop a goodbye still in its queue.
     let mut clients: JoinSet<()> = JoinSet::new();
+    let mut refused = Refused::default();
     loop {
         tokio::select! {
             r = accept_unix(unix.as_ref()) => match r {
@@ -130,10 +131,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                     let (rd, wr) = stream.into_split();
                     spawn_client(&mut clients, &shared, &slots, &idle, (rd, wr, fd));
                 }
-                Err(e) => {
-                    tracing::warn!("accept on {}: {e}", socket_path.display());
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                }
+                Err(e) => accept_failed(&idle, &mut refused, &format!("accept on {}", socket_path.display()), e).await,
             },
             r = accept_tcp(tcp.as_ref()) => match r {
                 Ok(stream) => {
@@ -142,10 +140,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                     let (rd, wr) = stream.into_split();
                     spawn_client(&mut clients, &shared, &slots, &idle, (rd, wr, fd));
                 }
-                Err(e) => {
-                    tracing::warn!("accept on tcp: {e}");
-                    tokio::time::sleep(Duration::from_millis(50)).await;
-                }
+                Err(e) => accept_failed(&idle, &mut refused, "accept on tcp", e).await,
             },
             Some(_) = clients.join_next(), if !clients.is_empty() => {}
             () = stopped(&mut shutdown) => break,
@@ -154,6 +149,38 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     // Each client sees the shutdown itself, says so and flushes (bounded by its writer's
     // timeout; the daemon's stop bounds the whole wait).
     while clients.join_next().await.is_some() {}
+}
+
+/// Failed accepts since the last warning about them, and when that was.
+#[derive(Default)]
+struct Refused {
+    count: u64,
+    warned: Option<Instant>,
+}
+
+/// A failed accept: out of descriptors (the connection waits in the listen queue), the
+/// longest-idle client is closed to free one, as a new client would have it closed for its slot;
+/// a warning at most every 10 s says how many failed.
+async fn accept_failed(idle: &Idle, refused: &mut Refused, what: &str, e: std::io::Error) {
+    let out_of_descriptors = matches!(e.raw_os_error(), Some(libc::EMFILE | libc::ENFILE));
+    let evicted = out_of_descriptors && lock(idle).evict_oldest();
+    refused.count += 1;
+    if refused.warned.is_none_or(|t| t.elapsed() >= Duration::from_secs(10)) {
+        let more = if refused.count > 1 {
+            format!(" ({} failed since the last warning)", refused.count)
+        } else {
+            String::new()
+        };
+        let action = if evicted {
+            "; closing the longest-idle client"
+        } else {
+            ""
+        };
+        tracing::warn!("{what}: {e}{more}{action}");
+        refused.count = 0;
+        refused.warned = Some(Instant::now());
+    }
+    tokio::time::sleep(Duration::from_millis(50)).await;
 }
 
 /// The next client on the Unix socket; never, without one.
