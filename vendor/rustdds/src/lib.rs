@@ -233,6 +233,12 @@ pub use serialization::{
 };
 /// Part of RTPS DATA submessage: 4-byte header + serialized data
 pub use messages::submessages::elements::serialized_payload::SerializedPayload;
+/// The bound on samples reassembled from DATAFRAG submessages (patched for
+/// sqscan, see PATCHES.md).
+pub use rtps::fragment_assembler::{
+  max_fragmented_sample_size, set_max_fragmented_sample_size, DEFAULT_MAX_FRAGMENTED_SAMPLE_SIZE,
+  FRAGMENT_BUDGET_FACTOR,
+};
 pub use structure::{
   duration::Duration, entity::RTPSEntity, guid::GUID, rpc::SampleIdentity,
   sequence_number::SequenceNumber, time::Timestamp,

@@ -1,6 +1,7 @@
 use std::{
   collections::{btree_map::Entry, BTreeMap},
   fmt, iter,
+  sync::atomic::{AtomicUsize, Ordering},
 };
 
 use bit_vec::BitVec;
@@ -22,6 +23,90 @@ use crate::{
   },
 };
 
+// Bounds on reassembly (patched for sqscan, see PATCHES.md).
+//
+// A DATAFRAG declares the size of the whole sample (`data_size`, up to 4 GiB)
+// and the reassembly buffer used to be allocated at that size on the first
+// fragment, whoever sent it: a few datagrams from anyone on the network could
+// exhaust the process's memory. Now a sample larger than the cap is refused,
+// and all incomplete reassemblies of the process together (every reader, every
+// writer GUID, which a peer can make up at will) hold at most a budget of
+// `FRAGMENT_BUDGET_FACTOR` times the cap.
+
+/// The default of [`max_fragmented_sample_size`]: 1 MiB.
+pub const DEFAULT_MAX_FRAGMENTED_SAMPLE_SIZE: usize = 1 << 20;
+
+/// The budget for all incomplete reassemblies together, in samples of the
+/// largest size accepted.
+pub const FRAGMENT_BUDGET_FACTOR: usize = 16;
+
+/// What a reassembly is charged besides its bytes: its map entries, bitmap and
+/// bookkeeping. It keeps a flood of tiny declared samples bounded too.
+const ASSEMBLY_BUFFER_OVERHEAD: usize = 512;
+
+static MAX_FRAGMENTED_SAMPLE_SIZE: AtomicUsize =
+  AtomicUsize::new(DEFAULT_MAX_FRAGMENTED_SAMPLE_SIZE);
+static FRAGMENT_BYTES_HELD: AtomicUsize = AtomicUsize::new(0);
+
+/// Sets the largest sample, in bytes, that DataReaders of this process
+/// reassemble from DATAFRAG submessages; the fragments of a larger one are
+/// dropped. All incomplete reassemblies together hold at most
+/// `FRAGMENT_BUDGET_FACTOR` (16) times this. The default is 1 MiB
+/// ([`DEFAULT_MAX_FRAGMENTED_SAMPLE_SIZE`]); an application that subscribes to
+/// larger samples raises it before it creates its participant. Process-wide;
+/// reassemblies already started keep their size.
+pub fn set_max_fragmented_sample_size(bytes: usize) {
+  MAX_FRAGMENTED_SAMPLE_SIZE.store(bytes, Ordering::Relaxed);
+}
+
+/// The largest sample reassembled from fragments, in bytes
+/// ([`set_max_fragmented_sample_size`]).
+pub fn max_fragmented_sample_size() -> usize {
+  MAX_FRAGMENTED_SAMPLE_SIZE.load(Ordering::Relaxed)
+}
+
+/// The bytes all incomplete reassemblies may hold together.
+pub(crate) fn fragment_budget() -> usize {
+  max_fragmented_sample_size().saturating_mul(FRAGMENT_BUDGET_FACTOR)
+}
+
+/// The bytes held now by incomplete reassemblies (as charged).
+pub(crate) fn fragment_bytes_held() -> usize {
+  FRAGMENT_BYTES_HELD.load(Ordering::Relaxed)
+}
+
+/// What a reassembly of a sample of `data_size` bytes is charged.
+pub(crate) fn assembly_charge(data_size: usize) -> usize {
+  data_size.saturating_add(ASSEMBLY_BUFFER_OVERHEAD)
+}
+
+/// Whether a new reassembly of `data_size` bytes fits in the budget now.
+pub(crate) fn fits_in_budget(data_size: usize) -> bool {
+  fragment_bytes_held().saturating_add(assembly_charge(data_size)) <= fragment_budget()
+}
+
+/// Bytes of the budget taken by one reassembly, given back when it is dropped
+/// (completed, evicted or expired).
+struct BudgetCharge(usize);
+
+impl BudgetCharge {
+  fn take(bytes: usize) -> Option<Self> {
+    let budget = fragment_budget();
+    FRAGMENT_BYTES_HELD
+      .fetch_update(Ordering::AcqRel, Ordering::Acquire, |held| {
+        held.checked_add(bytes).filter(|&n| n <= budget)
+      })
+      .ok()
+      .map(|_| BudgetCharge(bytes))
+  }
+}
+
+impl Drop for BudgetCharge {
+  fn drop(&mut self) {
+    FRAGMENT_BYTES_HELD.fetch_sub(self.0, Ordering::AcqRel);
+  }
+}
+
 // This is for the assembly of a single object
 struct AssemblyBuffer {
   buffer_bytes: BytesMut,
@@ -32,6 +117,9 @@ struct AssemblyBuffer {
   // garbage collection, in case some buffer is not completed within reasonable time.
   created_time: Timestamp,
   modified_time: Timestamp,
+
+  // Its part of the reassembly budget, given back when this is dropped.
+  _charge: BudgetCharge,
 }
 
 impl AssemblyBuffer {
@@ -45,14 +133,33 @@ impl AssemblyBuffer {
       return None;
     }
 
-    let mut buffer_bytes = BytesMut::with_capacity(data_size);
-    buffer_bytes.resize(data_size, 0);
-
     let fragment_count = usize::from(datafrag.total_number_of_fragments());
     if fragment_count == 0 {
       error!("Cannot create AssemblyBuffer: zero fragment count");
       return None;
     }
+
+    // The declared size is the peer's word: bounded before anything is allocated.
+    let max = max_fragmented_sample_size();
+    if data_size > max {
+      error!(
+        "Dropping DATAFRAG of a sample of {data_size} bytes: larger than the {max} bytes \
+         reassembled (set_max_fragmented_sample_size)"
+      );
+      return None;
+    }
+    let Some(charge) = BudgetCharge::take(assembly_charge(data_size)) else {
+      error!(
+        "Dropping DATAFRAG of a sample of {data_size} bytes: incomplete reassemblies already \
+         hold {} of their {} bytes",
+        fragment_bytes_held(),
+        fragment_budget()
+      );
+      return None;
+    };
+
+    let mut buffer_bytes = BytesMut::with_capacity(data_size);
+    buffer_bytes.resize(data_size, 0);
 
     let now = Timestamp::now();
 
@@ -62,6 +169,7 @@ impl AssemblyBuffer {
       received_bitmap: BitVec::from_elem(fragment_count, false),
       created_time: now,
       modified_time: now,
+      _charge: charge,
     })
   }
 
@@ -297,6 +405,34 @@ impl FragmentAssembler {
     }
   }
 
+  /// Whether a reassembly is under way.
+  pub fn is_empty(&self) -> bool {
+    self.assembly_buffers.is_empty()
+  }
+
+  /// Whether the DATAFRAG would start a new reassembly (none under way for its
+  /// sequence number).
+  pub fn would_start(&self, datafrag: &DataFrag) -> bool {
+    !self.assembly_buffers.contains_key(&datafrag.writer_sn)
+  }
+
+  /// The reassembly modified longest ago: its last modification and sequence
+  /// number.
+  pub fn least_recently_modified(&self) -> Option<(Timestamp, SequenceNumber)> {
+    self
+      .assembly_buffers
+      .iter()
+      .map(|(sn, ab)| (ab.modified_time, *sn))
+      .min()
+  }
+
+  /// Drops the reassembly of `sn`, giving its bytes back to the budget.
+  pub fn evict(&mut self, sn: SequenceNumber) {
+    if self.assembly_buffers.remove(&sn).is_some() {
+      debug!("AssemblyBuffer evicted {sn:?}");
+    }
+  }
+
   pub fn garbage_collect_before(&mut self, expire_before: Timestamp) {
     self.assembly_buffers.retain(|sn, ab| {
       let retain = ab.modified_time >= expire_before;
@@ -409,6 +545,88 @@ mod tests {
     let mut ab = AssemblyBuffer::new(&bad).expect("buffer for valid data_size");
     assert!(!ab.insert_frags(&bad, frag_size));
     assert!(!ab.is_complete());
+  }
+
+  // The tests that fill the process-wide budget, one at a time.
+  static BUDGET: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
+  // A DATAFRAG declaring a sample of 4 GiB allocated 4 GiB (patched for sqscan):
+  // a sample larger than the cap is refused before anything is allocated.
+  #[test]
+  fn a_declared_sample_over_the_cap_is_refused() {
+    use super::{fragment_bytes_held, max_fragmented_sample_size};
+    let _one_at_a_time = BUDGET.lock().unwrap_or_else(|e| e.into_inner());
+
+    let frag_size = 1024u16;
+    let huge = datafrag(1, 1, frag_size, u32::MAX, vec![0u8; 1024]);
+    assert!(AssemblyBuffer::new(&huge).is_none());
+    let over = (max_fragmented_sample_size() + 1) as u32;
+    assert!(AssemblyBuffer::new(&datafrag(1, 1, frag_size, over, vec![0u8; 1024])).is_none());
+    // One at the cap is taken, and charged to the budget while it lives.
+    let at = max_fragmented_sample_size() as u32;
+    let ab = AssemblyBuffer::new(&datafrag(1, 1, frag_size, at, vec![0u8; 1024]));
+    let ab = ab.expect("a sample at the cap");
+    assert!(fragment_bytes_held() >= at as usize);
+    assert_eq!(ab.buffer_bytes.len(), at as usize);
+  }
+
+  // Incomplete reassemblies of every assembler together hold at most the
+  // budget, whatever writer GUIDs and sequence numbers they come with, and give
+  // it back when they are dropped (patched for sqscan).
+  #[test]
+  fn incomplete_reassemblies_hold_at_most_the_budget() {
+    use enumflags2::BitFlags;
+
+    use super::{
+      fragment_budget, fragment_bytes_held, max_fragmented_sample_size, FragmentAssembler,
+      FRAGMENT_BUDGET_FACTOR,
+    };
+    use crate::{
+      messages::submessages::submessages::DATAFRAG_Flags,
+      structure::sequence_number::SequenceNumber,
+    };
+
+    let _one_at_a_time = BUDGET.lock().unwrap_or_else(|e| e.into_inner());
+    let frag_size = 1024u16;
+    let size = max_fragmented_sample_size() as u32;
+    // Assemblers as for writers a peer made up, each with samples it never completes.
+    let mut assemblers: Vec<FragmentAssembler> = (0..8)
+      .map(|_| FragmentAssembler::new(frag_size, false))
+      .collect();
+    let mut started = 0;
+    for sn in 1..=(4 * FRAGMENT_BUDGET_FACTOR as i64) {
+      let mut df = datafrag(1, 1, frag_size, size, vec![0u8; 1024]);
+      df.writer_sn = SequenceNumber::new(sn);
+      let fa = &mut assemblers[sn as usize % 8];
+      assert!(fa
+        .new_datafrag(&df, BitFlags::<DATAFRAG_Flags>::empty())
+        .is_none());
+      if fa.is_partially_received(df.writer_sn) {
+        started += 1;
+      }
+      assert!(fragment_bytes_held() <= fragment_budget());
+    }
+    assert!(
+      started > 0 && started <= FRAGMENT_BUDGET_FACTOR,
+      "{started}"
+    );
+
+    // Evicting one makes room for another.
+    let fa = assemblers.iter_mut().find(|fa| !fa.is_empty()).unwrap();
+    let (_, oldest) = fa.least_recently_modified().unwrap();
+    let held = fragment_bytes_held();
+    fa.evict(oldest);
+    assert!(!fa.is_partially_received(oldest));
+    assert!(fragment_bytes_held() < held);
+    drop(assemblers);
+    let mut df = datafrag(1, 1, frag_size, size, vec![0u8; 1024]);
+    df.writer_sn = SequenceNumber::new(1);
+    let mut fa = FragmentAssembler::new(frag_size, false);
+    fa.new_datafrag(&df, BitFlags::<DATAFRAG_Flags>::empty());
+    assert!(
+      fa.is_partially_received(df.writer_sn),
+      "room again once dropped"
+    );
   }
 
   #[test]

@@ -42,8 +42,11 @@ use crate::{
   network::udp_sender::UDPSender,
   polling::{ReadySender, SharedTimer, WakeReceiver},
   rtps::{
-    fragment_assembler::FragmentAssembler, message_receiver::MessageReceiverState,
-    rtps_writer_proxy::RtpsWriterProxy, timed_event::DpTimerEvent, Message,
+    fragment_assembler::{self, FragmentAssembler},
+    message_receiver::MessageReceiverState,
+    rtps_writer_proxy::RtpsWriterProxy,
+    timed_event::DpTimerEvent,
+    Message,
   },
   structure::{
     cache_change::{CacheChange, ChangeKind},
@@ -66,6 +69,11 @@ use crate::no_security::SecurityPluginsHandle;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum TimedEvent {
   DeadlineMissedCheck,
+  // Expire stale reassemblies while any are held (patched for sqscan, see
+  // PATCHES.md): without it they were collected only when another DATAFRAG came
+  // to the same Reader, so those a flood left behind could hold the process-wide
+  // reassembly budget for good.
+  FragmentGarbageCollect,
 }
 
 // Some pieces necessary to construct a reader.
@@ -135,6 +143,7 @@ pub(crate) struct Reader {
 
   fragment_assemblers: BTreeMap<GUID, FragmentAssembler>,
   last_fragment_garbage_collect: Timestamp,
+  fragment_gc_timer_set: bool,
   matched_writers: BTreeMap<GUID, RtpsWriterProxy>,
   writer_match_count_total: i32, // total count, never decreases
 
@@ -202,6 +211,7 @@ impl Reader {
       received_heartbeat_count: 0,
       fragment_assemblers: BTreeMap::new(),
       last_fragment_garbage_collect: Timestamp::now(),
+      fragment_gc_timer_set: false,
       matched_writers: BTreeMap::new(),
       writer_match_count_total: 0,
       requested_deadline_missed_count: 0,
@@ -323,6 +333,12 @@ impl Reader {
       TimedEvent::DeadlineMissedCheck => {
         self.handle_requested_deadline_event();
         self.set_requested_deadline_check_timer(); // re-prime timer
+      }
+      TimedEvent::FragmentGarbageCollect => {
+        self.fragment_gc_timer_set = false;
+        self.last_fragment_garbage_collect = Timestamp::now();
+        self.expire_fragments();
+        self.set_fragment_gc_timer();
       }
     }
   }
@@ -633,11 +649,37 @@ impl Reader {
       write_options_b = write_options_b.related_sample_identity(related_sample_identity);
     }
 
+    // A new reassembly that the process-wide budget has no room for takes the
+    // room of this Reader's reassemblies modified longest ago (patched for
+    // sqscan, see PATCHES.md): fragments a peer left incomplete, or sent to hold
+    // the budget, do not keep a sample that arrives whole from being assembled.
+    let starts = self
+      .fragment_assemblers
+      .get(&writer_guid)
+      .is_none_or(|fa| fa.would_start(datafrag));
+    if starts {
+      if let Ok(data_size) = usize::try_from(datafrag.data_size) {
+        if data_size <= fragment_assembler::max_fragmented_sample_size() {
+          self.evict_fragments_to_fit(data_size);
+        }
+      }
+    }
+
     // Feed to fragment assembler ...
     let writer_seq_num = datafrag.writer_sn; // for borrow checker
     let completed_dds_data = self
       .fragment_assembler_mutable(writer_guid, datafrag.fragment_size)
       .new_datafrag(datafrag, datafrag_flags);
+    // An assembler with nothing under way is not kept: a peer can make up writer
+    // GUIDs without end.
+    if self
+      .fragment_assemblers
+      .get(&writer_guid)
+      .is_some_and(FragmentAssembler::is_empty)
+    {
+      self.fragment_assemblers.remove(&writer_guid);
+    }
+    self.set_fragment_gc_timer();
 
     // ... and continue processing, if data was completed.
     if let Some(dds_data) = completed_dds_data {
@@ -667,6 +709,54 @@ impl Reader {
       .or_insert_with(|| FragmentAssembler::new(frag_size, reliable))
   }
 
+  // Evicts this Reader's reassemblies, modified longest ago first, until a new
+  // one of `data_size` bytes fits in the budget or none are left.
+  fn evict_fragments_to_fit(&mut self, data_size: usize) {
+    while !fragment_assembler::fits_in_budget(data_size) {
+      let Some((_, writer, sn)) = self
+        .fragment_assemblers
+        .iter()
+        .filter_map(|(w, fa)| fa.least_recently_modified().map(|(t, sn)| (t, *w, sn)))
+        .min()
+      else {
+        break;
+      };
+      info!("Reassembly budget full: dropping the incomplete sample {sn:?} of {writer:?}");
+      if let Some(fa) = self.fragment_assemblers.get_mut(&writer) {
+        fa.evict(sn);
+        if fa.is_empty() {
+          self.fragment_assemblers.remove(&writer);
+        }
+      }
+    }
+  }
+
+  // Drops the reassemblies not modified for FRAGMENT_ASSEMBLY_TIMEOUT, and the
+  // assemblers left with none.
+  fn expire_fragments(&mut self) {
+    let expire_before = Timestamp::now() - FRAGMENT_ASSEMBLY_TIMEOUT;
+    self.fragment_assemblers.retain(|writer, fa| {
+      debug!("AssemblyBuffer GC writer {writer:?}");
+      fa.garbage_collect_before(expire_before);
+      !fa.is_empty()
+    });
+  }
+
+  // While reassemblies are held, a timer expires them, whatever else arrives.
+  fn set_fragment_gc_timer(&mut self) {
+    if self.fragment_gc_timer_set || self.fragment_assemblers.is_empty() {
+      return;
+    }
+    self.fragment_gc_timer_set = true;
+    self.timed_event_timer.borrow_mut().set_timeout(
+      MIN_FRAGMENT_GC_INTERVAL.to_std(),
+      DpTimerEvent::Reader {
+        entity_id: self.my_guid.entity_id,
+        event: TimedEvent::FragmentGarbageCollect,
+      },
+    );
+  }
+
   fn garbage_collect_fragments(&mut self) {
     // If GC time/packet limit has been exceeded, iterate through
     // fragment assemblers and discard those assembly buffers whose
@@ -675,16 +765,7 @@ impl Reader {
     let now = Timestamp::now();
     if now - self.last_fragment_garbage_collect > MIN_FRAGMENT_GC_INTERVAL {
       self.last_fragment_garbage_collect = now;
-
-      let expire_before = now - FRAGMENT_ASSEMBLY_TIMEOUT;
-
-      self
-        .fragment_assemblers
-        .iter_mut()
-        .for_each(|(writer, fa)| {
-          debug!("AssemblyBuffer GC writer {writer:?}");
-          fa.garbage_collect_before(expire_before);
-        });
+      self.expire_fragments();
     } else {
       trace!("Not yet AssemblyBuffer GC time.");
     }

@@ -551,13 +551,25 @@ impl RtpsReaderProxy {
 
   // Fragment handling
 
-  pub fn mark_frags_requested(&mut self, seq_num: SequenceNumber, frag_nums: &FragmentNumberSet) {
+  // `num_frags`: how many fragments the sample has. Fragment numbers beyond it
+  // (or 0) are ignored: the set of requested fragments is sized by the largest
+  // (patched for sqscan, see PATCHES.md).
+  pub fn mark_frags_requested(
+    &mut self,
+    seq_num: SequenceNumber,
+    frag_nums: &FragmentNumberSet,
+    num_frags: u32,
+  ) {
+    let valid = |f: &FragmentNumber| (1..=num_frags).contains(&u32::from(*f));
+    if !frag_nums.iter().any(|f| valid(&f)) {
+      return;
+    }
     let req_set = self
       .frags_requested
       .entry(seq_num)
       .or_insert_with(|| BitVec::with_capacity(64)); // default capacity out of hat
 
-    for f in frag_nums.iter() {
+    for f in frag_nums.iter().filter(valid) {
       // -1 because FragmentNumbers start at 1
       let idx = usize::from(f) - 1;
       // The bit vector must be long enough to address `idx`. Grow it (filling
@@ -668,6 +680,34 @@ mod bounded_unsent_tests {
   fn test_proxy() -> RtpsReaderProxy {
     let guid = GUID::new(GuidPrefix::UNKNOWN, EntityId::UNKNOWN);
     RtpsReaderProxy::new(guid, QosPolicies::default(), false)
+  }
+
+  // A NACK_FRAG's fragment numbers (up to 2^32) sized the set of requested
+  // fragments: only those of the sample (`num_frags`) are taken now
+  // (patched for sqscan).
+  #[test]
+  fn nack_frag_beyond_the_sample_allocates_nothing() {
+    use std::collections::BTreeSet;
+    let mut rp = test_proxy();
+    let sn = SequenceNumber::new(1);
+    let far: BTreeSet<FragmentNumber> = [FragmentNumber::new(u32::MAX - 1)].into();
+    let set = FragmentNumberSet::from_base_and_set(FragmentNumber::new(u32::MAX - 1), &far);
+    rp.mark_frags_requested(sn, &set, 3);
+    assert!(rp.frags_requested.is_empty());
+    assert!(!rp.repair_frags_requested());
+
+    let some: BTreeSet<FragmentNumber> = [2, 3, 4, 200]
+      .into_iter()
+      .map(FragmentNumber::new)
+      .collect();
+    let set = FragmentNumberSet::from_base_and_set(FragmentNumber::new(2), &some);
+    rp.mark_frags_requested(sn, &set, 3);
+    let requested: Vec<_> = rp
+      .frags_requested_iterator()
+      .map(|(_, f)| u32::from(f))
+      .collect();
+    assert_eq!(requested, [2, 3]);
+    assert!(rp.frags_requested[&sn].len() <= 64);
   }
 
   // Regression: the push path (Writer::process_pending) now prunes each sample

@@ -15,6 +15,10 @@ use crate::{
   },
 };
 
+// The most missing sequence numbers `missing_seqnums` lists: an ACKNACK's set
+// holds 256 (RTPS spec v2.5 Section "8.3.5.5 SequenceNumberSet").
+const MAX_MISSING_SEQNUMS: usize = 256;
+
 #[derive(Debug)] // these are not cloneable, because contained data may be large
 pub(crate) struct RtpsWriterProxy {
   /// Identifies the remote matched Writer
@@ -174,8 +178,14 @@ impl RtpsWriterProxy {
     let mut known_iter = known.iter();
     let mut known_head = known_iter.next();
 
-    // Iterate over all SequenceNumbers (indices) in the advertised range.
+    // Iterate over all SequenceNumbers (indices) in the advertised range, up to
+    // the first MAX_MISSING_SEQNUMS missing ones (patched for sqscan, see
+    // PATCHES.md): the range is the writer's word, up to 2^63 numbers, and an
+    // ACKNACK names at most 256 of them, from the first missing one, anyway.
     for s in relevant_interval {
+      if missing_seqnums.len() >= MAX_MISSING_SEQNUMS {
+        break;
+      }
       match known_head {
         None => missing_seqnums.push(s), // no known changes left => s is missing
         Some(known_sn) => {
@@ -281,7 +291,20 @@ impl RtpsWriterProxy {
         self.ack_base, remove_from, remove_until_before, self.remote_writer_guid
       );
     } else {
-      // TODO: This potentially generates a very large BTreeMap
+      // Only the last MAX_TRACKED_CHANGES_PER_WRITER of the range can stay in the
+      // map (enforce_change_map_cap below); the ones before them, and any change
+      // before those, would be dropped with ack_base moved past them. Do that
+      // first instead of inserting up to 2^63 markers, as a peer's GAP asked
+      // (patched for sqscan, see PATCHES.md).
+      let mut remove_from = remove_from;
+      let keep = SequenceNumber::from(MAX_TRACKED_CHANGES_PER_WRITER as i64);
+      if remove_until_before - remove_from > keep {
+        remove_from = remove_until_before - keep;
+        if self.ack_base < remove_from {
+          self.ack_base = remove_from;
+        }
+        self.prune_below_ack_base();
+      }
       for na in
         SequenceNumber::range_inclusive(remove_from, remove_until_before - SequenceNumber::new(1))
       {
@@ -414,6 +437,41 @@ mod bounded_map_tests {
       vec![],
       EntityId::UNKNOWN,
     )
+  }
+
+  // A HEARTBEAT advertising 2^62 samples made the reader list every one of them
+  // as missing (patched for sqscan): at most what an ACKNACK can carry now.
+  #[test]
+  fn missing_seqnums_of_a_huge_heartbeat_are_bounded() {
+    let mut wp = test_proxy();
+    wp.received_changes_add(SequenceNumber::new(3), Timestamp::now());
+    let missing = wp.missing_seqnums(SequenceNumber::new(1), SequenceNumber::new(1 << 62));
+    assert_eq!(missing.len(), MAX_MISSING_SEQNUMS);
+    assert_eq!(missing[0], SequenceNumber::new(1));
+    assert_eq!(missing[1], SequenceNumber::new(2));
+    assert_eq!(missing[2], SequenceNumber::new(4));
+    let few = wp.missing_seqnums(SequenceNumber::new(1), SequenceNumber::new(5));
+    assert_eq!(few, [1, 2, 4, 5].map(SequenceNumber::new));
+  }
+
+  // A GAP over 2^62 sequence numbers inserted a marker for each before the map
+  // was capped (patched for sqscan): the same end state, at once.
+  #[test]
+  fn a_huge_gap_is_bounded() {
+    let mut wp = test_proxy();
+    wp.received_changes_add(SequenceNumber::new(1), Timestamp::now());
+    let end = SequenceNumber::new(1 << 62);
+    wp.irrelevant_changes_range(SequenceNumber::new(5), end);
+    assert!(wp.tracked_changes_count() <= MAX_TRACKED_CHANGES_PER_WRITER);
+    assert!(
+      wp.all_ackable_before() >= end - SequenceNumber::new(MAX_TRACKED_CHANGES_PER_WRITER as i64)
+    );
+
+    // A small one is kept as before.
+    let mut wp = test_proxy();
+    wp.irrelevant_changes_range(SequenceNumber::new(5), SequenceNumber::new(10));
+    assert_eq!(wp.tracked_changes_count(), 5);
+    assert_eq!(wp.all_ackable_before(), SequenceNumber::new(1));
   }
 
   // Regression: a best-effort writer sends no HEARTBEAT/GAP, so the changes map

@@ -1299,6 +1299,20 @@ impl Writer {
       AckSubmessage::NackFrag(ref nackfrag) => {
         // NackFrag is negative acknowledgement only, i.e. requesting missing fragments.
         let reader_guid = GUID::new(reader_guid_prefix, nackfrag.reader_id);
+        // The fragments a reader can ask for are those of a sample we still have
+        // (patched for sqscan, see PATCHES.md): the request's fragment numbers,
+        // up to 2^32, used to size the set of requested fragments.
+        let Some(num_frags) = self
+          .send_buffer
+          .get_by_sn(nackfrag.writer_sn)
+          .map(|cc| self.num_frags_and_frag_size(cc.data_value.payload_size()).0)
+        else {
+          debug!(
+            "NACK_FRAG from {reader_guid:?} for {:?}, which is not in the send buffer",
+            nackfrag.writer_sn
+          );
+          return;
+        };
         let Some(reader_proxy) = self.lookup_reader_proxy_mut(reader_guid) else {
           return;
         };
@@ -1311,7 +1325,11 @@ impl Writer {
           return;
         }
         reader_proxy.last_nackfrag_count = Some(nackfrag.count);
-        reader_proxy.mark_frags_requested(nackfrag.writer_sn, &nackfrag.fragment_number_state);
+        reader_proxy.mark_frags_requested(
+          nackfrag.writer_sn,
+          &nackfrag.fragment_number_state,
+          num_frags,
+        );
         self.schedule_repair_frags(reader_guid, self.nackfrag_response_delay);
       }
     }
