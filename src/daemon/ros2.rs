@@ -250,6 +250,9 @@ fn interfaces_listable() -> Result<()> {
 
 fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
     interfaces_listable()?;
+    // The patched RustDDS (vendor/rustdds) reassembles samples up to this size from DATA_FRAG
+    // submessages, and holds 16 times it at most in incomplete ones, whatever a peer declares.
+    ros2_client::dds::rustdds::set_max_fragmented_sample_size(cfg.max_received_sample);
     let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
         .map_err(|e| anyhow!("{e:?}"))
         .with_context(|| format!("cannot join DDS domain {}", cfg.domain_id))?;

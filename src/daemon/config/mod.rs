@@ -321,6 +321,10 @@ pub mod limits {
     /// are behind, each a whole sweep (0.8 MB at 256 columns, 10 MB at 4096): 20 is ample for a
     /// topic that changes every few seconds, and bounds that memory.
     pub const ROS_DEPTH: (usize, usize) = (1, 20);
+    /// The largest DDS sample the node reassembles from fragments (KiB). It receives only
+    /// discovery data, a few KB a participant; the patched RustDDS holds 16 times this at most
+    /// in all incomplete samples, so 64 MiB bounds that at 1 GiB.
+    pub const ROS_MAX_RECEIVED_SAMPLE_KIB: (usize, usize) = (64, 65_536);
 }
 
 /// A number within `range`, or an error naming the field and the range.

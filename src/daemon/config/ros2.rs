@@ -28,6 +28,8 @@ pub(super) struct Ros2File {
     durability: Option<String>,
     /// Messages a topic keeps for a subscriber that is behind (keep-last depth, default 5).
     depth: Option<usize>,
+    /// The largest sample reassembled from DDS fragments, KiB (default 1024).
+    max_received_sample_kib: Option<usize>,
 }
 
 /// The ROS 2 node (`[ros2]`, the `ros2` feature).
@@ -44,6 +46,9 @@ pub struct Ros2Config {
     pub reliable: bool,
     pub transient_local: bool,
     pub depth: usize,
+    /// The largest sample RustDDS reassembles from fragments (bytes): a peer's DATA_FRAG that
+    /// declares a larger one is dropped (`docs/ROS2.md`).
+    pub max_received_sample: usize,
 }
 
 impl Default for Ros2Config {
@@ -60,6 +65,7 @@ impl Default for Ros2Config {
             reliable: true,
             transient_local: false,
             depth: 5,
+            max_received_sample: 1 << 20,
         }
     }
 }
@@ -151,6 +157,17 @@ pub(super) fn ros2_config(path: &Path, r: &Ros2File) -> Result<Ros2Config, SpecE
     )?;
     if let Some(d) = count_within(path, "ros2.depth", r.depth, limits::ROS_DEPTH)? {
         c.depth = d;
+    }
+    if let Some(k) = r.max_received_sample_kib {
+        let (lo, hi) = limits::ROS_MAX_RECEIVED_SAMPLE_KIB;
+        if !(lo..=hi).contains(&k) {
+            return Err(SpecError::invalid(
+                path,
+                "ros2.max_received_sample_kib",
+                format!("{k}: give a size from {lo} to {hi} KiB"),
+            ));
+        }
+        c.max_received_sample = k * 1024;
     }
     if !cfg!(feature = "ros2") {
         return Err(SpecError::invalid(

@@ -348,6 +348,8 @@ fn the_ros2_table_is_validated_key_by_key() {
         ("depth = 0", "ros2.depth"),
         ("depth = 21", "ros2.depth"),
         ("depth = 100000", "ros2.depth"),
+        ("max_received_sample_kib = 63", "ros2.max_received_sample_kib"),
+        ("max_received_sample_kib = 4194304", "ros2.max_received_sample_kib"),
         ("topic = \"/x\"", "topic"),
     ] {
         let e = parse(&format!("[ros2]\n{bad}")).unwrap_err().to_string();
@@ -355,7 +357,8 @@ fn the_ros2_table_is_validated_key_by_key() {
     }
     let r = parse(
         "[ros2]\ndomain_id = 42\nnode = \"scanner_1\"\nnamespace = \"/robot1\"\npoints = \"cloud\"\n\
-         reliability = \"best_effort\"\ndurability = \"transient_local\"\ndepth = 2",
+         reliability = \"best_effort\"\ndurability = \"transient_local\"\ndepth = 2\n\
+         max_received_sample_kib = 256",
     );
     if cfg!(feature = "ros2") {
         let c = r.unwrap().ros2.unwrap();
@@ -365,6 +368,7 @@ fn the_ros2_table_is_validated_key_by_key() {
         assert_eq!(c.detections, "/sqscan/detections");
         assert!(!c.reliable && c.transient_local);
         assert_eq!(c.depth, 2);
+        assert_eq!(c.max_received_sample, 256 * 1024);
         assert_eq!(parse("[ros2]").unwrap().ros2, Some(super::Ros2Config::default()));
     } else {
         let e = r.unwrap_err().to_string();
