@@ -5,8 +5,9 @@
 //! says it skipped, unless `SQSCAN_REQUIRE_PYTHON_TOOLS` is set (as `scripts/test.sh` sets it).
 #![cfg(feature = "ros2")]
 
+use std::net::UdpSocket;
 use std::process::Command;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 use sqscan_drivers::mock::netns::in_private_network;
@@ -243,4 +244,171 @@ fn a_node_that_cannot_list_the_interfaces_refuses_to_start() {
     // Refused at start-up: it never said where to ask, and left no socket behind.
     assert!(!err.contains("listening"), "{err}");
     assert!(!dir.join("sqscand.sock").exists());
+}
+
+/// The DDS discovery ports (domain 0, 7400 to 7419) the daemon has bound, from its network
+/// namespace's UDP socket table (in the private namespace, only the daemon has sockets there).
+fn dds_ports(pid: u32) -> Vec<u16> {
+    let mut ports = Vec::new();
+    for table in ["udp", "udp6"] {
+        let text = std::fs::read_to_string(format!("/proc/{pid}/net/{table}")).unwrap_or_default();
+        for line in text.lines().skip(1) {
+            let Some(local) = line.split_whitespace().nth(1) else {
+                continue;
+            };
+            let Some(port) = local.rsplit(':').next().and_then(|p| u16::from_str_radix(p, 16).ok()) else {
+                continue;
+            };
+            if (7400..7420).contains(&port) && !ports.contains(&port) {
+                ports.push(port);
+            }
+        }
+    }
+    ports.sort();
+    ports
+}
+
+/// The resident memory of a process (kB, `VmRSS`), or None once it has gone.
+fn rss_kb(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
+}
+
+/// An RTPS message of one DATA_FRAG submessage (RTPS 2.4, little endian) from the participant
+/// `prefix`: the first 1024-byte fragment of a sample from `writer` to `reader` (builtin entity
+/// ids) that declares itself 0xFFFFFFFF bytes long.
+fn data_frag_declaring_4_gib(prefix: [u8; 12], reader: [u8; 4], writer: [u8; 4], sn: u32) -> Vec<u8> {
+    const FRAGMENT: u16 = 1024;
+    let mut m = Vec::with_capacity(20 + 4 + 32 + FRAGMENT as usize);
+    m.extend_from_slice(b"RTPS");
+    m.extend_from_slice(&[2, 4]); // protocol version
+    m.extend_from_slice(&[0x01, 0x99]); // a vendor id no one has
+    m.extend_from_slice(&prefix);
+    m.push(0x16); // DATA_FRAG
+    m.push(0x01); // little endian
+    m.extend_from_slice(&(4 + 28 + FRAGMENT).to_le_bytes()); // octetsToNextHeader
+    m.extend_from_slice(&0u16.to_le_bytes()); // extraFlags
+    m.extend_from_slice(&28u16.to_le_bytes()); // octetsToInlineQos: to the end of sampleSize
+    m.extend_from_slice(&reader);
+    m.extend_from_slice(&writer);
+    m.extend_from_slice(&0i32.to_le_bytes()); // writerSN high
+    m.extend_from_slice(&sn.to_le_bytes()); // writerSN low
+    m.extend_from_slice(&1u32.to_le_bytes()); // fragmentStartingNum
+    m.extend_from_slice(&1u16.to_le_bytes()); // fragmentsInSubmessage
+    m.extend_from_slice(&FRAGMENT.to_le_bytes()); // fragmentSize
+    m.extend_from_slice(&u32::MAX.to_le_bytes()); // sampleSize: 4 GiB
+    m.extend_from_slice(&[0x00, 0x03, 0x00, 0x00]); // PL_CDR_LE, the start of the sample
+    m.resize(m.len() + FRAGMENT as usize - 4, 0xA5);
+    m
+}
+
+/// RustDDS allocated a reassembly buffer of the size a DATA_FRAG declares, so a few hundred
+/// datagrams on the discovery ports, from anyone, each declaring a 4 GiB sample, took the
+/// daemon's memory to gigabytes in seconds and then aborted it ("memory allocation of
+/// 4294967295 bytes failed"), and each datagram logged errors. The patched RustDDS refuses a
+/// sample larger than `[ros2] max_fragmented_sample` and holds at most a fixed budget in all
+/// incomplete reassemblies; the flood leaves the daemon alive and small, its log short, and a
+/// Cyclone DDS subscriber started afterwards still discovers it and gets a sweep.
+#[test]
+fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
+    let Some(python) = python(&["cyclonedds"]) else {
+        return;
+    };
+    if !in_private_network("a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory") {
+        return;
+    }
+    let dir = tmpdir("ros2-datafrag");
+    let scene = root().join("scenes/fig3_table.toml");
+    let config = format!(
+        "[sim]\nscene = {scene:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
+         [ros2]\nnode = \"scanner\"\n"
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let mut daemon = sqscand(&dir, "sqscand", &[]);
+    let pid = daemon.0.id();
+    let log = || std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default();
+    let mut ports = Vec::new();
+    wait_for("the daemon's DDS ports", Duration::from_secs(30), || {
+        ports = dds_ports(pid);
+        ports.len() >= 2
+    });
+    let before = rss_kb(pid).unwrap();
+
+    // 300 datagrams to each port, from 30 participants that do not exist, each to one of the
+    // builtin readers (SPDP, SEDP publications and subscriptions, participant messages), each
+    // a new sample of its writer.
+    const BUILTIN: [([u8; 4], [u8; 4]); 4] = [
+        ([0x00, 0x01, 0x00, 0xc7], [0x00, 0x01, 0x00, 0xc2]),
+        ([0x00, 0x00, 0x03, 0xc7], [0x00, 0x00, 0x03, 0xc2]),
+        ([0x00, 0x00, 0x04, 0xc7], [0x00, 0x00, 0x04, 0xc2]),
+        ([0x00, 0x02, 0x00, 0xc7], [0x00, 0x02, 0x00, 0xc2]),
+    ];
+    let out = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let mut peak = before;
+    let t0 = Instant::now();
+    let mut sent = 0;
+    for i in 0..300u32 {
+        let mut prefix = [0x5a; 12];
+        prefix[8..].copy_from_slice(&(i % 30).to_be_bytes());
+        let (reader, writer) = BUILTIN[i as usize % BUILTIN.len()];
+        let datagram = data_frag_declaring_4_gib(prefix, reader, writer, 1 + i);
+        for &port in &ports {
+            if out.send_to(&datagram, ("127.0.0.1", port)).is_ok() {
+                sent += 1;
+            }
+        }
+        if i % 10 == 9 {
+            // Paced, so that the socket buffers keep them (a flood that is dropped tests
+            // nothing), and watched as it goes.
+            std::thread::sleep(Duration::from_millis(5));
+            peak = peak.max(rss_kb(pid).unwrap_or(0));
+        }
+    }
+    let flood = t0.elapsed();
+    // What the daemon does with what it was sent, for a few seconds more.
+    let t1 = Instant::now();
+    while t1.elapsed() < Duration::from_secs(3) {
+        peak = peak.max(rss_kb(pid).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = daemon.0.try_wait().unwrap();
+    eprintln!(
+        "{sent} DATA_FRAG datagrams to ports {ports:?} in {flood:?}: VmRSS {before} kB before, \
+         peak {peak} kB, exit {status:?}"
+    );
+    assert!(status.is_none(), "the daemon died of the flood: {status:?}\n{}", log());
+    // The daemon with the node runs in tens of megabytes (in a test build); an allocation of
+    // a declared sample would take gigabytes. The bound is wide: the reassembly budget (16
+    // MiB) and what the daemon does besides.
+    assert!(
+        peak < before + 256 * 1024,
+        "VmRSS went from {before} kB to {peak} kB under the flood"
+    );
+    // RustDDS's complaints about the flood are rate-limited: a few lines, not one a datagram.
+    let lines = log().lines().count();
+    assert!(lines < 100, "{lines} lines of log:\n{}", log());
+
+    // Discovery and delivery still work once the flood stops.
+    let out = Command::new(&python)
+        .arg(root().join("tests/py/dds_sub.py"))
+        .arg(&socket)
+        .arg("cup")
+        .arg("60")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        log()
+    );
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
+        assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
+    }
+    assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);
+    assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
+    assert!(daemon.0.try_wait().unwrap().is_none(), "{}", log());
 }
