@@ -236,6 +236,7 @@ fn an_error_about_a_token_holding_escape_sequences_is_printed_escaped() {
 
 /// `sqscan` with `args`, its exit status, its stderr and its peak resident memory in bytes
 /// (getrusage of the child, reaped here).
+#[allow(clippy::zombie_processes)] // reaped by wait4, which Child::wait cannot give the usage of
 fn sqscan_with_peak_memory(args: &[&std::ffi::OsStr]) -> (bool, String, u64) {
     use std::io::Read;
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_sqscan"))

@@ -316,7 +316,7 @@ fn raise_descriptor_limit() -> Option<u64> {
             r.rlim_cur = target;
         }
     }
-    Some(r.rlim_cur as u64)
+    Some(r.rlim_cur)
 }
 
 /// Writes one queued message, false when the client is gone or does not read. A client that
@@ -819,7 +819,7 @@ mod tests {
         };
         // SAFETY: getrlimit writes only into the struct given.
         assert_eq!(unsafe { libc::getrlimit(libc::RLIMIT_NOFILE, &mut r) }, 0);
-        assert_eq!(r.rlim_cur as u64, l);
+        assert_eq!(r.rlim_cur, l);
         assert!(
             r.rlim_max == libc::RLIM_INFINITY || r.rlim_cur == r.rlim_max,
             "{l} of {}",
