@@ -438,6 +438,18 @@ where
   }
 }
 
+// patched for sqscan: whether every member of a set of `num_bits` from `base`, and the number
+// one past them, is a number of type `N` (a FragmentNumber is 32 bits, a SequenceNumber 64).
+fn fits_number_set<N>(base: i64, num_bits: u32) -> bool
+where
+  N: From<i64>,
+  i64: From<N>,
+{
+  base
+    .checked_add(<i64 as From<u32>>::from(num_bits))
+    .is_some_and(|end| i64::from(N::from(end)) == end)
+}
+
 impl<'a, C: Context, N> Readable<'a, C> for NumberSet<N>
 where
   N:
@@ -454,6 +466,16 @@ where
       //
       // Without this chek the addition operation below could overflow.
       Err(speedy::Error::custom(format!("NumberSet size too large: {num_bits} > 256.")).into())
+    } else if !fits_number_set::<N>(i64::from(bitmap_base.clone()), num_bits) {
+      // patched for sqscan: a set reaching past the largest number of its kind (a base near
+      // i64::MAX or u32::MAX from a peer) made its iterator's `base + bit` overflow, which
+      // panicked the event loop where overflow is checked and wrapped around elsewhere.
+      Err(
+        speedy::Error::custom(format!(
+          "NumberSet base {bitmap_base:?} + {num_bits} bits overflows."
+        ))
+        .into(),
+      )
     } else {
       let word_count = num_bits.div_ceil(32);
       let mut bitmap: Vec<u32> = Vec::with_capacity(word_count as usize);
@@ -713,4 +735,36 @@ mod tests {
             0x00, 0x00, 0x00, 0x0E,
             0x5A, 0xA4, 0x00, 0x00]
   });
+  // patched for sqscan
+  #[test]
+  fn a_number_set_reaching_past_the_largest_number_is_refused() {
+    use speedy::{Endianness, Readable};
+    // SequenceNumberSet: base (high, low), numBits, one word with every bit set.
+    let sn_set = |high: i32, low: u32, bits: u32| {
+      let mut b = Vec::new();
+      b.extend_from_slice(&high.to_le_bytes());
+      b.extend_from_slice(&low.to_le_bytes());
+      b.extend_from_slice(&bits.to_le_bytes());
+      b.extend_from_slice(&u32::MAX.to_le_bytes());
+      SequenceNumberSet::read_from_buffer_with_ctx(Endianness::LittleEndian, &b)
+    };
+    assert!(sn_set(i32::MAX, u32::MAX - 3, 32).is_err());
+    assert!(sn_set(i32::MAX, u32::MAX - 40, 32).is_ok());
+    let set = sn_set(i32::MAX, u32::MAX - 40, 32).unwrap();
+    assert_eq!(set.iter().count(), 32);
+    assert_eq!(
+      set.iter().next_back(),
+      Some(SequenceNumber::new(i64::MAX - 9))
+    );
+    let frag_set = |base: u32, bits: u32| {
+      let mut b = Vec::new();
+      b.extend_from_slice(&base.to_le_bytes());
+      b.extend_from_slice(&bits.to_le_bytes());
+      b.extend_from_slice(&u32::MAX.to_le_bytes());
+      FragmentNumberSet::read_from_buffer_with_ctx(Endianness::LittleEndian, &b)
+    };
+    assert!(frag_set(u32::MAX - 3, 32).is_err());
+    assert_eq!(frag_set(u32::MAX - 40, 32).unwrap().iter().count(), 32);
+    assert!(frag_set(1, 32).is_ok());
+  }
 }
