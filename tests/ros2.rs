@@ -412,3 +412,489 @@ fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
     assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
     assert!(daemon.0.try_wait().unwrap().is_none(), "{}", log());
 }
+
+/// A seeded pseudo-random source (splitmix64): the same flood every run.
+struct Rng(u64);
+
+impl Rng {
+    fn next(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    }
+
+    fn below(&mut self, n: u64) -> u64 {
+        self.next() % n
+    }
+
+    fn bytes(&mut self, n: usize) -> Vec<u8> {
+        (0..n).map(|_| self.next() as u8).collect()
+    }
+
+    fn entity(&mut self) -> [u8; 4] {
+        // The builtin endpoints, or one of the first user entities of any kind (where the
+        // daemon's own readers and writers are), or anything.
+        const BUILTIN: [[u8; 4]; 9] = [
+            [0x00, 0x01, 0x00, 0xc2],
+            [0x00, 0x01, 0x00, 0xc7],
+            [0x00, 0x00, 0x03, 0xc2],
+            [0x00, 0x00, 0x03, 0xc7],
+            [0x00, 0x00, 0x04, 0xc2],
+            [0x00, 0x00, 0x04, 0xc7],
+            [0x00, 0x02, 0x00, 0xc2],
+            [0x00, 0x02, 0x00, 0xc7],
+            [0x00, 0x00, 0x00, 0x00],
+        ];
+        const KINDS: [u8; 6] = [0x02, 0x03, 0x04, 0x07, 0xc2, 0xc7];
+        match self.below(3) {
+            0 => BUILTIN[self.below(BUILTIN.len() as u64) as usize],
+            1 => [
+                0,
+                0,
+                self.below(32) as u8,
+                KINDS[self.below(KINDS.len() as u64) as usize],
+            ],
+            _ => (self.next() as u32).to_be_bytes(),
+        }
+    }
+
+    /// A sequence number: small, near the top, negative or anything.
+    fn seq(&mut self) -> [u8; 8] {
+        let (high, low): (i32, u32) = match self.below(4) {
+            0 => (0, self.below(64) as u32),
+            1 => (i32::MAX, u32::MAX - self.below(4) as u32),
+            2 => (-1 - self.below(4) as i32, self.next() as u32),
+            _ => (self.next() as i32, self.next() as u32),
+        };
+        let mut b = [0; 8];
+        b[..4].copy_from_slice(&high.to_le_bytes());
+        b[4..].copy_from_slice(&low.to_le_bytes());
+        b
+    }
+}
+
+/// A made-up participant's GUID prefix (number `n` of the flood's).
+fn phantom(n: u64) -> [u8; 12] {
+    let mut p = [0xfa, 0x4e, 0x7a, 0x5d, 0, 0, 0, 0, 0, 0, 0, 0];
+    p[4..].copy_from_slice(&n.to_be_bytes());
+    p
+}
+
+fn rtps_header(prefix: &[u8; 12]) -> Vec<u8> {
+    let mut m = Vec::with_capacity(256);
+    m.extend_from_slice(b"RTPS");
+    m.extend_from_slice(&[2, 4, 0x01, 0x99]);
+    m.extend_from_slice(prefix);
+    m
+}
+
+/// A submessage (little endian) of `id`, `flags` (E added) and `body`.
+fn submessage(m: &mut Vec<u8>, id: u8, flags: u8, body: &[u8]) {
+    m.push(id);
+    m.push(flags | 0x01);
+    m.extend_from_slice(&(body.len() as u16).to_le_bytes());
+    m.extend_from_slice(body);
+}
+
+/// One parameter of a parameter list, padded to 4 bytes.
+fn param(pl: &mut Vec<u8>, pid: u16, value: &[u8]) {
+    let padded = value.len().div_ceil(4) * 4;
+    pl.extend_from_slice(&pid.to_le_bytes());
+    pl.extend_from_slice(&(padded as u16).to_le_bytes());
+    pl.extend_from_slice(value);
+    pl.resize(pl.len() + padded - value.len(), 0);
+}
+
+fn udpv4_locator(port: u32) -> Vec<u8> {
+    let mut l = Vec::with_capacity(24);
+    l.extend_from_slice(&1i32.to_le_bytes());
+    l.extend_from_slice(&port.to_le_bytes());
+    l.extend_from_slice(&[0; 12]);
+    l.extend_from_slice(&[127, 0, 0, 1]);
+    l
+}
+
+fn cdr_string(s: &str) -> Vec<u8> {
+    let mut v = ((s.len() + 1) as u32).to_le_bytes().to_vec();
+    v.extend_from_slice(s.as_bytes());
+    v.push(0);
+    v
+}
+
+/// A DATA submessage carrying a parameter list (PL_CDR_LE) from `writer` to `reader`.
+fn pl_data(m: &mut Vec<u8>, reader: [u8; 4], writer: [u8; 4], sn: u32, pl: &[u8]) {
+    let mut body = Vec::with_capacity(24 + pl.len());
+    body.extend_from_slice(&0u16.to_le_bytes());
+    body.extend_from_slice(&16u16.to_le_bytes());
+    body.extend_from_slice(&reader);
+    body.extend_from_slice(&writer);
+    body.extend_from_slice(&0i32.to_le_bytes());
+    body.extend_from_slice(&sn.to_le_bytes());
+    body.extend_from_slice(&[0x00, 0x03, 0x00, 0x00]);
+    body.extend_from_slice(pl);
+    submessage(m, 0x15, 0x04, &body);
+}
+
+/// An SPDP announcement of the made-up participant `prefix`: all builtin endpoints, its
+/// locators ports on 127.0.0.1 where nothing listens, a lease of `lease_s`.
+fn spdp_announcement(prefix: [u8; 12], port: u32, lease_s: i32, sn: u32) -> Vec<u8> {
+    let mut pl = Vec::new();
+    param(&mut pl, 0x0015, &[2, 4]); // PID_PROTOCOL_VERSION
+    param(&mut pl, 0x0016, &[0x01, 0x99]); // PID_VENDORID
+    let mut guid = prefix.to_vec();
+    guid.extend_from_slice(&[0, 0, 1, 0xc1]);
+    param(&mut pl, 0x0050, &guid); // PID_PARTICIPANT_GUID
+    param(&mut pl, 0x0032, &udpv4_locator(port)); // PID_METATRAFFIC_UNICAST_LOCATOR
+    param(&mut pl, 0x0031, &udpv4_locator(port + 1)); // PID_DEFAULT_UNICAST_LOCATOR
+    let mut lease = lease_s.to_le_bytes().to_vec();
+    lease.extend_from_slice(&0u32.to_le_bytes());
+    param(&mut pl, 0x0002, &lease); // PID_PARTICIPANT_LEASE_DURATION
+    param(&mut pl, 0x0058, &0x0000_0c3fu32.to_le_bytes()); // PID_BUILTIN_ENDPOINT_SET
+    param(&mut pl, 0x0001, &[]); // PID_SENTINEL
+    let mut m = rtps_header(&prefix);
+    pl_data(&mut m, [0x00, 0x01, 0x00, 0xc7], [0x00, 0x01, 0x00, 0xc2], sn, &pl);
+    m
+}
+
+/// An SEDP announcement by the made-up participant `prefix` of a reliable reader (`reader`
+/// true) or writer of the daemon's `topic` and `ty`, at a port where nothing listens.
+fn sedp_endpoint(prefix: [u8; 12], entity: u8, reader: bool, topic: &str, ty: &str, port: u32, sn: u32) -> Vec<u8> {
+    let mut pl = Vec::new();
+    let mut guid = prefix.to_vec();
+    guid.extend_from_slice(&[0, 0, entity, if reader { 0x04 } else { 0x03 }]);
+    param(&mut pl, 0x005a, &guid); // PID_ENDPOINT_GUID
+    let mut participant = prefix.to_vec();
+    participant.extend_from_slice(&[0, 0, 1, 0xc1]);
+    param(&mut pl, 0x0050, &participant); // PID_PARTICIPANT_GUID
+    param(&mut pl, 0x0005, &cdr_string(topic)); // PID_TOPIC_NAME
+    param(&mut pl, 0x0007, &cdr_string(ty)); // PID_TYPE_NAME
+    let mut reliability = 2u32.to_le_bytes().to_vec(); // RELIABLE
+    reliability.extend_from_slice(&[0; 8]);
+    param(&mut pl, 0x001a, &reliability); // PID_RELIABILITY
+    param(&mut pl, 0x002f, &udpv4_locator(port)); // PID_UNICAST_LOCATOR
+    param(&mut pl, 0x0001, &[]);
+    let mut m = rtps_header(&prefix);
+    let (r, w) = if reader {
+        ([0x00, 0x00, 0x04, 0xc7], [0x00, 0x00, 0x04, 0xc2])
+    } else {
+        ([0x00, 0x00, 0x03, 0xc7], [0x00, 0x00, 0x03, 0xc2])
+    };
+    pl_data(&mut m, r, w, sn, &pl);
+    m
+}
+
+/// A message of one to four random submessages of any kind, often malformed (lengths that lie,
+/// fields cut short, unknown flags), or a header cut short.
+fn random_message(rng: &mut Rng, prefix: [u8; 12]) -> Vec<u8> {
+    let mut m = rtps_header(&prefix);
+    if rng.below(40) == 0 {
+        m.truncate(rng.below(20) as usize);
+        return m;
+    }
+    for _ in 0..1 + rng.below(4) {
+        let mut body = Vec::with_capacity(64);
+        let id = match rng.below(13) {
+            0 => {
+                // DATA: serialized payload of random bytes, sometimes inline QoS claimed.
+                body.extend_from_slice(&0u16.to_le_bytes());
+                body.extend_from_slice(&16u16.to_le_bytes());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                let n = rng.below(200) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                0x15
+            }
+            1 => {
+                // DATA_FRAG: any fragment of any declared size.
+                body.extend_from_slice(&0u16.to_le_bytes());
+                body.extend_from_slice(&28u16.to_le_bytes());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&(rng.below(8) as u32).to_le_bytes());
+                body.extend_from_slice(&(rng.below(3) as u16).to_le_bytes());
+                body.extend_from_slice(&[16u16, 64, 1024, 0][rng.below(4) as usize].to_le_bytes());
+                body.extend_from_slice(&(rng.next() as u32 >> rng.below(32)).to_le_bytes());
+                let n = rng.below(200) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                0x16
+            }
+            2 => {
+                // HEARTBEAT: any range.
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                0x07
+            }
+            3 => {
+                // ACKNACK: any base, any bitmap of any declared size.
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                let bits = [0u32, 1, 32, 256, 257, u32::MAX][rng.below(6) as usize];
+                body.extend_from_slice(&bits.to_le_bytes());
+                let n = 4 * rng.below(9) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                0x06
+            }
+            4 => {
+                // NACK_FRAG
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                let bits = [0u32, 1, 32, 256, 257][rng.below(5) as usize];
+                body.extend_from_slice(&bits.to_le_bytes());
+                let n = 4 * rng.below(9) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                0x12
+            }
+            5 => {
+                // GAP
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&rng.seq());
+                let bits = [0u32, 32, 256][rng.below(3) as usize];
+                body.extend_from_slice(&bits.to_le_bytes());
+                let n = 4 * rng.below(9) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                0x08
+            }
+            6 => {
+                // INFO_TS
+                body.extend_from_slice(&rng.bytes(8));
+                0x09
+            }
+            7 => {
+                // INFO_DST: another made-up participant, or the unknown one.
+                let to = if rng.below(2) == 0 {
+                    [0; 12]
+                } else {
+                    phantom(rng.below(5000))
+                };
+                body.extend_from_slice(&to);
+                0x0e
+            }
+            8 => {
+                // INFO_SRC: continue as another participant.
+                body.extend_from_slice(&[0; 4]);
+                body.extend_from_slice(&[2, 4, 0x01, 0x99]);
+                body.extend_from_slice(&phantom(rng.below(5000)));
+                0x0c
+            }
+            9 => {
+                // HEARTBEAT_FRAG
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.entity());
+                body.extend_from_slice(&rng.seq());
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                body.extend_from_slice(&(rng.next() as u32).to_le_bytes());
+                0x13
+            }
+            10 => {
+                // INFO_REPLY: locators of any count.
+                body.extend_from_slice(&(rng.below(4) as u32).to_le_bytes());
+                body.extend_from_slice(&udpv4_locator(9000 + rng.below(1000) as u32));
+                0x0f
+            }
+            11 => {
+                // A parameter list that is not one: SPDP or SEDP data of random bytes.
+                let n = rng.below(120) as usize;
+                let pl = rng.bytes(n);
+                let (r, w) = [
+                    ([0x00, 0x01, 0x00, 0xc7], [0x00, 0x01, 0x00, 0xc2]),
+                    ([0x00, 0x00, 0x03, 0xc7], [0x00, 0x00, 0x03, 0xc2]),
+                    ([0x00, 0x00, 0x04, 0xc7], [0x00, 0x00, 0x04, 0xc2]),
+                    ([0x00, 0x02, 0x00, 0xc7], [0x00, 0x02, 0x00, 0xc2]),
+                ][rng.below(4) as usize];
+                pl_data(&mut m, r, w, rng.next() as u32, &pl);
+                continue;
+            }
+            _ => {
+                // Any submessage id at all, with random bytes.
+                let n = rng.below(64) as usize;
+                body.extend_from_slice(&rng.bytes(n));
+                rng.next() as u8
+            }
+        };
+        let flags = rng.next() as u8 & [0x0f, 0x03, 0xff][rng.below(3) as usize];
+        let at = m.len();
+        submessage(&mut m, id, flags, &body);
+        // Lengths that lie: too short, too long, or zero (to the end of the message).
+        match rng.below(10) {
+            0 => {
+                let len = (body.len() as u16).saturating_sub(1 + rng.below(8) as u16);
+                m[at + 2..at + 4].copy_from_slice(&len.to_le_bytes());
+            }
+            1 => {
+                let len = body.len() as u16 + 1 + rng.below(64) as u16;
+                m[at + 2..at + 4].copy_from_slice(&len.to_le_bytes());
+            }
+            2 => m[at + 2..at + 4].copy_from_slice(&0u16.to_le_bytes()),
+            3 => m.truncate(at + 4 + rng.below(body.len() as u64 + 1) as usize),
+            _ => {}
+        }
+    }
+    m
+}
+
+/// A flood of mixed hostile datagrams (an older build, sent 420,000 of them in 4 s, grew to
+/// 2.1 GB, filled the journal, and afterwards a new subscriber matched but received nothing):
+/// random and malformed submessages of every kind, and announcements of made-up participants
+/// (SPDP, with locators where nothing listens and long leases) and of their reliable readers
+/// and writers of the daemon's own topics (SEDP), which never acknowledge anything. The daemon
+/// stays alive and small, its log short, and a Cyclone DDS subscriber started afterwards, while
+/// the made-up participants are still within their leases, matches every topic and gets a
+/// sweep.
+#[test]
+fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
+    let Some(python) = python(&["cyclonedds"]) else {
+        return;
+    };
+    if !in_private_network("a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working") {
+        return;
+    }
+    let dir = tmpdir("ros2-mixed");
+    let scene = root().join("scenes/fig3_table.toml");
+    let config = format!(
+        "[sim]\nscene = {scene:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
+         [ros2]\nnode = \"scanner\"\n"
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let mut daemon = sqscand(&dir, "sqscand", &[]);
+    let pid = daemon.0.id();
+    let log = || std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default();
+    let mut ports = Vec::new();
+    // Discovery's two (multicast and unicast) and the user traffic's two.
+    wait_for("the daemon's four DDS ports", Duration::from_secs(30), || {
+        ports = dds_ports(pid);
+        ports.len() >= 4
+    });
+    // A moment for the node to settle (its own announcements, its topics).
+    std::thread::sleep(Duration::from_millis(500));
+    let before = rss_kb(pid).unwrap();
+
+    const TOPICS: [(&str, &str); 6] = [
+        ("rt/sqscan/points", "sensor_msgs::msg::dds_::PointCloud2_"),
+        ("rt/sqscan/joint_states", "sensor_msgs::msg::dds_::JointState_"),
+        ("rt/sqscan/detections", "vision_msgs::msg::dds_::Detection3DArray_"),
+        ("rt/sqscan/markers", "visualization_msgs::msg::dds_::MarkerArray_"),
+        ("rt/sqscan/range", "sensor_msgs::msg::dds_::Image_"),
+        ("rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"),
+    ];
+    // Made-up participants: this many, each at its own closed ports on 127.0.0.1.
+    const PHANTOMS: u64 = 3000;
+    const DATAGRAMS: u64 = 300_000;
+    let closed_port = |p: u64| 20000 + 2 * (p as u32 % 10000);
+    let mut rng = Rng(0x5eed_0f_f100d);
+    let out = UdpSocket::bind("127.0.0.1:0").unwrap();
+    let mut peak = before;
+    let mut sent = 0u64;
+    let t0 = Instant::now();
+    for i in 0..DATAGRAMS {
+        let p = rng.below(PHANTOMS);
+        let prefix = phantom(p);
+        let datagram = match rng.below(20) {
+            0..=1 => {
+                let lease = if rng.below(4) == 0 {
+                    1 + rng.below(30) as i32
+                } else {
+                    600
+                };
+                spdp_announcement(prefix, closed_port(p), lease, 1 + rng.below(1000) as u32)
+            }
+            2 => {
+                let (topic, ty) = TOPICS[rng.below(TOPICS.len() as u64) as usize];
+                let reader = rng.below(4) != 0;
+                let entity = 1 + rng.below(16) as u8;
+                sedp_endpoint(
+                    prefix,
+                    entity,
+                    reader,
+                    topic,
+                    ty,
+                    closed_port(p) + 1,
+                    1 + rng.below(1000) as u32,
+                )
+            }
+            _ => random_message(&mut rng, prefix),
+        };
+        let port = ports[(i % ports.len() as u64) as usize];
+        if out.send_to(&datagram, ("127.0.0.1", port)).is_ok() {
+            sent += 1;
+        }
+        if i % 2000 == 1999 {
+            // Paced a little, so that the daemon reads a good part of them, and watched.
+            std::thread::sleep(Duration::from_millis(2));
+            peak = peak.max(rss_kb(pid).unwrap_or(0));
+        }
+        if t0.elapsed() > Duration::from_secs(8) {
+            break;
+        }
+    }
+    let flood = t0.elapsed();
+    let t1 = Instant::now();
+    while t1.elapsed() < Duration::from_secs(3) {
+        peak = peak.max(rss_kb(pid).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let status = daemon.0.try_wait().unwrap();
+    let lines = log().lines().count();
+    eprintln!(
+        "{sent} mixed datagrams to ports {ports:?} in {flood:?}: VmRSS {before} kB before, peak \
+         {peak} kB, {lines} lines of log, exit {status:?}"
+    );
+    assert!(status.is_none(), "the daemon died of the flood: {status:?}\n{}", log());
+    // A passing run (in a test build) starts near 17 MB and peaks near 100 MB, the made-up
+    // participants' share; the bound is five times that, far below the gigabytes of the
+    // failure.
+    assert!(
+        peak < 512 * 1024,
+        "VmRSS went from {before} kB to {peak} kB under the flood"
+    );
+    assert!(lines < 200, "{lines} lines of log:\n{}", log());
+
+    // Discovery and delivery still work, the made-up participants still within their leases.
+    let t2 = Instant::now();
+    let out = Command::new(&python)
+        .arg(root().join("tests/py/dds_sub.py"))
+        .arg(&socket)
+        .arg("cup")
+        .arg("40")
+        .output()
+        .unwrap();
+    eprintln!("the subscriber after the flood took {:?}", t2.elapsed());
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        log()
+    );
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
+        assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
+    }
+    assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);
+    assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
+    // Joint states arrive too (all of the sweep's in most runs; in one run of a few, two of
+    // the 150 went missing and were not repaired within the subscriber's wait).
+    assert!(
+        !m["joints"].as_array().unwrap().is_empty(),
+        "joint states after the flood: {m}"
+    );
+    let after = rss_kb(pid).unwrap_or(0);
+    eprintln!(
+        "VmRSS {after} kB after the subscriber, {} lines of log",
+        log().lines().count()
+    );
+    assert!(daemon.0.try_wait().unwrap().is_none(), "{}", log());
+}
