@@ -298,6 +298,9 @@ pub(crate) struct Discovery {
   spdp_quick_response_sent: std::collections::HashSet<GuidPrefix>,
 }
 
+// patched for sqscan: how many SPDP samples `spdp_receive` takes from its reader at once.
+const SPDP_TAKE_BATCH: usize = 256;
+
 impl Discovery {
   const PARTICIPANT_CLEANUP_PERIOD: StdDuration = StdDuration::from_secs(2);
   const TOPIC_CLEANUP_PERIOD: StdDuration = StdDuration::from_secs(60); // timer for cleaning up inactive topics
@@ -977,11 +980,29 @@ impl Discovery {
   }
 
   pub fn spdp_receive(&mut self) {
+    // patched for sqscan: taken a batch at a time. Each take sorts every sample waiting in the
+    // reader, so taking them one by one cost the square of the backlog: after a flood of
+    // announcements of made-up participants (a new instance each), the discovery thread spent
+    // tens of seconds draining them, and a real participant's announcement waited behind.
+    let mut batch = std::collections::VecDeque::new();
     loop {
-      let s = self.dcps_participant.reader.take_next_sample();
+      if batch.is_empty() {
+        match self
+          .dcps_participant
+          .reader
+          .take(SPDP_TAKE_BATCH, ReadCondition::not_read())
+        {
+          Ok(b) => batch.extend(b),
+          Err(e) => {
+            error!(" !!! spdp_receive: {e:?}");
+            return;
+          }
+        }
+      }
+      let s = batch.pop_front();
       debug!("spdp_receive read {:?}", s);
       match s {
-        Ok(Some(ds)) => {
+        Some(ds) => {
           #[cfg(not(feature = "security"))]
           let permission = NormalDiscoveryPermission::Allow;
 
@@ -1038,14 +1059,10 @@ impl Discovery {
             }
           }
         }
-        Ok(None) => {
+        None => {
           trace!("spdp_receive: no more data");
           return;
         } // no more data
-        Err(e) => {
-          error!(" !!! spdp_receive: {e:?}");
-          return;
-        }
       }
     } // loop
   }
