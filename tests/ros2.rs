@@ -748,12 +748,14 @@ fn random_message(rng: &mut Rng, prefix: [u8; 12]) -> Vec<u8> {
 
 /// A flood of mixed hostile datagrams (an older build, sent 420,000 of them in 4 s, grew to
 /// 2.1 GB, filled the journal, and afterwards a new subscriber matched but received nothing):
-/// random and malformed submessages of every kind, and announcements of made-up participants
-/// (SPDP, with locators where nothing listens and long leases) and of their reliable readers
-/// and writers of the daemon's own topics (SEDP), which never acknowledge anything. The daemon
-/// stays alive and small, its log short, and a Cyclone DDS subscriber started afterwards, while
-/// the made-up participants are still within their leases, matches every topic and gets a
-/// sweep.
+/// random and malformed submessages of every kind, announcements of made-up participants (SPDP,
+/// nearly every one new, with locators where nothing listens and long leases) and of their
+/// reliable readers and writers of the daemon's own topics (SEDP), which never acknowledge
+/// anything. RustDDS's event loop panicked on an ACKNACK whose set reached past the largest
+/// sequence number, and its discovery thread took minutes to drain the announcements; patched,
+/// the daemon stays alive and within a wide memory bound, its log short, and a Cyclone DDS
+/// subscriber started afterwards, while the made-up participants are still within their leases,
+/// matches every topic and gets a sweep.
 #[test]
 fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
     let Some(python) = python(&["cyclonedds"]) else {
@@ -791,8 +793,9 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
         ("rt/sqscan/range", "sensor_msgs::msg::dds_::Image_"),
         ("rt/tf_static", "tf2_msgs::msg::dds_::TFMessage_"),
     ];
-    // Made-up participants: this many, each at its own closed ports on 127.0.0.1.
-    const PHANTOMS: u64 = 3000;
+    // Made-up participants: so many that nearly every announcement is of a new one, each at
+    // its own closed ports on 127.0.0.1; a quarter of the datagrams announce one.
+    const PHANTOMS: u64 = 1_000_000;
     const DATAGRAMS: u64 = 300_000;
     let closed_port = |p: u64| 20000 + 2 * (p as u32 % 10000);
     let mut rng = Rng(0x5eed_0f_f100d);
@@ -804,7 +807,7 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
         let p = rng.below(PHANTOMS);
         let prefix = phantom(p);
         let datagram = match rng.below(20) {
-            0..=1 => {
+            0..=4 => {
                 let lease = if rng.below(4) == 0 {
                     1 + rng.below(30) as i32
                 } else {
@@ -812,7 +815,7 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
                 };
                 spdp_announcement(prefix, closed_port(p), lease, 1 + rng.below(1000) as u32)
             }
-            2 => {
+            5 => {
                 let (topic, ty) = TOPICS[rng.below(TOPICS.len() as u64) as usize];
                 let reader = rng.below(4) != 0;
                 let entity = 1 + rng.below(16) as u8;
@@ -854,11 +857,11 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
          {peak} kB, {lines} lines of log, exit {status:?}"
     );
     assert!(status.is_none(), "the daemon died of the flood: {status:?}\n{}", log());
-    // A passing run (in a test build) starts near 17 MB and peaks near 100 MB, the made-up
-    // participants' share; the bound is five times that, far below the gigabytes of the
-    // failure.
+    // A passing run (in a test build) starts near 17 MB and peaks near 220 MB: the made-up
+    // participants (tens of thousands) are kept until their leases run out. The bound is well
+    // over four times that, below the gigabytes of the failure.
     assert!(
-        peak < 512 * 1024,
+        peak < 1024 * 1024,
         "VmRSS went from {before} kB to {peak} kB under the flood"
     );
     assert!(lines < 200, "{lines} lines of log:\n{}", log());
