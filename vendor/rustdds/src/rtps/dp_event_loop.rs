@@ -42,7 +42,7 @@ use crate::{
     rtps_reader_proxy::RtpsReaderProxy,
     rtps_writer_proxy::RtpsWriterProxy,
     timed_event::DpTimerEvent,
-    transmit::InterfaceObservations,
+    transmit::{InterfaceObservations, UNKNOWN_OBSERVATION_GRACE},
     writer::{Writer, WriterIngredients},
   },
   structure::{
@@ -500,6 +500,15 @@ impl DPEventLoop {
         DpTimerEvent::CacheGc => {
           debug!("Clean DDSCache on timer");
           self.dds_cache.write().unwrap().garbage_collect();
+          // patched for sqscan: forget the routes observed for GUID prefixes that no
+          // discovered participant has (made up by a peer, or gone before discovery).
+          if let Some(before) = Instant::now().checked_sub(UNKNOWN_OBSERVATION_GRACE) {
+            let db = discovery_db_read(&self.discovery_db);
+            self
+              .interface_observations
+              .borrow_mut()
+              .forget_unknown(|p| db.find_participant_proxy(*p).is_some(), before);
+          }
           self
             .shared_timer
             .borrow_mut()

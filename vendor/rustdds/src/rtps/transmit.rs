@@ -114,11 +114,16 @@ pub struct ObservedRoutes {
   /// Used to authorize sending to the peer's loopback locators (see
   /// `src/rtps/loopback_same_host_design.md`).
   seen_from_loopback: bool,
+  /// patched for sqscan: when traffic from this participant was last recorded, so that the
+  /// entries of prefixes no participant announced can be forgotten.
+  last_recorded: Option<Instant>,
 }
 
 impl ObservedRoutes {
   fn record(&mut self, iface: Option<InterfaceSelector>, source: SocketAddr) {
-    self.record_at(iface, source, Instant::now(), STICKY_SWITCH_MARGIN);
+    let now = Instant::now();
+    self.last_recorded = Some(now);
+    self.record_at(iface, source, now, STICKY_SWITCH_MARGIN);
   }
 
   /// Testable core of [`Self::record`]: `now` and `margin` are injected so the
@@ -201,6 +206,14 @@ impl ObservedRoutes {
 
 /// Per-remote-participant record of observed receive interfaces / source
 /// addresses. Populated by the message receiver, consumed by route resolution.
+/// patched for sqscan: the most remote participants whose traffic [`InterfaceObservations`]
+/// records at once.
+pub const MAX_OBSERVED_PARTICIPANTS: usize = 4096;
+
+/// patched for sqscan: how long the observations of a prefix that no discovered participant has
+/// are kept after its last datagram.
+pub const UNKNOWN_OBSERVATION_GRACE: Duration = Duration::from_secs(10);
+
 #[derive(Debug, Default)]
 pub struct InterfaceObservations {
   by_participant: BTreeMap<GuidPrefix, ObservedRoutes>,
@@ -219,11 +232,37 @@ impl InterfaceObservations {
     iface: Option<InterfaceSelector>,
     source: SocketAddr,
   ) {
+    // patched for sqscan: every datagram's header names a GUID prefix, which anyone can make
+    // up, and each new one took an entry here (a few hundred bytes) that only the loss of a
+    // discovered participant removed: a flood of datagrams with invented prefixes grew this map
+    // without end (186 MB for 300,000 datagrams). Past `MAX_OBSERVED_PARTICIPANTS` entries a
+    // new prefix is not recorded (routes then fall back to the advertised locators), and
+    // `forget_unknown` drops the entries of prefixes no discovered participant has.
+    if !self.by_participant.contains_key(&prefix)
+      && self.by_participant.len() >= MAX_OBSERVED_PARTICIPANTS
+    {
+      return;
+    }
     self
       .by_participant
       .entry(prefix)
       .or_default()
       .record(iface, source);
+  }
+
+  /// patched for sqscan: forgets the observations of prefixes for which `known` is false and
+  /// nothing was recorded since `before` (a participant's first announcement is recorded before
+  /// discovery knows it).
+  pub fn forget_unknown(&mut self, known: impl Fn(&GuidPrefix) -> bool, before: Instant) {
+    self
+      .by_participant
+      .retain(|prefix, routes| known(prefix) || routes.last_recorded.is_some_and(|t| t >= before));
+  }
+
+  /// patched for sqscan: how many participants' observations are held.
+  #[cfg(test)]
+  pub fn len(&self) -> usize {
+    self.by_participant.len()
   }
 
   pub fn get(&self, prefix: GuidPrefix) -> Option<&ObservedRoutes> {
@@ -695,5 +734,44 @@ mod tests {
       &[iface([10, 0, 0, 1])],
     );
     assert_eq!(route.unicast, Some(udp([10, 0, 0, 5], 7413)));
+  }
+  // patched for sqscan
+  #[test]
+  fn observations_of_made_up_prefixes_are_bounded_and_forgotten() {
+    let mut obs = InterfaceObservations::new();
+    let prefix = |n: u32| {
+      let mut b = [0xfa; 12];
+      b[8..].copy_from_slice(&n.to_be_bytes());
+      GuidPrefix::new(&b)
+    };
+    let known = prefix(0);
+    obs.record(
+      known,
+      Some(iface([10, 0, 0, 1])),
+      sockaddr([10, 0, 0, 5], 7410),
+    );
+    for n in 1..(2 * MAX_OBSERVED_PARTICIPANTS as u32) {
+      obs.record(prefix(n), None, sockaddr([127, 0, 0, 1], 7410));
+    }
+    assert_eq!(obs.len(), MAX_OBSERVED_PARTICIPANTS);
+    // The participant recorded first is still updated when full.
+    obs.record(
+      known,
+      Some(iface([10, 0, 0, 1])),
+      sockaddr([10, 0, 0, 6], 7410),
+    );
+    assert_eq!(
+      obs.get(known).unwrap().last_source,
+      Some(sockaddr([10, 0, 0, 6], 7410))
+    );
+    // Recent ones are kept; once their grace is over, only known participants stay.
+    obs.forget_unknown(|p| *p == known, Instant::now() - Duration::from_secs(60));
+    assert_eq!(obs.len(), MAX_OBSERVED_PARTICIPANTS);
+    obs.forget_unknown(|p| *p == known, Instant::now() + Duration::from_secs(1));
+    assert_eq!(obs.len(), 1);
+    assert!(obs.get(known).is_some());
+    // And there is room for new ones again.
+    obs.record(prefix(1), None, sockaddr([127, 0, 0, 1], 7410));
+    assert!(obs.get(prefix(1)).is_some());
   }
 }
