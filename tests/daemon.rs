@@ -28,6 +28,16 @@ fn root() -> PathBuf {
 /// Starts `sqscand --config` on `config` text written into `dir`; returns once the socket
 /// answers.
 fn start_daemon(dir: &Path, config: &str, env: &[(&str, &str)]) -> (Proc, PathBuf) {
+    start_daemon_with(dir, config, env, |_| {})
+}
+
+/// [`start_daemon`], with `adjust` given the command before it is spawned.
+fn start_daemon_with(
+    dir: &Path,
+    config: &str,
+    env: &[(&str, &str)],
+    adjust: impl FnOnce(&mut Command),
+) -> (Proc, PathBuf) {
     let cfg = dir.join("sqscand.toml");
     std::fs::write(&cfg, config).unwrap();
     let socket = dir.join("sqscand.sock");
@@ -46,6 +56,7 @@ fn start_daemon(dir: &Path, config: &str, env: &[(&str, &str)]) -> (Proc, PathBu
     for (k, v) in env {
         cmd.env(k, v);
     }
+    adjust(&mut cmd);
     let child = Proc(cmd.spawn().unwrap());
     wait_for("the daemon's socket", Duration::from_secs(30), || {
         UnixStream::connect(&socket).is_ok()
@@ -617,35 +628,20 @@ fn a_thousand_idle_and_two_hundred_slowloris_clients_under_a_1024_file_limit_do_
         return;
     }
     let dir = tmpdir("fdlimit");
-    std::fs::write(dir.join("sqscand.toml"), sim_config()).unwrap();
-    let socket = dir.join("sqscand.sock");
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_sqscand"));
-    cmd.arg("--config")
-        .arg(dir.join("sqscand.toml"))
-        .arg("--socket")
-        .arg(&socket)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(dir.join("sqscand.log")).unwrap())
-        .env_remove("NOTIFY_SOCKET")
-        .env_remove("WATCHDOG_USEC")
-        .env("SQSCAN_MODELS_DIR", root().join("models"));
-    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
-    unsafe {
-        cmd.pre_exec(|| {
-            let r = libc::rlimit {
-                rlim_cur: 1024,
-                rlim_max: 1024,
-            };
-            if libc::setrlimit(libc::RLIMIT_NOFILE, &r) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
-    let _d = Proc(cmd.spawn().unwrap());
-    wait_for("the daemon's socket", Duration::from_secs(30), || {
-        UnixStream::connect(&socket).is_ok()
+    let (_d, socket) = start_daemon_with(&dir, &sim_config(), &[], |cmd| {
+        // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+        unsafe {
+            cmd.pre_exec(|| {
+                let r = libc::rlimit {
+                    rlim_cur: 1024,
+                    rlim_max: 1024,
+                };
+                if libc::setrlimit(libc::RLIMIT_NOFILE, &r) != 0 {
+                    return Err(std::io::Error::last_os_error());
+                }
+                Ok(())
+            });
+        }
     });
     let mut clients = Vec::new();
     for k in 0..1224 {

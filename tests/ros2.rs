@@ -270,9 +270,7 @@ fn dds_ports(pid: u32) -> Vec<u16> {
 
 /// The resident memory of a process (kB, `VmRSS`), or None once it has gone.
 fn rss_kb(pid: u32) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmRSS:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
+    common::try_rss(pid).map(|b| b >> 10)
 }
 
 /// An RTPS message of one DATA_FRAG submessage (RTPS 2.4, little endian) from the participant

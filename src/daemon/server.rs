@@ -63,7 +63,7 @@ pub const MAX_QUEUED_BYTES: usize = 64 * 1024;
 struct Outgoing {
     bytes: Vec<u8>,
     _room: tokio::sync::OwnedSemaphorePermit,
-    _slots: Vec<tokio::sync::OwnedSemaphorePermit>,
+    slots: Vec<tokio::sync::OwnedSemaphorePermit>,
 }
 
 /// Bytes written at a time, each within [`WRITE_TIMEOUT`].
@@ -335,7 +335,7 @@ fn raise_descriptor_limit() -> Option<u64> {
 /// [`WRITE_TIMEOUT`], or for [`STALL_WHILE_WANTED`] while it holds a `cloud` slot that another
 /// request waits for.
 async fn write_message<W: AsyncWrite + Unpin>(shared: &Shared, wr: &mut W, l: &Outgoing) -> bool {
-    let holds_slots = !l._slots.is_empty();
+    let holds_slots = !l.slots.is_empty();
     let mut written = 0;
     let mut progress = Instant::now();
     while written < l.bytes.len() {
@@ -427,7 +427,7 @@ impl Outbox {
         let l = Outgoing {
             bytes: l,
             _room: room,
-            _slots: slots,
+            slots,
         };
         let _ = self.tx.send(l).await;
     }
@@ -449,7 +449,7 @@ impl Outbox {
         let message = Outgoing {
             bytes: l,
             _room: room,
-            _slots: Vec::new(),
+            slots: Vec::new(),
         };
         self.tx.try_send(message).is_ok()
     }

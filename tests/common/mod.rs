@@ -146,13 +146,18 @@ pub fn free_port() -> u16 {
 /// A process's resident memory (bytes), from /proc.
 #[allow(dead_code)]
 pub fn rss(pid: u32) -> u64 {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    try_rss(pid).unwrap()
+}
+
+/// A process's resident memory (bytes), from /proc; none once it has gone.
+#[allow(dead_code)]
+pub fn try_rss(pid: u32) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     let kb: u64 = status
         .lines()
         .find_map(|l| l.strip_prefix("VmRSS:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
-        .unwrap();
-    kb * 1024
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())?;
+    Some(kb * 1024)
 }
 
 /// Raises this process's soft limit of open files to its hard one (for tests that open
