@@ -99,6 +99,7 @@ async fn run(cli: &Cli, config: Config) -> Result<()> {
 }
 
 fn main() -> ExitCode {
+    sqscan::daemon::memory::tune_allocator();
     let cli = Cli::parse();
     sqscan::logging::init(tracing::Level::INFO);
     let result = load_config(&cli).and_then(|config| {

@@ -25,6 +25,7 @@ pub mod config;
 mod hardware;
 mod idle;
 mod lines;
+pub mod memory;
 pub mod notify;
 pub mod protocol;
 mod record;

@@ -148,7 +148,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                 untrimmed.get_or_insert_with(Instant::now);
             }
             () = tokio::time::sleep_until(untrimmed.map_or_else(tokio::time::Instant::now, |t| (t + TRIM_AFTER).into())), if untrimmed.is_some() => {
-                give_back_memory();
+                super::memory::give_back_memory();
                 untrimmed = None;
             }
             () = stopped(&mut shutdown) => break,
@@ -248,18 +248,6 @@ fn spawn_client<R, W>(
 /// How soon after a client leaves the heap is trimmed: at most once this often while clients
 /// come and go, once after a burst of them has left.
 const TRIM_AFTER: Duration = Duration::from_secs(1);
-
-/// Returns the heap's free pages to the system. glibc keeps what the clients' tasks and queues
-/// freed in its per-thread arenas, fragmented among what stays in use, so without this the
-/// daemon stays at the size its busiest moment took, and each burst of clients left it a little
-/// larger (a soak run's RSS grew by 120 KB a minute while honest clients stayed connected).
-fn give_back_memory() {
-    #[cfg(all(target_os = "linux", target_env = "gnu"))]
-    // SAFETY: malloc_trim only releases free memory of the allocator's own arenas.
-    unsafe {
-        libc::malloc_trim(0);
-    }
-}
 
 /// The number of client slots the server was started with: `server.max_clients`, unless the
 /// descriptors the process may open (its soft limit, raised to the hard one at the first call)
