@@ -30,6 +30,15 @@ const WALL_SHARE: f64 = 0.9;
 /// A convex outline filling less than this share of its smallest bounding rectangle is round
 /// (an ellipse fills pi/4 = 0.785 of it, a rectangle all of it).
 const ROUND_BELOW: f64 = 0.88;
+/// A round object's wall is measured between these shares of its height: clear of the table
+/// (and what lies on it) and of the rim.
+const WALL_BAND: (f64, f64) = (0.2, 0.8);
+/// Wall points at least, and the least arc (rad) they span about the circle fitted to them, for
+/// that circle to give the cross-section.
+const WALL_MIN_POINTS: usize = 100;
+const WALL_MIN_ARC: f64 = std::f64::consts::FRAC_PI_3;
+/// Largest median distance of the wall points from their circle (m): a wall, not clutter.
+const WALL_MAX_RESIDUAL: f64 = 0.003;
 
 /// What was measured.
 #[derive(Debug, Clone)]
@@ -48,6 +57,9 @@ pub(super) struct Prism {
     pub(super) fill: f64,
     /// Points on the top.
     pub(super) top_points: usize,
+    /// For a round object, the radius its top's outline gives, where the wall gave the
+    /// cross-section instead (m).
+    pub(super) top_radius: Option<f64>,
 }
 
 impl std::fmt::Display for Prism {
@@ -61,7 +73,15 @@ impl std::fmt::Display for Prism {
             1e3 * self.height,
             self.top_points,
             self.fill
-        )
+        )?;
+        if let Some(r) = self.top_radius {
+            write!(
+                f,
+                "; across from the wall's circle, the top's outline gave {:.1} mm",
+                2e3 * r
+            )?;
+        }
+        Ok(())
     }
 }
 
@@ -242,6 +262,32 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
             walls.len()
         ));
     }
+    // A round object's wall gives its cross-section better than its top: the top's outline
+    // loses its edge to the sensor (a structured-light sensor's edge pixels, the lid's rounded
+    // rim falling below the top's band), so that the mOSD tins and cans came out 4-8 mm narrower
+    // than their walls, and were missed where the detector measured the wall just outside them.
+    let mut top_radius = None;
+    let (mut centre, mut half) = (centre, half);
+    if round {
+        let wall: Vec<Vector2<f64>> = points
+            .iter()
+            .zip(&h)
+            .filter(|(_, z)| **z > WALL_BAND.0 * level && **z < WALL_BAND.1 * level)
+            .map(|(p, _)| flat(p))
+            .collect();
+        match wall_circle(&wall) {
+            Ok((c, r)) if (0.8..1.25).contains(&(r / (0.5 * (half[0] + half[1])))) => {
+                top_radius = Some(0.5 * (half[0] + half[1]));
+                centre = c;
+                half = [r, r];
+            }
+            Ok((_, r)) => tracing::debug!(
+                "the wall's circle ({:.1} mm across) is too far from the top's outline to take",
+                2e3 * r
+            ),
+            Err(why) => tracing::debug!("the cross-section from the top's outline: {why}"),
+        }
+    }
     Ok(Prism {
         centre,
         half,
@@ -250,7 +296,85 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
         round,
         fill,
         top_points: top_xy.len(),
+        top_radius,
     })
+}
+
+/// The circle through a round object's wall points (in the plane's basis): an algebraic fit
+/// (Kasa) to start, then a few Gauss-Newton steps on the distances (the algebraic fit shrinks a
+/// circle fitted to a short arc). The reason it cannot be trusted otherwise: too few points,
+/// too short an arc, a spread too wide for a wall.
+fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
+    if wall.len() < WALL_MIN_POINTS {
+        return Err(format!("{} points on the wall", wall.len()));
+    }
+    // x^2 + y^2 + D x + E y + F = 0, least squares, about the points' mean for conditioning.
+    let mean = wall.iter().sum::<Vector2<f64>>() / wall.len() as f64;
+    let mut ata = nalgebra::Matrix3::<f64>::zeros();
+    let mut atb = Vector3::<f64>::zeros();
+    for q in wall {
+        let d = q - mean;
+        let row = Vector3::new(d.x, d.y, 1.0);
+        ata += row * row.transpose();
+        atb += row * -(d.norm_squared());
+    }
+    let Some(sol) = ata.lu().solve(&atb) else {
+        return Err("the wall's points lie on a line".into());
+    };
+    let mut c = Vector2::new(-0.5 * sol.x, -0.5 * sol.y);
+    let r2 = c.norm_squared() - sol.z;
+    if !(r2 > 0.0) {
+        return Err("no circle through the wall's points".into());
+    }
+    let mut r = r2.sqrt();
+    for _ in 0..10 {
+        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        for q in wall {
+            let v = (q - mean) - c;
+            let dist = v.norm();
+            if dist < 1e-9 {
+                continue;
+            }
+            let u = v / dist;
+            let row = Vector3::new(-u.x, -u.y, -1.0);
+            let res = dist - r;
+            jtj += row * row.transpose();
+            jtr += row * res;
+        }
+        let Some(step) = jtj.lu().solve(&(-jtr)) else { break };
+        c += Vector2::new(step.x, step.y);
+        r += step.z;
+        if step.norm() < 1e-7 {
+            break;
+        }
+    }
+    if !(r.is_finite() && r > 0.0) {
+        return Err("the wall's circle did not converge".into());
+    }
+    let mut residuals: Vec<f64> = wall.iter().map(|q| ((q - mean - c).norm() - r).abs()).collect();
+    let residual = crate::numeric::quantile(&mut residuals, 0.5).unwrap_or(f64::INFINITY);
+    if residual > WALL_MAX_RESIDUAL {
+        return Err(format!(
+            "the wall's points lie {:.1} mm from their circle (median)",
+            residual * 1e3
+        ));
+    }
+    // The arc: the largest gap between the points' directions about the centre leaves the rest.
+    let mut angles: Vec<f64> = wall.iter().map(|q| (q - mean - c).y.atan2((q - mean - c).x)).collect();
+    angles.sort_by(f64::total_cmp);
+    let gap = angles
+        .windows(2)
+        .map(|w| w[1] - w[0])
+        .chain(std::iter::once(
+            angles[0] + std::f64::consts::TAU - angles[angles.len() - 1],
+        ))
+        .fold(0.0, f64::max);
+    let arc = std::f64::consts::TAU - gap;
+    if arc < WALL_MIN_ARC {
+        return Err(format!("the wall shows {:.0} degrees of its circle", arc.to_degrees()));
+    }
+    Ok((c + mean, r))
 }
 
 /// The prism as a fit state: the cross-section's axes along its outline, z along the plane's
@@ -363,6 +487,59 @@ mod tests {
         );
         let s = state(&p, &TABLE);
         assert!(s.rev && s.e == [EPSILON_MIN, 1.0], "{s:?}");
+    }
+
+    #[test]
+    fn a_can_whose_top_lost_its_edge_is_measured_from_its_wall() {
+        // The top seen 4 mm narrower than the wall below it, as a structured-light sensor
+        // shows a can's lid; the wall facing the sensor, 4 mm rings, 1 mm of noise.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(3);
+        let mut noise = move || 0.001 * (rng.random::<f64>() - 0.5) * 2.0;
+        let (wall_r, top_r, h) = (0.037, 0.033, 0.12);
+        let mut pts = Vec::new();
+        let steps = (top_r / 0.002) as i32;
+        for i in -steps..=steps {
+            for j in -steps..=steps {
+                let (x, y) = (i as f64 * 0.002, j as f64 * 0.002);
+                if x * x + y * y <= top_r * top_r {
+                    pts.push(Point3::new(x + 0.1, y, h + noise()));
+                }
+            }
+        }
+        for k in 0..45 {
+            // The half facing the sensor (at -y), and a little more.
+            let t = std::f64::consts::PI * (1.0 + 1.1 * k as f64 / 45.0) - 0.05;
+            let mut z = 0.004;
+            while z < h - 0.004 {
+                let r = wall_r + noise();
+                pts.push(Point3::new(0.1 + r * t.cos(), r * t.sin(), z));
+                z += 0.004;
+            }
+        }
+        let p = measure(&pts, &TABLE, &sensor()).unwrap();
+        assert!(p.round, "{p}");
+        assert!((p.half[0] - wall_r).abs() < 0.001 && p.half[0] == p.half[1], "{p}");
+        let (u, w) = orthonormal_basis(&TABLE.normal);
+        let axis = Vector3::new(0.1, 0.0, 0.0);
+        assert!(
+            (p.centre - Vector2::new(axis.dot(&u), axis.dot(&w))).norm() < 0.001,
+            "{p}"
+        );
+        assert!(p.top_radius.is_some_and(|r| (r - top_r).abs() < 0.002), "{p}");
+    }
+
+    #[test]
+    fn a_wall_seen_along_a_short_arc_or_too_few_points_keeps_the_top() {
+        let arc: Vec<Vector2<f64>> = (0..200)
+            .map(|k| {
+                let t = -std::f64::consts::FRAC_PI_2 + 0.5 * (k as f64 / 200.0);
+                Vector2::new(0.05 * t.cos(), 0.05 * t.sin())
+            })
+            .collect();
+        assert!(wall_circle(&arc).unwrap_err().contains("degrees"));
+        assert!(wall_circle(&arc[..20]).unwrap_err().contains("points"));
+        let line: Vec<Vector2<f64>> = (0..200).map(|k| Vector2::new(k as f64 * 1e-3, 0.0)).collect();
+        assert!(wall_circle(&line).is_err());
     }
 
     #[test]
