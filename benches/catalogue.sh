@@ -6,7 +6,8 @@
 # those resting on another object, false answers per queries, and the times.
 # Usage: benches/catalogue.sh [SEED] [label|at ...]   (release build; default seed 5, both ways)
 #   SQSCAN=path/to/sqscan runs another binary; SQSCAN_VIEWS=FILE takes the views from FILE
-#   (lines "identity scene group") instead of CATALOGUE.md's column; SQSCAN_KEEP=DIR keeps the
+#   (lines "identity scene group", # comments; benches/second_views.txt holds the second views
+#   BENCHMARKS.md reports) instead of CATALOGUE.md's column; SQSCAN_KEEP=DIR keeps the
 #   learned models and the answers (eval-real's JSON) in DIR.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -27,7 +28,7 @@ work=$(mktemp -d /tmp/sqscan-catalogue.XXXXXX)
 # SQSCAN_KEEP=DIR keeps the learned models and eval-real's JSON answers there.
 trap 'if [ -n "${SQSCAN_KEEP:-}" ]; then mkdir -p "$SQSCAN_KEEP" && cp "$work"/*.json "$work"/*.toml "$SQSCAN_KEEP"/ 2>/dev/null || true; fi; rm -rf "$work"' EXIT
 if [ -n "${SQSCAN_VIEWS:-}" ]; then
-    cp "$SQSCAN_VIEWS" "$work/views"
+    grep -v '^#' "$SQSCAN_VIEWS" > "$work/views"
 else
     # "| identity | ... | learnN, G | ..." rows
     python3 - "$data/CATALOGUE.md" > "$work/views" <<'PY'

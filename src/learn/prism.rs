@@ -303,8 +303,9 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
 }
 
 /// The circle through a round object's wall points (in the plane's basis): an algebraic fit
-/// (Kasa) to start, then a few Gauss-Newton steps on the distances (the algebraic fit shrinks a
-/// circle fitted to a short arc). The reason it cannot be trusted otherwise: too few points,
+/// (Kasa) to start, then Gauss-Newton steps on the distances (the algebraic fit shrinks a circle
+/// fitted to a short arc), again on the points within three median distances of it (a mug's
+/// handle, a neighbour's fragment). The reason it cannot be trusted otherwise: too few points,
 /// too short an arc, a spread too wide for a wall.
 fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
     if wall.len() < WALL_MIN_POINTS {
@@ -312,10 +313,10 @@ fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
     }
     // x^2 + y^2 + D x + E y + F = 0, least squares, about the points' mean for conditioning.
     let mean = wall.iter().sum::<Vector2<f64>>() / wall.len() as f64;
+    let local: Vec<Vector2<f64>> = wall.iter().map(|q| q - mean).collect();
     let mut ata = nalgebra::Matrix3::<f64>::zeros();
     let mut atb = Vector3::<f64>::zeros();
-    for q in wall {
-        let d = q - mean;
+    for d in &local {
         let row = Vector3::new(d.x, d.y, 1.0);
         ata += row * row.transpose();
         atb += row * -(d.norm_squared());
@@ -323,39 +324,30 @@ fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
     let Some(sol) = ata.lu().solve(&atb) else {
         return Err("the wall's points lie on a line".into());
     };
-    let mut c = Vector2::new(-0.5 * sol.x, -0.5 * sol.y);
+    let c = Vector2::new(-0.5 * sol.x, -0.5 * sol.y);
     let r2 = c.norm_squared() - sol.z;
     if !(r2 > 0.0) {
         return Err("no circle through the wall's points".into());
     }
-    let mut r = r2.sqrt();
-    for _ in 0..10 {
-        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
-        let mut jtr = Vector3::<f64>::zeros();
-        for q in wall {
-            let v = (q - mean) - c;
-            let dist = v.norm();
-            if dist < 1e-9 {
-                continue;
-            }
-            let u = v / dist;
-            let row = Vector3::new(-u.x, -u.y, -1.0);
-            let res = dist - r;
-            jtj += row * row.transpose();
-            jtr += row * res;
-        }
-        let Some(step) = jtj.lu().solve(&(-jtr)) else { break };
-        c += Vector2::new(step.x, step.y);
-        r += step.z;
-        if step.norm() < 1e-7 {
-            break;
-        }
+    let (c, r) = circle_steps(&local, c, r2.sqrt());
+    let residual_of = |c: Vector2<f64>, r: f64, pts: &[Vector2<f64>]| {
+        let mut res: Vec<f64> = pts.iter().map(|d| ((d - c).norm() - r).abs()).collect();
+        crate::numeric::quantile(&mut res, 0.5).unwrap_or(f64::INFINITY)
+    };
+    let keep = 3.0 * residual_of(c, r, &local);
+    let kept: Vec<Vector2<f64>> = local
+        .iter()
+        .filter(|d| ((*d - c).norm() - r).abs() <= keep)
+        .copied()
+        .collect();
+    if kept.len() < WALL_MIN_POINTS {
+        return Err(format!("{} points on the wall's circle", kept.len()));
     }
+    let (c, r) = circle_steps(&kept, c, r);
     if !(r.is_finite() && r > 0.0) {
         return Err("the wall's circle did not converge".into());
     }
-    let mut residuals: Vec<f64> = wall.iter().map(|q| ((q - mean - c).norm() - r).abs()).collect();
-    let residual = crate::numeric::quantile(&mut residuals, 0.5).unwrap_or(f64::INFINITY);
+    let residual = residual_of(c, r, &kept);
     if residual > WALL_MAX_RESIDUAL {
         return Err(format!(
             "the wall's points lie {:.1} mm from their circle (median)",
@@ -363,7 +355,7 @@ fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
         ));
     }
     // The arc: the largest gap between the points' directions about the centre leaves the rest.
-    let mut angles: Vec<f64> = wall.iter().map(|q| (q - mean - c).y.atan2((q - mean - c).x)).collect();
+    let mut angles: Vec<f64> = kept.iter().map(|d| (d - c).y.atan2((d - c).x)).collect();
     angles.sort_by(f64::total_cmp);
     let gap = angles
         .windows(2)
@@ -377,6 +369,32 @@ fn wall_circle(wall: &[Vector2<f64>]) -> Result<(Vector2<f64>, f64), String> {
         return Err(format!("the wall shows {:.0} degrees of its circle", arc.to_degrees()));
     }
     Ok((c + mean, r))
+}
+
+/// Gauss-Newton steps on the points' distances from the circle (centre `c`, radius `r`).
+fn circle_steps(points: &[Vector2<f64>], mut c: Vector2<f64>, mut r: f64) -> (Vector2<f64>, f64) {
+    for _ in 0..10 {
+        let mut jtj = nalgebra::Matrix3::<f64>::zeros();
+        let mut jtr = Vector3::<f64>::zeros();
+        for d in points {
+            let v = d - c;
+            let dist = v.norm();
+            if dist < 1e-9 {
+                continue;
+            }
+            let u = v / dist;
+            let row = Vector3::new(-u.x, -u.y, -1.0);
+            jtj += row * row.transpose();
+            jtr += row * (dist - r);
+        }
+        let Some(step) = jtj.lu().solve(&(-jtr)) else { break };
+        c += Vector2::new(step.x, step.y);
+        r += step.z;
+        if step.norm() < 1e-7 {
+            break;
+        }
+    }
+    (c, r)
 }
 
 /// The prism as a fit state: the cross-section's axes along its outline, z along the plane's
