@@ -831,6 +831,82 @@ fn sighup_reloads_models_and_configuration_without_dropping_clients() {
     assert_eq!(c.ask(json!({"cmd":"status"}))["clients"]["connected"], 2);
 }
 
+/// The configuration replaced by a FIFO before a SIGHUP: the reload blocked in open(2), waiting
+/// for a writer, and the SIGTERM after it was never acted on. Now the reload is refused by name
+/// (the running configuration stays), `find` is answered, and SIGTERM stops the daemon; and
+/// `sqscand --check` with a FIFO among the models ends, naming it.
+#[test]
+fn a_configuration_replaced_by_a_fifo_is_refused_on_sighup_and_sigterm_still_stops_the_daemon() {
+    let dir = tmpdir("fifo-config");
+    let (mut d, socket) = start_daemon(&dir, &sim_config(), &[]);
+    let cfg = dir.join("sqscand.toml");
+    std::fs::remove_file(&cfg).unwrap();
+    let made = Command::new("mkfifo").arg(&cfg).output().unwrap();
+    assert!(
+        made.status.success(),
+        "mkfifo: {}",
+        String::from_utf8_lossy(&made.stderr)
+    );
+    unsafe_kill(d.0.id(), libc::SIGHUP);
+    let mut c = Client::connect(&socket);
+    let t = Instant::now();
+    let s = loop {
+        let s = c.ask(json!({"cmd":"status"}));
+        if !s["config"]["reload_error"].is_null() {
+            break s;
+        }
+        assert!(t.elapsed() < Duration::from_secs(10), "no reload error after 10 s: {s}");
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    let e = s["config"]["reload_error"].as_str().unwrap();
+    assert!(e.contains("sqscand.toml") && e.contains("not a regular file"), "{e}");
+    assert_eq!(s["config"]["reloads"], 0, "{s}");
+    let r = c.ask(json!({"cmd":"find","object":"cup","timeout_s":30}));
+    assert_eq!(r["class"], "detection", "{r}");
+    drop(c);
+    unsafe_kill(d.0.id(), libc::SIGTERM);
+    exits_cleanly_within(&mut d, &dir, Duration::from_secs(5));
+
+    let models = dir.join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    std::fs::copy(root().join("models/cup.toml"), models.join("cup.toml")).unwrap();
+    let made = Command::new("mkfifo").arg(models.join("stuck.toml")).output().unwrap();
+    assert!(made.status.success());
+    let checked = dir.join("checked.toml");
+    std::fs::write(
+        &checked,
+        format!("{}\n[server]\nmodels_dir = \"models\"\n", sim_config()),
+    )
+    .unwrap();
+    let mut check = Command::new(env!("CARGO_BIN_EXE_sqscand"))
+        .arg("--config")
+        .arg(&checked)
+        .arg("--check")
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t = Instant::now();
+    while check.try_wait().unwrap().is_none() {
+        if t.elapsed() > Duration::from_secs(10) {
+            let _ = check.kill();
+            panic!("sqscand --check still running after 10 s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let out = check.wait_with_output().unwrap();
+    let said = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        said.contains("stuck.toml") && said.contains("not a regular file"),
+        "{said}"
+    );
+}
+
 /// Waits for the daemon to exit after a signal, at most `within`, and asserts it exited cleanly.
 fn exits_cleanly_within(d: &mut Proc, dir: &Path, within: Duration) {
     let t = Instant::now();
