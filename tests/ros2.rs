@@ -273,6 +273,89 @@ fn rss_kb(pid: u32) -> Option<u64> {
     common::try_rss(pid).map(|b| b >> 10)
 }
 
+/// A daemon with the ROS 2 node on the simulator (sweeps on demand), in the private network
+/// namespace, for a flood of hostile datagrams: returned once it has bound `min_ports` of the
+/// DDS ports.
+struct FloodTarget {
+    dir: std::path::PathBuf,
+    socket: std::path::PathBuf,
+    daemon: Proc,
+    pid: u32,
+    ports: Vec<u16>,
+}
+
+impl FloodTarget {
+    fn start(name: &str, min_ports: usize) -> FloodTarget {
+        let dir = tmpdir(name);
+        let scene = root().join("scenes/fig3_table.toml");
+        let config = format!(
+            "[sim]\nscene = {scene:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
+             [ros2]\nnode = \"scanner\"\n"
+        );
+        std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+        let socket = dir.join("sqscand.sock");
+        let daemon = sqscand(&dir, "sqscand", &[]);
+        let pid = daemon.0.id();
+        let mut ports = Vec::new();
+        wait_for(
+            &format!("{min_ports} DDS ports of the daemon"),
+            Duration::from_secs(30),
+            || {
+                ports = dds_ports(pid);
+                ports.len() >= min_ports
+            },
+        );
+        FloodTarget {
+            dir,
+            socket,
+            daemon,
+            pid,
+            ports,
+        }
+    }
+}
+
+/// The largest resident memory (kB) of `pid` over `watch`, sampled every 20 ms: what the daemon
+/// does with a flood it was sent, for a while after.
+fn peak_rss_kb(pid: u32, watch: Duration) -> u64 {
+    let (t, mut peak) = (Instant::now(), 0);
+    while t.elapsed() < watch {
+        peak = peak.max(rss_kb(pid).unwrap_or(0));
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    peak
+}
+
+/// A Cyclone DDS subscriber started after a flood (waiting at most `wait_s`) matches every
+/// topic and gets the sweep and the detection a `find` asks for; what it saw (`dds_sub.py`'s JSON).
+fn subscriber_gets_a_sweep(
+    python: &std::path::Path,
+    socket: &std::path::Path,
+    wait_s: u32,
+    log: &dyn Fn() -> String,
+) -> Value {
+    let out = Command::new(python)
+        .arg(root().join("tests/py/dds_sub.py"))
+        .arg(socket)
+        .arg("cup")
+        .arg(wait_s.to_string())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        log()
+    );
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
+        assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
+    }
+    assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);
+    assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
+    m
+}
+
 /// An RTPS message of one DATA_FRAG submessage (RTPS 2.4, little endian) from the participant
 /// `prefix`: the first 1024-byte fragment of a sample from `writer` to `reader` (builtin entity
 /// ids) that declares itself 0xFFFFFFFF bytes long.
@@ -316,22 +399,14 @@ fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
     if !in_private_network("a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory") {
         return;
     }
-    let dir = tmpdir("ros2-datafrag");
-    let scene = root().join("scenes/fig3_table.toml");
-    let config = format!(
-        "[sim]\nscene = {scene:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
-         [ros2]\nnode = \"scanner\"\n"
-    );
-    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
-    let socket = dir.join("sqscand.sock");
-    let mut daemon = sqscand(&dir, "sqscand", &[]);
-    let pid = daemon.0.id();
+    let FloodTarget {
+        dir,
+        socket,
+        mut daemon,
+        pid,
+        ports,
+    } = FloodTarget::start("ros2-datafrag", 2);
     let log = || std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default();
-    let mut ports = Vec::new();
-    wait_for("the daemon's DDS ports", Duration::from_secs(30), || {
-        ports = dds_ports(pid);
-        ports.len() >= 2
-    });
     let before = rss_kb(pid).unwrap();
 
     // 300 datagrams to each port, from 30 participants that do not exist, each to one of the
@@ -366,11 +441,7 @@ fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
     }
     let flood = t0.elapsed();
     // What the daemon does with what it was sent, for a few seconds more.
-    let t1 = Instant::now();
-    while t1.elapsed() < Duration::from_secs(3) {
-        peak = peak.max(rss_kb(pid).unwrap_or(0));
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    peak = peak.max(peak_rss_kb(pid, Duration::from_secs(3)));
     let status = daemon.0.try_wait().unwrap();
     eprintln!(
         "{sent} DATA_FRAG datagrams to ports {ports:?} in {flood:?}: VmRSS {before} kB before, \
@@ -389,25 +460,7 @@ fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
     assert!(lines < 100, "{lines} lines of log:\n{}", log());
 
     // Discovery and delivery still work once the flood stops.
-    let out = Command::new(&python)
-        .arg(root().join("tests/py/dds_sub.py"))
-        .arg(&socket)
-        .arg("cup")
-        .arg("60")
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        log()
-    );
-    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
-        assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
-    }
-    assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);
-    assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
+    subscriber_gets_a_sweep(&python, &socket, 60, &log);
     assert!(daemon.0.try_wait().unwrap().is_none(), "{}", log());
 }
 
@@ -763,23 +816,15 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
     if !in_private_network("a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working") {
         return;
     }
-    let dir = tmpdir("ros2-mixed");
-    let scene = root().join("scenes/fig3_table.toml");
-    let config = format!(
-        "[sim]\nscene = {scene:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
-         [ros2]\nnode = \"scanner\"\n"
-    );
-    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
-    let socket = dir.join("sqscand.sock");
-    let mut daemon = sqscand(&dir, "sqscand", &[]);
-    let pid = daemon.0.id();
+    // Discovery's two ports (multicast and unicast) and the user traffic's two.
+    let FloodTarget {
+        dir,
+        socket,
+        mut daemon,
+        pid,
+        ports,
+    } = FloodTarget::start("ros2-mixed", 4);
     let log = || std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default();
-    let mut ports = Vec::new();
-    // Discovery's two (multicast and unicast) and the user traffic's two.
-    wait_for("the daemon's four DDS ports", Duration::from_secs(30), || {
-        ports = dds_ports(pid);
-        ports.len() >= 4
-    });
     // A moment for the node to settle (its own announcements, its topics).
     std::thread::sleep(Duration::from_millis(500));
     let before = rss_kb(pid).unwrap();
@@ -844,11 +889,7 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
         }
     }
     let flood = t0.elapsed();
-    let t1 = Instant::now();
-    while t1.elapsed() < Duration::from_secs(3) {
-        peak = peak.max(rss_kb(pid).unwrap_or(0));
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    peak = peak.max(peak_rss_kb(pid, Duration::from_secs(3)));
     let status = daemon.0.try_wait().unwrap();
     let lines = log().lines().count();
     eprintln!(
@@ -867,26 +908,8 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
 
     // Discovery and delivery still work, the made-up participants still within their leases.
     let t2 = Instant::now();
-    let out = Command::new(&python)
-        .arg(root().join("tests/py/dds_sub.py"))
-        .arg(&socket)
-        .arg("cup")
-        .arg("40")
-        .output()
-        .unwrap();
+    let m = subscriber_gets_a_sweep(&python, &socket, 40, &log);
     eprintln!("the subscriber after the flood took {:?}", t2.elapsed());
-    assert!(
-        out.status.success(),
-        "{}\n{}",
-        String::from_utf8_lossy(&out.stderr),
-        log()
-    );
-    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
-        assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
-    }
-    assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);
-    assert_eq!(m["clouds"].as_array().unwrap().len(), 1, "a sweep after the flood: {m}");
     // Joint states arrive too: all 150 of the sweep's in every run since the discovery fixes,
     // but in one run before them two went missing and were not repaired within the
     // subscriber's wait, so only their arrival is required here.
