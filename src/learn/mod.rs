@@ -33,6 +33,7 @@ mod starts;
 mod state;
 #[cfg(test)]
 mod tests;
+mod wall_circle;
 
 use crate::cloud::plane::Plane;
 use crate::geometry::PlacedSuperquadric;
