@@ -236,7 +236,7 @@ pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
         let t = placed.pose.translation.vector;
         tracing::debug!("visibility {} at ({:.3} {:.3} {:.3}) {vis}", part.name, t.x, t.y, t.z);
         let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
-        if margin < 0.0 {
+        if margin < 0.0 || vis.reaches_into_free_space(params.acceptance.max_deep_see_through) {
             d.found = false;
         }
         d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));

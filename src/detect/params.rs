@@ -50,6 +50,11 @@ pub struct Acceptance {
     /// Least share of each part's visible side that, where the sensor could have seen it, it
     /// did (see [`super::visibility::Visibility::seen_ratio`]).
     pub min_seen: f64,
+    /// Largest share of each part's visible side that lies where the sensor saw through, farther
+    /// than [`super::visibility::DEEP_SEE_THROUGH`] from any measured part of it: the part
+    /// reaching into free space (a box longer than the one measured), not its outline a few
+    /// millimetres off.
+    pub max_deep_see_through: f64,
     /// Largest RMS surface distance, in noise sigmas.
     pub max_rms_sigmas: f64,
     /// Largest connection angle error of a compound (rad).
@@ -66,6 +71,7 @@ impl Default for Acceptance {
             max_shell_ratio: 0.08,
             max_continued_ratio: 0.1,
             min_seen: 0.5,
+            max_deep_see_through: 0.02,
             max_rms_sigmas: 1.6,
             max_angle_error: 25f64.to_radians(),
             max_distance_error: 0.25,

@@ -24,6 +24,13 @@ pub struct Visibility {
     /// ... without, and nothing measured along the line of sight at all (outside the scan, or
     /// no return).
     pub unknown: usize,
+    /// See-through samples farther than [`DEEP_SEE_THROUGH`] from every covered sample: the
+    /// part reaching into free space, not its outline a few millimetres off.
+    pub deep: usize,
+    /// The farthest any see-through sample lies from a covered one (m).
+    pub deepest: f64,
+    /// The surface area (m²) one sample stands for.
+    pub sample_area: f64,
 }
 
 impl Visibility {
@@ -40,18 +47,33 @@ impl Visibility {
     }
 }
 
+impl Visibility {
+    /// More than `max_share` of the facing samples, and more than [`MIN_DEEP_AREA`] of surface,
+    /// lie deep in space the sensor saw through.
+    pub fn reaches_into_free_space(&self, max_share: f64) -> bool {
+        self.deep as f64 > max_share * self.facing as f64 && self.deep as f64 * self.sample_area > MIN_DEEP_AREA
+    }
+}
+
+/// Surface (m²) of a part that may lie deep in free space whatever the part's size: a bowl seen
+/// into from close by shows a few samples of its outside past the rim, a patch of a few
+/// centimetres square, where the model's rim is a little higher than the bowl's.
+const MIN_DEEP_AREA: f64 = 0.0004;
+
 /// `facing .. covered .. occluded .. see-through .. unknown .. seen ..`.
 impl fmt::Display for Visibility {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "facing {} covered {} occluded {} see-through {} unknown {} seen {:.2}",
+            "facing {} covered {} occluded {} see-through {} unknown {} seen {:.2} deep {} deepest {:.3}",
             self.facing,
             self.covered,
             self.occluded,
             self.see_through,
             self.unknown,
-            self.seen_ratio()
+            self.seen_ratio(),
+            self.deep,
+            self.deepest
         )
     }
 }
@@ -67,10 +89,15 @@ pub fn visibility(
     plane: Option<&crate::cloud::plane::Plane>,
     samples: &SurfaceSamples,
 ) -> Visibility {
-    let mut vis = Visibility::default();
+    let mut vis = Visibility {
+        sample_area: samples.spacing * samples.spacing,
+        ..Default::default()
+    };
     let Some(v) = viewpoint else { return vis };
     let reach = 1.2 * samples.spacing;
     let any_near = |q: &Point3<f64>, r: f64| all_grid.any_within(all_points, q, r);
+    let mut covered_at: Vec<[f64; 3]> = Vec::new();
+    let mut through_at: Vec<[f64; 3]> = Vec::new();
     for (q, n) in samples.local.iter() {
         let p = placed.pose.transform_point(&Point3::from(*q));
         let n = placed.pose.rotation * n;
@@ -83,6 +110,7 @@ pub fn visibility(
         vis.facing += 1;
         if any_near(&p, reach) {
             vis.covered += 1;
+            covered_at.push([q.x, q.y, q.z]);
             continue;
         }
         // The viewpoint is one pose for a whole sweep (and the laser and the camera are a
@@ -119,12 +147,28 @@ pub fn visibility(
         }
         if behind {
             vis.see_through += 1;
+            through_at.push([q.x, q.y, q.z]);
         } else {
             vis.unknown += 1;
         }
     }
+    for t in &through_at {
+        let d2 = covered_at
+            .iter()
+            .map(|c| (0..3).map(|i| (c[i] - t[i]).powi(2)).sum::<f64>())
+            .fold(f64::INFINITY, f64::min);
+        let d = d2.sqrt();
+        if d > DEEP_SEE_THROUGH {
+            vis.deep += 1;
+        }
+        vis.deepest = vis.deepest.max(d.min(1.0));
+    }
     vis
 }
+
+/// How far from every covered sample a see-through sample must lie to count as the part reaching
+/// into free space (m).
+pub const DEEP_SEE_THROUGH: f64 = 0.02;
 
 /// How far behind a missing surface the see-through test looks for a nearer surface seen
 /// instead (m); the support plane is looked for wherever the line of sight meets it.
