@@ -852,7 +852,7 @@ impl ConnectedClient {
         }
 
         let sent = match self.subprotocol {
-            Subprotocol::V1 => self.send_control_msg(&message),
+            Subprotocol::V1 | Subprotocol::WebSocketV1 => self.send_control_msg(&message),
             Subprotocol::V1_1 => {
                 // Hold the schema table lock until the message is enqueued, so that concurrent
                 // advertisements cannot reference a schema ID before its definition is sent.

@@ -639,9 +639,12 @@ impl Server {
             }
         };
 
-        let Ok((mut ws_stream, subprotocol)) = handshake::do_handshake(stream).await else {
-            tracing::error!("Dropping client {addr}: handshake failed");
-            return;
+        let (mut ws_stream, subprotocol) = match handshake::do_handshake(stream).await {
+            Ok(negotiated) => negotiated,
+            Err(why) => {
+                tracing::warn!("Dropping client {addr}: handshake failed: {why}");
+                return;
+            }
         };
 
         let message = Message::from(&self.server_info());
