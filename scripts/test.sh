@@ -46,6 +46,27 @@ fi
 export SQSCAN_PYTHON="$PWD/$venv/bin/python"
 export SQSCAN_REQUIRE_PYTHON_TOOLS=1
 
+# The live-view tests also check the daemon with npm's @foxglove/ws-protocol client (as older
+# Foxglove viewers and Lichtblick connect), installed from tests/js's lock file under target/.
+if ! command -v npm >/dev/null 2>&1; then
+    if [ "$(id -u)" -ne 0 ] || ! command -v apt-get >/dev/null 2>&1; then
+        echo "test.sh: npm is missing; install Node.js and npm (apt-get install nodejs npm)" >&2
+        exit 1
+    fi
+    echo "test.sh: installing nodejs npm"
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends nodejs npm
+fi
+js=target/js-clients
+if ! cmp -s tests/js/package-lock.json "$js/package-lock.json" || [ ! -d "$js/node_modules/@foxglove/ws-protocol" ]; then
+    echo "test.sh: installing the npm test clients into $js (tests/js/package-lock.json)"
+    rm -rf "$js"
+    mkdir -p "$js"
+    cp tests/js/package.json tests/js/package-lock.json "$js/"
+    (cd "$js" && npm ci --no-audit --no-fund --silent)
+fi
+export SQSCAN_NODE_MODULES="$PWD/$js/node_modules"
+export SQSCAN_REQUIRE_NODE_TOOLS=1
+
 # The GigE Vision and ROS 2 (DDS) tests run inside a private network namespace with only loopback
 # (unshare -n, root): they say SKIPPED where none can be had.
 cargo test --workspace --locked --all-features

@@ -12,7 +12,7 @@ use std::time::Duration;
 use serde_json::{Value, json};
 
 mod common;
-use common::{Proc, ask, free_port, python, root, rss, sqscand, tmpdir, wait_for};
+use common::{Proc, ask, free_port, node_modules, python, root, rss, sqscand, tmpdir, wait_for};
 
 /// A client that connects and subscribes sees the server's info, the three advertised channels,
 /// then the sweep a `find` asked for (organized, in the configured frame, as many points as the
@@ -268,5 +268,185 @@ fn four_viewers_that_never_read_cost_bounded_memory() {
     let found = ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":60}));
     assert_eq!(found["found"], true, "{found}");
     eprintln!("peak RSS {} MB over {} sweeps", peak >> 20, last - first);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A daemon on the simulated fig. 3 table serving the view on a free loopback port, sweeping
+/// only when asked: the daemon, its directory and the port.
+fn on_demand_view(name: &str) -> (Proc, std::path::PathBuf, u16) {
+    let dir = tmpdir(name);
+    let port = free_port();
+    let config = format!(
+        "[sim]\nscene = {:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
+         [server]\nframe_id = \"robot_base\"\n[foxglove]\nlisten = \"127.0.0.1:{port}\"\n",
+        root().join("scenes/fig3_table.toml")
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let daemon = sqscand(&dir, "sqscand", &[]);
+    wait_for("the view's port", Duration::from_secs(30), || {
+        std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
+    });
+    (daemon, dir, port)
+}
+
+/// `tests/js/ws_protocol_client.js` in `mode` against the view on `port`: the client and its
+/// output, once it said it subscribed.
+fn npm_client(
+    modules: &std::path::Path,
+    dir: &std::path::Path,
+    port: u16,
+    mode: &str,
+) -> (Proc, BufReader<std::process::ChildStdout>) {
+    let log = dir.join(format!("npm-{mode}.log"));
+    let mut client = Proc(
+        Command::new("node")
+            .arg(root().join("tests/js/ws_protocol_client.js"))
+            .arg(format!("ws://127.0.0.1:{port}"))
+            .arg("60")
+            .arg(mode)
+            .env("NODE_PATH", modules)
+            .stdout(Stdio::piped())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap(),
+    );
+    let mut out = BufReader::new(client.0.stdout.take().unwrap());
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    assert_eq!(
+        line.trim(),
+        "subscribed",
+        "{}",
+        std::fs::read_to_string(&log).unwrap_or_default()
+    );
+    (client, out)
+}
+
+/// npm's `@foxglove/ws-protocol` client (as Foxglove Studio before the SDK and Lichtblick are)
+/// offers only `foxglove.websocket.v1`, the protocol's former name, and got HTTP 400 from the
+/// SDK's server. It now connects on that name, sees the seven channels and gets the sweep a
+/// `find` asked for and the detection.
+#[test]
+fn an_npm_ws_protocol_client_on_the_former_subprotocol_sees_the_sweep_and_the_detection() {
+    let Some(modules) = node_modules() else {
+        return;
+    };
+    let (_daemon, dir, port) = on_demand_view("view-npm");
+    let (_client, mut out) = npm_client(&modules, &dir, port, "all");
+    let found = ask(
+        &dir.join("sqscand.sock"),
+        json!({"cmd":"find","object":"cup","timeout_s":60}),
+    );
+    assert_eq!(found["found"], true, "{found}");
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    let seen: Value = serde_json::from_str(&line).unwrap_or_else(|e| {
+        panic!(
+            "{e}: {line:?} {}",
+            std::fs::read_to_string(dir.join("npm-all.log")).unwrap_or_default()
+        )
+    });
+    assert_eq!(seen["subprotocol"], "foxglove.websocket.v1");
+    assert_eq!(seen["server_name"], "sqscand");
+    let topics: Vec<&str> = seen["topics"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t[0].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        topics,
+        [
+            "/sqscan/detections",
+            "/sqscan/joint_states",
+            "/sqscan/markers",
+            "/sqscan/points",
+            "/sqscan/range",
+            "/tf",
+            "/tf_static"
+        ]
+    );
+    assert_eq!(seen["points"]["frame"], "robot_base", "{seen}");
+    assert_eq!(
+        (seen["points"]["height"].as_u64(), seen["points"]["width"].as_u64()),
+        (Some(150), Some(256))
+    );
+    assert_eq!(seen["detections"]["frame"], "robot_base", "{seen}");
+    assert_eq!(seen["detections"]["count"], 1, "{seen}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The rig's mount went out on `/tf_static` with each sweep only: a viewer that subscribed
+/// between sweeps could not place the sensor until the next one. It now gets the mount as it
+/// subscribes, with no sweep asked for.
+#[test]
+fn a_viewer_subscribing_between_sweeps_gets_the_mount_at_once() {
+    let Some(modules) = node_modules() else {
+        return;
+    };
+    let (_daemon, dir, port) = on_demand_view("view-latched");
+    let (_client, mut out) = npm_client(&modules, &dir, port, "tf_static");
+    let mut line = String::new();
+    out.read_line(&mut line).unwrap();
+    let seen: Value = serde_json::from_str(&line).unwrap_or_else(|e| {
+        panic!(
+            "{e}: {line:?} {}",
+            std::fs::read_to_string(dir.join("npm-tf_static.log")).unwrap_or_default()
+        )
+    });
+    let rig = sqscan::sim::Scene::from_file(&root().join("scenes/fig3_table.toml"), &root().join("models"))
+        .unwrap()
+        .rig;
+    let tf = seen["tf_static"].as_array().unwrap();
+    assert_eq!(tf.len(), 2, "{seen}");
+    for (t, parent, child, iso) in [
+        (&tf[0], "robot_base", "ptu_base_link", rig.ptu_in_base),
+        (&tf[1], "ptu_tilt_link", "sqscan_sensor", rig.sensor_in_tilt),
+    ] {
+        assert_eq!((t["parent"].as_str(), t["child"].as_str()), (Some(parent), Some(child)));
+        for k in 0..3 {
+            assert!((t["translation"][k].as_f64().unwrap() - iso.translation.vector[k]).abs() < 1e-12);
+        }
+    }
+    let status = ask(&dir.join("sqscand.sock"), json!({"cmd":"status"}));
+    assert_eq!(status["sweeps"]["completed"], 0, "{status}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A client offering no subprotocol the server speaks is refused with HTTP 400, and the answer and
+/// the daemon's log say what it offered and what the server speaks (the log said "handshake
+/// failed" alone).
+#[test]
+fn a_refused_handshake_says_which_subprotocols_were_offered() {
+    use std::io::{Read, Write};
+    let (daemon, dir, port) = on_demand_view("view-refused");
+    let mut s = std::net::TcpStream::connect(("127.0.0.1", port)).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(10))).unwrap();
+    write!(
+        s,
+        "GET / HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n\
+         Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\
+         Sec-WebSocket-Protocol: x-viewer.v3, foxglove.sdk.v9\r\n\r\n"
+    )
+    .unwrap();
+    let mut answer = String::new();
+    let _ = s.read_to_string(&mut answer);
+    assert!(answer.starts_with("HTTP/1.1 400"), "{answer}");
+    assert!(
+        answer.contains("\"x-viewer.v3\"") && answer.contains("foxglove.websocket.v1"),
+        "{answer}"
+    );
+    let refusal_logged = || {
+        std::fs::read_to_string(dir.join("sqscand.log")).is_ok_and(|log| {
+            log.lines()
+                .any(|l| l.contains("WARN") && l.contains("handshake failed") && l.contains("x-viewer.v3"))
+        })
+    };
+    wait_for(
+        "the refusal in the daemon's log",
+        Duration::from_secs(10),
+        refusal_logged,
+    );
+    drop(daemon);
     let _ = std::fs::remove_dir_all(&dir);
 }

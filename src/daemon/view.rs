@@ -1,5 +1,7 @@
 //! The live view (the `foxglove` feature): the daemon serves the Foxglove WebSocket protocol
-//! (subprotocol `foxglove.sdk.v1`, through Foxglove's SDK) on a loopback address, and publishes, as
+//! (subprotocols `foxglove.sdk.v1.1`, `foxglove.sdk.v1` and its former name
+//! `foxglove.websocket.v1`, through Foxglove's SDK, patched in `vendor/foxglove` for the last) on
+//! a loopback address, and publishes, as
 //! ROS 2 messages in CDR (the same encoding as the MCAP recordings and the ROS 2 node,
 //! `crate::ros`):
 //! - `/sqscan/points`, `sensor_msgs/msg/PointCloud2`: every completed sweep;
@@ -7,8 +9,8 @@
 //! - `/sqscan/joint_states`, `sensor_msgs/msg/JointState`: the PTU's pan and tilt at each of the
 //!   sweep's profiles;
 //! - `/tf`, `tf2_msgs/msg/TFMessage`: the same joints as transforms at each profile, and
-//!   `/tf_static` with the rig's mount (again with each sweep: the view keeps nothing for a
-//!   client that connects later);
+//!   `/tf_static` with the rig's mount: with each sweep, and to each client as it subscribes (a
+//!   viewer that joins between sweeps has the mount at once, as from ROS's latched topic);
 //! - `/sqscan/detections`, `vision_msgs/msg/Detection3DArray`: every detection as it is made
 //!   (asked by a client or watched), one object a message, an empty array for "not here";
 //! - `/sqscan/markers`, `visualization_msgs/msg/MarkerArray`: the latest detection's fitted
@@ -20,6 +22,7 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 
 use anyhow::{Context as _, Result};
+use foxglove::websocket::{ChannelView, Client, ServerListener};
 use foxglove::{ChannelBuilder, PartialMetadata, RawChannel, Schema, WebSocketServer};
 
 use super::backend::Mount;
@@ -56,22 +59,35 @@ pub async fn run(shared: Arc<Shared>, listen: SocketAddr) {
     }
 }
 
+/// Sends the rig's mount on `/tf_static` to a client as it subscribes: the mount changes never,
+/// and a viewer must not wait for the next sweep to place the sensor.
+struct Latched {
+    shared: Arc<Shared>,
+    tf_static: Arc<RawChannel>,
+}
+
+impl ServerListener for Latched {
+    fn on_subscribe(&self, _client: Client, channel: ChannelView) {
+        if channel.id() != self.tf_static.id() {
+            return;
+        }
+        let Some(m) = self.shared.mount.as_ref() else {
+            return;
+        };
+        let frame = self.shared.config().frame_id.clone();
+        let now = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let stamp = Time::from_unix_s(now);
+        // The other subscribers get it once more: the same transforms, which they keep as they are.
+        self.tf_static
+            .log_with_meta(&topics::tf_static(&frame, m, stamp), at(stamp));
+    }
+}
+
 async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
     let mount = shared.mount;
     let ctx = foxglove::Context::new();
-    // A viewer that does not read loses its oldest messages once its queue holds this many
-    // bytes: the crate's own bound counts messages (1024 of them: a thousand sweeps when only
-    // the points are subscribed to).
-    let backlog = shared.config().foxglove_backlog_bytes;
-    let server = WebSocketServer::new()
-        .name("sqscand")
-        .message_backlog_bytes(backlog)
-        .bind(listen.ip().to_string(), listen.port())
-        .context(&ctx)
-        .start()
-        .await
-        .context("cannot start the server")?;
-    tracing::info!("Foxglove view on ws://{listen}");
     let channels = Channels {
         points: channel(&ctx, topics::POINTS, schema::POINT_CLOUD2, schema::point_cloud2())?,
         range: channel(&ctx, topics::RANGE, schema::IMAGE, schema::image())?,
@@ -86,6 +102,23 @@ async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
         )?,
         markers: channel(&ctx, topics::MARKERS, schema::MARKER_ARRAY, schema::marker_array())?,
     };
+    // A viewer that does not read loses its oldest messages once its queue holds this many
+    // bytes: the crate's own bound counts messages (1024 of them: a thousand sweeps when only
+    // the points are subscribed to).
+    let backlog = shared.config().foxglove_backlog_bytes;
+    let server = WebSocketServer::new()
+        .name("sqscand")
+        .message_backlog_bytes(backlog)
+        .listener(Arc::new(Latched {
+            shared: shared.clone(),
+            tf_static: channels.tf_static.clone(),
+        }))
+        .bind(listen.ip().to_string(), listen.port())
+        .context(&ctx)
+        .start()
+        .await
+        .context("cannot start the server")?;
+    tracing::info!("Foxglove view on ws://{listen}");
     let channels = Arc::new(channels);
     let mut follow = topics::Follow::new(shared, "the Foxglove view");
     while let Some(event) = follow.next().await {

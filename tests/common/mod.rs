@@ -85,6 +85,28 @@ pub fn python(modules: &[&str]) -> Option<PathBuf> {
     found
 }
 
+/// The `node_modules` of the npm test clients (`tests/js/package-lock.json`, which
+/// `scripts/test.sh` installs under `target/`) and a `node` to run them, or `None` (the test says
+/// it skipped) where either is missing, unless `SQSCAN_REQUIRE_NODE_TOOLS` is set.
+pub fn node_modules() -> Option<PathBuf> {
+    let modules = std::env::var_os("SQSCAN_NODE_MODULES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| root().join("target/js-clients/node_modules"));
+    let node_runs = std::process::Command::new("node")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    let found = (node_runs && modules.join("@foxglove/ws-protocol/package.json").is_file()).then_some(modules);
+    if found.is_none() {
+        assert!(
+            std::env::var_os("SQSCAN_REQUIRE_NODE_TOOLS").is_none(),
+            "SQSCAN_NODE_MODULES must name the installed tests/js clients' node_modules, and node must run"
+        );
+        eprintln!("SKIPPED: no node, or no tests/js clients installed (scripts/test.sh installs them)");
+    }
+    found
+}
+
 /// `sqscand` on `dir/NAME.toml`, its socket `dir/NAME.sock`, its log `dir/NAME.log`, with
 /// `args` more; returns once the socket answers.
 pub fn sqscand(dir: &Path, name: &str, args: &[&std::ffi::OsStr]) -> Proc {
