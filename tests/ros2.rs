@@ -35,7 +35,7 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
     );
     std::fs::write(dir.join("sqscand.toml"), config).unwrap();
     let socket = dir.join("sqscand.sock");
-    let _daemon = sqscand(&dir, "sqscand", &[]);
+    let mut daemon = sqscand(&dir, "sqscand", &[]);
     let out = Command::new(&python)
         .arg(root().join("tests/py/dds_sub.py"))
         .arg(&socket)
@@ -188,6 +188,25 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
             assert!((t["rotation"][k].as_f64().unwrap() - want).abs() < 1e-12, "{t}");
         }
     }
+
+    // A stop, as systemd stops it: nothing at error level from start to end (RustDDS said
+    // "leave_multicast_group ... No such device" twice at every stop).
+    // SAFETY: kill(2) on our own child's pid.
+    assert_eq!(unsafe { libc::kill(daemon.0.id() as i32, libc::SIGTERM) }, 0);
+    let t = Instant::now();
+    while daemon.0.try_wait().unwrap().is_none() {
+        assert!(
+            t.elapsed() < Duration::from_secs(10),
+            "still running 10 s after SIGTERM"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let errors: Vec<String> = log()
+        .lines()
+        .filter(|l| l.contains("ERROR"))
+        .map(String::from)
+        .collect();
+    assert!(errors.is_empty(), "error lines in a normal start and stop: {errors:#?}");
 }
 
 /// Under systemd's `RestrictAddressFamilies` without `AF_NETLINK`, RustDDS listed no network

@@ -4,7 +4,7 @@ use std::{
   net::{IpAddr, Ipv4Addr, SocketAddr},
 };
 
-use log::{debug, error, info, trace, warn};
+use log::{debug, info, trace, warn};
 use socket2::{Domain, Protocol, SockAddr, Socket, Type};
 use bytes::{Bytes, BytesMut};
 
@@ -52,20 +52,26 @@ pub struct UDPListener {
   receive_buffer: BytesMut,
   multicast_group: Option<Ipv4Addr>,
   has_multicast_join: bool,
+  // Patched for sqscan: the interfaces the group was joined on, to leave it on the same ones.
+  joined_v4: Vec<Ipv4Addr>,
   // Cached OS interface-index -> local interface map, used to resolve the
   // receiving interface reported by IP_PKTINFO. Built once at construction.
   ifindex_map: HashMap<u32, InterfaceSelector>,
 }
 
 impl Drop for UDPListener {
+  // Patched for sqscan: the group is left on each interface it was joined on. Upstream left it
+  // on the unspecified interface, which the kernel resolves by route: on a machine whose joins
+  // were on other interfaces (loopback alone, or no default route) that fails with ENODEV, and
+  // two error lines went out at every stop. Closing the socket drops its memberships anyway, so
+  // a failure here is only worth a debug line.
   fn drop(&mut self) {
     if let Some(mcg) = self.multicast_group {
-      self
-        .socket
-        .leave_multicast_v4(&mcg, &Ipv4Addr::UNSPECIFIED)
-        .unwrap_or_else(|e| {
-          error!("leave_multicast_group: {e:?}");
-        });
+      for a in &self.joined_v4 {
+        if let Err(e) = self.socket.leave_multicast_v4(&mcg, a) {
+          debug!("leave_multicast_group {mcg:?} on {a:?}: {e:?}");
+        }
+      }
     }
   }
 }
@@ -196,6 +202,7 @@ impl UDPListener {
       receive_buffer: BytesMut::with_capacity(MESSAGE_BUFFER_ALLOCATION_CHUNK),
       multicast_group: None,
       has_multicast_join: false,
+      joined_v4: Vec::new(),
       ifindex_map: build_ifindex_to_interface_map(),
     })
   }
@@ -218,6 +225,7 @@ impl UDPListener {
 
     let mio_socket = Self::new_listening_socket(host, port, true, recv_buffer_size)?;
     let mut joined_multicast = false;
+    let mut joined_v4 = Vec::new();
 
     for multicast_if_ipaddr in get_local_multicast_ip_addrs_filtered(only_networks)? {
       match multicast_if_ipaddr {
@@ -225,6 +233,7 @@ impl UDPListener {
           .join_multicast_v4(&multicast_group, &a)
           .map(|()| {
             joined_multicast = true;
+            joined_v4.push(a);
           })
           .unwrap_or_else(|e| {
             warn!(
@@ -261,6 +270,7 @@ impl UDPListener {
       receive_buffer: BytesMut::with_capacity(MESSAGE_BUFFER_ALLOCATION_CHUNK),
       multicast_group: Some(multicast_group),
       has_multicast_join: joined_multicast,
+      joined_v4,
       ifindex_map: build_ifindex_to_interface_map(),
     })
   }
