@@ -51,7 +51,7 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
         log()
     );
     let m: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static", "tf"] {
         assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
     }
     let found = &m["reply"];
@@ -117,6 +117,37 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
     assert_eq!(joints[0]["name"], json!(["ptu_pan", "ptu_tilt"]));
     assert!(stamps.windows(2).all(|w| w[0] <= w[1]), "{stamps:?}");
     assert!((stamps[stamps.len() - 1] - cloud["stamp"].as_f64().unwrap()).abs() < 1e-6);
+
+    // /tf: the pan and tilt joints as transforms at each profile, as the joint states have them:
+    // with `/tf_static`, the sensor's frame reaches the base frame at every profile's time with
+    // no robot_state_publisher.
+    let tf = m["tf"].as_array().unwrap();
+    assert_eq!(tf.len(), pcd.height, "/tf messages received\n{}", log());
+    for (t, j) in tf.iter().zip(joints) {
+        let (pan, tilt) = (j["position"][0].as_f64().unwrap(), j["position"][1].as_f64().unwrap());
+        assert_eq!(
+            (t[0]["parent"].as_str(), t[0]["child"].as_str()),
+            (Some("ptu_base_link"), Some("ptu_pan_link"))
+        );
+        assert_eq!(
+            (t[1]["parent"].as_str(), t[1]["child"].as_str()),
+            (Some("ptu_pan_link"), Some("ptu_tilt_link"))
+        );
+        for k in 0..2 {
+            assert!(
+                (t[k]["stamp"].as_f64().unwrap() - j["stamp"].as_f64().unwrap()).abs() < 1e-6,
+                "{t} {j}"
+            );
+        }
+        assert!(
+            (t[0]["rotation"][2].as_f64().unwrap() - (pan / 2.0).sin()).abs() < 1e-9,
+            "{t} {j}"
+        );
+        assert!(
+            (t[1]["rotation"][1].as_f64().unwrap() - (tilt / 2.0).sin()).abs() < 1e-9,
+            "{t} {j}"
+        );
+    }
 
     // The cup, as find answered it.
     let d = &m["detections"].as_array().unwrap()[0];
@@ -367,7 +398,7 @@ fn subscriber_gets_a_sweep(
         log()
     );
     let m: Value = serde_json::from_slice(&out.stdout).unwrap();
-    for topic in ["points", "joints", "detections", "markers", "range", "tf_static"] {
+    for topic in ["points", "joints", "detections", "markers", "range", "tf_static", "tf"] {
         assert_eq!(m["matched"][topic], 1, "{topic} never matched: {m}\n{}", log());
     }
     assert_eq!(m["reply"]["found"], true, "{}", m["reply"]);

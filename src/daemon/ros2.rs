@@ -11,7 +11,10 @@
 //!   fitted parts and the support plane, drawn (for rviz);
 //! - the range image (`/sqscan/range`, `sensor_msgs/msg/Image`, `32FC1`): every sweep's;
 //! - `/tf_static` (`tf2_msgs/msg/TFMessage`, transient local): the PTU's mount in the base frame
-//!   and the sensor's on the tilt link, from the rig's calibration.
+//!   and the sensor's on the tilt link, from the rig's calibration;
+//! - `/tf` (`tf2_msgs/msg/TFMessage`, with `publish_tf`, the default): the pan and tilt joints as
+//!   transforms at each profile, so that the sensor's frame reaches the base frame with no
+//!   `robot_state_publisher`.
 //!
 //! The messages are encoded once, by `crate::ros` (as the MCAP recordings and the live view
 //! carry them), and handed to RustDDS's serializer as they are ([`Encoded`]).
@@ -209,6 +212,8 @@ struct Publishers {
     detections: Publisher<Encoded>,
     markers: Publisher<Encoded>,
     tf_static: Publisher<Encoded>,
+    /// `/tf`, with `publish_tf`.
+    tf: Option<Publisher<Encoded>>,
 }
 
 fn qos(cfg: &Ros2Config) -> QosProfile {
@@ -297,6 +302,20 @@ fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
         )?,
         detections: publisher(&cfg.detections, ros::schema::DETECTION3D_ARRAY, &qos)?,
         tf_static: publisher("/tf_static", ros::schema::TF_MESSAGE, &latched)?,
+        // As tf2's broadcaster publishes `/tf`: reliable, volatile, a sweep's transforms kept.
+        tf: if cfg.publish_tf {
+            let dynamic = QosProfile::publisher_default()
+                .reliability(Reliability::Reliable {
+                    when_full: WhenFull::Wait(WAIT_WHEN_FULL),
+                })
+                .durability(Durability::Volatile)
+                .history(History::KeepLast {
+                    depth: JOINT_STATES_PER_SWEEP,
+                });
+            Some(publisher("/tf", ros::schema::TF_MESSAGE, &dynamic)?)
+        } else {
+            None
+        },
     };
     Ok((context, node, pubs))
 }
@@ -305,11 +324,18 @@ fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) 
     while let Some(out) = rx.blocking_recv() {
         match out {
             Event::Sweep(entry) => {
+                let mut transforms = pubs.tf.as_ref().map(|_| topics::tf_joints(&entry));
                 for (_, data) in topics::joint_states(&entry) {
                     std::thread::sleep(JOINT_STATE_PACE);
                     if let Err(e) = pubs.joints.publish(Encoded::new(data)) {
                         tracing::warn!("ROS 2 joint states of sweep {}: {e:?}", entry.id);
                         break;
+                    }
+                    if let (Some(tf), Some((_, data))) = (&pubs.tf, transforms.as_mut().and_then(Iterator::next)) {
+                        if let Err(e) = tf.publish(Encoded::new(data)) {
+                            tracing::warn!("ROS 2 /tf of sweep {}: {e:?}", entry.id);
+                            break;
+                        }
                     }
                 }
                 let (_, data) = topics::cloud(&entry, &frame);

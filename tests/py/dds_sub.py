@@ -5,7 +5,7 @@ namespace with only loopback.
 
 Usage: dds_sub.py SOCKET OBJECT SECONDS [DOMAIN]
 
-Waits until the daemon's four topics have matched, asks the daemon (its socket) to find
+Waits until the daemon's topics have matched, asks the daemon (its socket) to find
 OBJECT, then prints one JSON object: the reply, and what arrived on each topic.
 """
 
@@ -329,6 +329,9 @@ def main():
             Topic(dp, "rt/tf_static", TFMessage),
             qos=Qos(reliable, Policy.Durability.TransientLocal, Policy.History.KeepLast(1)),
         ),
+        # Reliable and volatile as tf2's TransformListener subscribes; a sweep's transforms come
+        # within tens of milliseconds, so the history holds them all, as for the joint states.
+        "tf": DataReader(dp, Topic(dp, "rt/tf", TFMessage), qos=Qos(reliable, Policy.History.KeepLast(1000))),
     }
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds:
@@ -343,8 +346,9 @@ def main():
     while time.monotonic() - t0 < seconds:
         for k, r in readers.items():
             got[k].extend(r.take(N=1000))
+        profiles = out["reply"].get("sweep", {}).get("profiles", 150)
         if (got["points"] and got["detections"] and got["tf_static"] and got["markers"] and got["range"]
-                and len(got["joints"]) >= out["reply"].get("sweep", {}).get("profiles", 150)):
+                and len(got["joints"]) >= profiles and len(got["tf"]) >= profiles):
             break
         time.sleep(0.05)
     # A moment more for joint states of the same sweep still on their way.
@@ -386,6 +390,19 @@ def main():
         }
         for m in got["tf_static"]
         for t in m.transforms
+    ]
+    out["tf"] = [
+        [
+            {
+                "parent": t.header.frame_id,
+                "child": t.child_frame_id,
+                "stamp": stamp(t.header),
+                "rotation": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+                             t.transform.rotation.w],
+            }
+            for t in m.transforms
+        ]
+        for m in got["tf"]
     ]
     print(json.dumps(out))
 

@@ -30,6 +30,9 @@ pub(super) struct Ros2File {
     depth: Option<usize>,
     /// The largest sample reassembled from DDS fragments, KiB (default 1024).
     max_received_sample_kib: Option<usize>,
+    /// Publish the PTU's joints on `/tf` at each profile (default true); false where the robot's
+    /// own `robot_state_publisher` turns the joint states into transforms.
+    publish_tf: Option<bool>,
 }
 
 /// The ROS 2 node (`[ros2]`, the `ros2` feature).
@@ -49,6 +52,8 @@ pub struct Ros2Config {
     /// The largest sample RustDDS reassembles from fragments (bytes): a peer's DATA_FRAG that
     /// declares a larger one is dropped (`docs/ROS2.md`).
     pub max_received_sample: usize,
+    /// The PTU's pan and tilt as transforms on `/tf` at each profile.
+    pub publish_tf: bool,
 }
 
 impl Default for Ros2Config {
@@ -66,6 +71,7 @@ impl Default for Ros2Config {
             transient_local: false,
             depth: 5,
             max_received_sample: 1 << 20,
+            publish_tf: true,
         }
     }
 }
@@ -168,6 +174,9 @@ pub(super) fn ros2_config(path: &Path, r: &Ros2File) -> Result<Ros2Config, SpecE
             ));
         }
         c.max_received_sample = k * 1024;
+    }
+    if let Some(b) = r.publish_tf {
+        c.publish_tf = b;
     }
     if !cfg!(feature = "ros2") {
         return Err(SpecError::invalid(

@@ -350,6 +350,7 @@ fn the_ros2_table_is_validated_key_by_key() {
         ("depth = 100000", "ros2.depth"),
         ("max_received_sample_kib = 63", "ros2.max_received_sample_kib"),
         ("max_received_sample_kib = 4194304", "ros2.max_received_sample_kib"),
+        ("publish_tf = \"yes\"", "publish_tf"),
         ("topic = \"/x\"", "topic"),
     ] {
         let e = parse(&format!("[ros2]\n{bad}")).unwrap_err().to_string();
@@ -358,7 +359,7 @@ fn the_ros2_table_is_validated_key_by_key() {
     let r = parse(
         "[ros2]\ndomain_id = 42\nnode = \"scanner_1\"\nnamespace = \"/robot1\"\npoints = \"cloud\"\n\
          reliability = \"best_effort\"\ndurability = \"transient_local\"\ndepth = 2\n\
-         max_received_sample_kib = 256",
+         max_received_sample_kib = 256\npublish_tf = false",
     );
     if cfg!(feature = "ros2") {
         let c = r.unwrap().ros2.unwrap();
@@ -369,7 +370,9 @@ fn the_ros2_table_is_validated_key_by_key() {
         assert!(!c.reliable && c.transient_local);
         assert_eq!(c.depth, 2);
         assert_eq!(c.max_received_sample, 256 * 1024);
+        assert!(!c.publish_tf);
         assert_eq!(parse("[ros2]").unwrap().ros2, Some(super::Ros2Config::default()));
+        assert!(super::Ros2Config::default().publish_tf);
     } else {
         let e = r.unwrap_err().to_string();
         assert!(e.contains("ros2") && e.contains("feature"), "{e}");
