@@ -266,6 +266,8 @@ fn the_debian_package_installs_every_file_where_it_is_expected_and_passes_lintia
     );
     // The embedded default's scene, for `sqscand` run without a configuration.
     assert!(at("/usr/share/sqscan/scenes/fig3_table.toml").is_file());
+    // The PTU's URDF, for a robot's own robot_state_publisher (docs/ROS2.md).
+    assert!(at("/usr/share/sqscan/urdf/sqscan_ptu.urdf").is_file());
 
     // The packaged daemon checks the packaged configuration, paths moved into the scratch root.
     let moved = config_text.replace("/usr/share/sqscan", at("/usr/share/sqscan").to_str().unwrap());

@@ -295,3 +295,39 @@ impl Follow {
         }
     }
 }
+
+#[cfg(test)]
+mod urdf_tests {
+    use super::*;
+
+    /// The shipped URDF (`dist/urdf/sqscan_ptu.urdf`) names the joints as the joint states do,
+    /// chains the frames as `/tf` and `/tf_static` do, and turns each joint about the axis the
+    /// calibration turns it about: what robot_state_publisher makes of it is what sqscand
+    /// publishes itself.
+    #[test]
+    fn the_shipped_urdf_matches_the_published_joints_and_frames() {
+        let urdf = include_str!("../../dist/urdf/sqscan_ptu.urdf");
+        let joint = |name: &str| -> &str {
+            let start = urdf
+                .find(&format!("<joint name=\"{name}\""))
+                .unwrap_or_else(|| panic!("no joint {name}"));
+            let end = start + urdf[start..].find("</joint>").expect("a closed joint");
+            &urdf[start..end]
+        };
+        let pan = joint(JOINT_NAMES[0]);
+        let tilt = joint(JOINT_NAMES[1]);
+        assert!(pan.contains(&format!("<parent link=\"{PTU_FRAME}\"/>")), "{pan}");
+        assert!(pan.contains(&format!("<child link=\"{PAN_FRAME}\"/>")), "{pan}");
+        assert!(tilt.contains(&format!("<parent link=\"{PAN_FRAME}\"/>")), "{tilt}");
+        assert!(tilt.contains(&format!("<child link=\"{TILT_FRAME}\"/>")), "{tilt}");
+        // The calibration's links: a pure turn about z (pan) and about y (tilt).
+        let a = 0.7;
+        let p = calibration::pan_link(a);
+        let t = calibration::tilt_link(a);
+        assert!(p.translation.vector.norm() < 1e-12 && t.translation.vector.norm() < 1e-12);
+        assert!((p.rotation.axis().unwrap().into_inner() - nalgebra::Vector3::z()).norm() < 1e-12);
+        assert!((t.rotation.axis().unwrap().into_inner() - nalgebra::Vector3::y()).norm() < 1e-12);
+        assert!(pan.contains("<axis xyz=\"0 0 1\"/>") && pan.contains("<origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>"));
+        assert!(tilt.contains("<axis xyz=\"0 1 0\"/>") && tilt.contains("<origin xyz=\"0 0 0\" rpy=\"0 0 0\"/>"));
+    }
+}
