@@ -27,7 +27,8 @@ pub struct Visibility {
     /// See-through samples farther than [`DEEP_SEE_THROUGH`] from every covered sample: the
     /// part reaching into free space, not its outline a few millimetres off.
     pub deep: usize,
-    /// The farthest any see-through sample lies from a covered one (m).
+    /// The farthest any see-through sample lies from a covered one (m), up to 1 m; measured only
+    /// where debug logging is on (it is for the log), else 0.
     pub deepest: f64,
     /// The surface area (m²) one sample stands for.
     pub sample_area: f64,
@@ -96,8 +97,9 @@ pub fn visibility(
     let Some(v) = viewpoint else { return vis };
     let reach = 1.2 * samples.spacing;
     let any_near = |q: &Point3<f64>, r: f64| all_grid.any_within(all_points, q, r);
-    let mut covered_at: Vec<[f64; 3]> = Vec::new();
-    let mut through_at: Vec<[f64; 3]> = Vec::new();
+    // In the part's own frame: what matters is where on its surface they lie.
+    let mut covered_at: Vec<Point3<f64>> = Vec::new();
+    let mut through_at: Vec<Point3<f64>> = Vec::new();
     for (q, n) in samples.local.iter() {
         let p = placed.pose.transform_point(&Point3::from(*q));
         let n = placed.pose.rotation * n;
@@ -110,7 +112,7 @@ pub fn visibility(
         vis.facing += 1;
         if any_near(&p, reach) {
             vis.covered += 1;
-            covered_at.push([q.x, q.y, q.z]);
+            covered_at.push(Point3::from(*q));
             continue;
         }
         // The viewpoint is one pose for a whole sweep (and the laser and the camera are a
@@ -147,21 +149,23 @@ pub fn visibility(
         }
         if behind {
             vis.see_through += 1;
-            through_at.push([q.x, q.y, q.z]);
+            through_at.push(Point3::from(*q));
         } else {
             vis.unknown += 1;
         }
     }
-    for t in &through_at {
-        let d2 = covered_at
+    if !through_at.is_empty() {
+        let grid = Grid::new(&covered_at, DEEP_SEE_THROUGH);
+        vis.deep = through_at
             .iter()
-            .map(|c| (0..3).map(|i| (c[i] - t[i]).powi(2)).sum::<f64>())
-            .fold(f64::INFINITY, f64::min);
-        let d = d2.sqrt();
-        if d > DEEP_SEE_THROUGH {
-            vis.deep += 1;
+            .filter(|t| !grid.any_within(&covered_at, t, DEEP_SEE_THROUGH))
+            .count();
+        if tracing::enabled!(tracing::Level::DEBUG) {
+            vis.deepest = through_at
+                .iter()
+                .map(|t| covered_at.iter().map(|c| (c - t).norm()).fold(1.0f64, f64::min))
+                .fold(0.0, f64::max);
         }
-        vis.deepest = vis.deepest.max(d.min(1.0));
     }
     vis
 }
