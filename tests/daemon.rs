@@ -1537,17 +1537,48 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
     let (dp, dr) = pose_error(&mallet, &root().join("scenes/fig4_tools.toml"), "mallet");
     assert!(dp < 0.010 && dr < 10.0, "mallet off by {dp} m, {dr} deg: {mallet}");
 
-    // Then the replay is over, and says so.
-    let r = c.ask(json!({"cmd":"scan","timeout_s":1.0}));
-    assert_eq!((&r["class"], &r["code"]), (&json!("error"), &json!("device")), "{r}");
-    let s = c.ask(json!({"cmd":"status"}));
-    assert!(
-        s["devices"][0]["last_error"]
-            .as_str()
-            .unwrap_or("")
-            .contains("the replay is over"),
-        "{s}"
+    // Then the replay is over, and says so at once: not a device fault (a request waited for
+    // its whole timeout and got `device`, and `status` said the replay had a fault).
+    let t = std::time::Instant::now();
+    let r = c.ask(json!({"cmd":"scan","timeout_s":60}));
+    assert_eq!(
+        (&r["class"], &r["code"]),
+        (&json!("error"), &json!("replay_finished")),
+        "{r}"
     );
+    assert!(r["message"].as_str().unwrap().contains("all 2 sweeps served"), "{r}");
+    assert!(t.elapsed() < Duration::from_secs(10), "the end took {:?}", t.elapsed());
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["devices"][0]["state"], "finished", "{s}");
+    assert!(s["devices"][0]["last_error"].is_null(), "{s}");
+    // A request the newest sweep satisfies is still answered.
+    let again = c.ask(json!({"cmd":"find","object":"mallet","max_age_s":3600,"timeout_s":60}));
+    assert_eq!(again["found"], true, "{again}");
+    drop(c);
+
+    // The desk recipe: `--replay DIR --replay-step` on any configuration serves one recorded
+    // sweep a `scan`, in order, then says the replay is over.
+    let stepper = dir.join("stepper");
+    std::fs::create_dir_all(&stepper).unwrap();
+    let (_d, socket) = start_daemon_with(&stepper, &sim_config(), &[], |cmd| {
+        cmd.arg("--replay").arg(&rec).arg("--replay-step");
+    });
+    let mut c = Client::connect(&socket);
+    let first = c.ask(json!({"cmd":"scan","timeout_s":60}));
+    assert_eq!(first["sweep"]["recorded"]["id"].as_u64(), Some(id), "{first}");
+    // The newest sweep serves a find as long as it is young enough: no step.
+    let cup3 = c.ask(json!({"cmd":"find","object":"cup","max_age_s":3600,"timeout_s":60}));
+    assert_eq!(answer_only(&cup3), answer_only(&cup), "{cup3}");
+    let second = c.ask(json!({"cmd":"scan","timeout_s":60}));
+    assert!(
+        second["sweep"]["recorded"]["file"]
+            .as_str()
+            .unwrap()
+            .ends_with("tools.pcd"),
+        "{second}"
+    );
+    let end = c.ask(json!({"cmd":"scan","timeout_s":60}));
+    assert_eq!(end["code"], "replay_finished", "{end}");
 }
 
 // A GigE Vision rig (the mock camera on aravis's emulator, the PowerCube on a pty) runs only

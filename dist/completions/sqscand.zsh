@@ -21,6 +21,7 @@ _sqscand() {
 '--replay=[Serve the recorded sweeps in DIR instead of scanning (overrides the file'\''s backend)\: the daemon'\''s recordings (sweep-*.json and .pcd) and other organized PCD files with a viewpoint (and, in a build with the mcap feature, MCAP files with a ROS 2 PointCloud2)]:DIR:_files' \
 '--replay-speed=[With --replay\: 1 replays at the recorded pace, 2 twice as fast, 0 as fast as asked]:FACTOR:_default' \
 '--replay-loop[With --replay\: start again after the last sweep instead of stopping there]' \
+'(--replay-speed)--replay-step[With --replay\: serve one recorded sweep a request, the next each time a client asks for a fresh one (\`sqscan scan\`, or a \`find\` whose newest sweep is too old), at once; the file'\''s acquisition mode becomes on_demand]' \
 '--check[Run every start-up check (configuration, models, scene or calibration, serial devices) and exit]' \
 '-h[Print help (see more with '\''--help'\'')]' \
 '--help[Print help (see more with '\''--help'\'')]' \

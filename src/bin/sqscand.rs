@@ -32,9 +32,12 @@ fn load_config(cli: &Cli) -> Result<Config> {
         }
         config.backend = BackendConfig::Replay {
             dir: dir.clone(),
-            speed: cli.replay_speed,
+            speed: if cli.replay_step { 0.0 } else { cli.replay_speed },
             looping: cli.replay_loop,
         };
+        if cli.replay_step {
+            config.continuous = false;
+        }
     }
     Ok(config)
 }

@@ -95,6 +95,9 @@ pub struct DeviceStatus {
     /// Times the device was (re)opened.
     pub opens: u64,
     pub failures: u64,
+    /// The source has nothing more to give, and why (a replay that served every sweep): not a
+    /// fault, and nothing will reopen it.
+    pub finished: Option<String>,
 }
 
 impl DeviceStatus {
@@ -108,6 +111,7 @@ impl DeviceStatus {
             last_error_at: None,
             opens: 0,
             failures: 0,
+            finished: None,
         }
     }
 
@@ -117,7 +121,9 @@ impl DeviceStatus {
             name: self.name.to_string(),
             path: self.path.clone(),
             kind: self.kind.clone(),
-            state: if self.connected {
+            state: if self.finished.is_some() {
+                DeviceState::Finished
+            } else if self.connected {
                 DeviceState::Ok
             } else if self.last_error.is_some() {
                 DeviceState::Fault
@@ -190,11 +196,27 @@ impl Devices {
         });
     }
 
+    /// The source has nothing more to give: a replay that served every sweep.
+    pub fn note_finished(&self, name: &str, message: &str) {
+        tracing::info!("{name}: {message}");
+        self.update(name, |d| {
+            d.connected = false;
+            d.finished = Some(message.to_string());
+        });
+    }
+
+    /// What finished, when a source did: no sweep will come again.
+    pub fn finished(&self) -> Option<String> {
+        self.lock()
+            .iter()
+            .find_map(|d| d.finished.as_ref().map(|why| format!("{} {}: {why}", d.name, d.path)))
+    }
+
     /// One line on what is wrong, for error replies ("" when all is well).
     pub fn trouble(&self) -> String {
         self.lock()
             .iter()
-            .filter(|d| !d.connected)
+            .filter(|d| !d.connected && d.finished.is_none())
             .map(|d| match &d.last_error {
                 Some(e) => format!("{} {} is down: {e}", d.name, d.path),
                 None => format!("{} {} is not open yet", d.name, d.path),
@@ -207,7 +229,14 @@ impl Devices {
     pub fn summary(&self) -> String {
         self.lock()
             .iter()
-            .map(|d| format!("{} {}", d.name, if d.connected { "ok" } else { "down" }))
+            .map(|d| {
+                let state = match (&d.finished, d.connected) {
+                    (Some(_), _) => "finished",
+                    (None, true) => "ok",
+                    (None, false) => "down",
+                };
+                format!("{} {state}", d.name)
+            })
             .collect::<Vec<_>>()
             .join(", ")
     }

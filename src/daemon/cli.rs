@@ -41,6 +41,11 @@ pub struct DaemonCli {
     /// With --replay: start again after the last sweep instead of stopping there
     #[arg(long, requires = "replay")]
     pub replay_loop: bool,
+    /// With --replay: serve one recorded sweep a request, the next each time a client asks for a
+    /// fresh one (`sqscan scan`, or a `find` whose newest sweep is too old), at once; the file's
+    /// acquisition mode becomes on_demand
+    #[arg(long, requires = "replay", conflicts_with = "replay_speed")]
+    pub replay_step: bool,
     /// Run every start-up check (configuration, models, scene or calibration, serial devices) and exit
     #[arg(long)]
     pub check: bool,

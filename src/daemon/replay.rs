@@ -255,12 +255,7 @@ impl Backend for ReplayBackend {
         if self.next == self.items.len() {
             if !self.looping {
                 let n = self.items.len();
-                devices.update(DEVICE, |d| {
-                    d.connected = false;
-                    d.last_error = Some(format!("the replay is over: all {n} sweeps served"));
-                    d.last_error_at = Some(std::time::SystemTime::now());
-                });
-                tracing::info!("replay: all {n} sweeps served");
+                devices.note_finished(DEVICE, &format!("the replay is over: all {n} sweeps served"));
                 // Nothing more to serve: wait for the daemon to stop. The sweeps served stay
                 // available to clients.
                 std::future::pending::<()>().await;

@@ -167,6 +167,8 @@ pub enum DeviceState {
     Fault,
     /// Not opened yet.
     Closed,
+    /// Nothing more to give: a replay that served every sweep.
+    Finished,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
@@ -303,6 +305,8 @@ pub enum ErrorCode {
     Timeout,
     /// No fresh sweep before the timeout because a device is failing (named in the message).
     Device,
+    /// No fresh sweep will come: the replay served every recorded sweep.
+    ReplayFinished,
     /// Every client slot is taken and none is idle; the connection is closed.
     Busy,
     /// The connection was idle too long, or its slot was given to a new client; it is closed.
@@ -315,12 +319,13 @@ pub enum ErrorCode {
 
 impl ErrorCode {
     /// Every code, in the order `docs/PROTOCOL.md` lists them.
-    pub const ALL: [ErrorCode; 9] = [
+    pub const ALL: [ErrorCode; 10] = [
         ErrorCode::BadRequest,
         ErrorCode::TooLarge,
         ErrorCode::UnknownObject,
         ErrorCode::Timeout,
         ErrorCode::Device,
+        ErrorCode::ReplayFinished,
         ErrorCode::Busy,
         ErrorCode::Idle,
         ErrorCode::Stopping,
@@ -334,6 +339,7 @@ impl ErrorCode {
             ErrorCode::UnknownObject => "unknown_object",
             ErrorCode::Timeout => "timeout",
             ErrorCode::Device => "device",
+            ErrorCode::ReplayFinished => "replay_finished",
             ErrorCode::Busy => "busy",
             ErrorCode::Idle => "idle",
             ErrorCode::Stopping => "stopping",
