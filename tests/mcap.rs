@@ -187,6 +187,15 @@ fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     let again = ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":60}));
     assert_eq!(again["found"], true, "{again}");
     assert_eq!(again["sweep"]["id"], found["sweep"]["id"], "{again}");
+    // The recording's own id, from its metadata (it was null from an MCAP file alone).
+    assert_eq!(again["sweep"]["recorded"]["id"], found["sweep"]["id"], "{again}");
+    assert!(
+        again["sweep"]["recorded"]["file"]
+            .as_str()
+            .unwrap()
+            .ends_with("field.mcap"),
+        "{again}"
+    );
     assert_eq!(again["pose"], found["pose"], "{again} {found}");
     assert_eq!(again["confidence"], found["confidence"]);
     let _ = std::fs::remove_dir_all(&dir);

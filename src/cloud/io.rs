@@ -120,6 +120,14 @@ pub fn read_cloud(path: &Path) -> Result<PointCloud, CloudError> {
     result.map_err(|e| e.in_file(path))
 }
 
+/// The sweep id and time (Unix s) that sqscand's own MCAP recording at `path` holds in its
+/// `sqscan.sweep` metadata; `None` for an MCAP file without them.
+#[cfg(feature = "mcap")]
+pub fn mcap_recorded_sweep(path: &Path) -> Result<Option<(u64, f64)>, CloudError> {
+    let bytes = read_regular(path).map_err(|e| CloudError::Io(e).in_file(path))?;
+    super::mcap::recorded_sweep(&bytes).map_err(|e| e.in_file(path))
+}
+
 /// The bytes of a regular file, opened without blocking (a FIFO would wait for a writer in
 /// open(2)); anything else (a FIFO, a device, a directory) is refused as not a regular file.
 fn read_regular(path: &Path) -> io::Result<Vec<u8>> {

@@ -64,6 +64,8 @@ struct Found<'a> {
     /// Channel id: its topic, schema id and message encoding.
     channels: HashMap<u16, (&'a str, u16, &'a str)>,
     viewpoint: Option<[f64; 7]>,
+    /// The sweep's id and time (Unix s) in sqscand's `sqscan.sweep` metadata.
+    sweep: Option<(u64, f64)>,
     /// The first PointCloud2 (topic, message), replaced by the first on [`POINTS_TOPIC`].
     cloud: Option<(&'a str, &'a [u8])>,
 }
@@ -151,17 +153,36 @@ fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(),
                     b: content,
                     what: "metadata",
                 };
-                if r.string()? == "sqscan.sweep"
-                    && let Some((_, v)) = r.map()?.into_iter().find(|(k, _)| *k == "viewpoint")
-                {
-                    found.viewpoint =
-                        serde_json::from_str(v).map_err(|e| format!("metadata sqscan.sweep: viewpoint {v:?}: {e}"))?;
+                if r.string()? == "sqscan.sweep" {
+                    let fields = r.map()?;
+                    let field = |key: &str| fields.iter().find(|(k, _)| *k == key).map(|(_, v)| *v);
+                    if let Some(v) = field("viewpoint") {
+                        found.viewpoint = serde_json::from_str(v)
+                            .map_err(|e| format!("metadata sqscan.sweep: viewpoint {v:?}: {e}"))?;
+                    }
+                    let id = field("id").and_then(|v| v.parse::<u64>().ok());
+                    let time = field("time")
+                        .and_then(|v| v.parse::<f64>().ok())
+                        .filter(|t| t.is_finite());
+                    found.sweep = id.zip(time);
                 }
             }
             _ => {}
         }
     }
     Ok(())
+}
+
+/// The sweep id and time (Unix s) of sqscand's own MCAP recording, from its `sqscan.sweep`
+/// metadata; `None` for a file without them (one from elsewhere).
+pub fn recorded_sweep(bytes: &[u8]) -> Result<Option<(u64, f64)>, CloudError> {
+    let bad = |msg: String| CloudError::Format(format!("MCAP: {msg}"));
+    let data = bytes
+        .strip_prefix(super::io::MCAP_MAGIC)
+        .ok_or_else(|| bad("no MCAP magic at the start".into()))?;
+    let mut found = Found::default();
+    records(data, &mut found, 0).map_err(bad)?;
+    Ok(found.sweep)
 }
 
 pub fn parse_mcap(bytes: &[u8]) -> Result<PointCloud, CloudError> {

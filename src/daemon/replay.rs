@@ -156,6 +156,28 @@ fn index(dir: &Path) -> Result<Vec<Item>> {
             report: meta.report,
         });
     }
+    // sqscand's MCAP recordings without their JSON keep their sweep ids and times (in their
+    // `sqscan.sweep` metadata); one that cannot be read is served with the other clouds, and
+    // its error is the dropped sweep's.
+    #[cfg(feature = "mcap")]
+    {
+        let unclaimed: Vec<&String> = names
+            .iter()
+            .filter(|n| n.to_ascii_lowercase().ends_with(".mcap") && !claimed.contains(n))
+            .collect();
+        for n in unclaimed {
+            let cloud = dir.join(n);
+            if let Ok(Some((id, time))) = crate::cloud::io::mcap_recorded_sweep(&cloud) {
+                claimed.push(n.clone());
+                recorded.push(Item {
+                    cloud,
+                    id: Some(id),
+                    time: Some(time),
+                    report: None,
+                });
+            }
+        }
+    }
     recorded.sort_by_key(|i| i.id);
     // MCAP files only where this build reads them.
     let served = |n: &str| {
