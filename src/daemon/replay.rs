@@ -517,10 +517,14 @@ mod tests {
         let over = tokio::time::timeout(Duration::from_millis(200), r.sweep(true, &devices)).await;
         assert!(over.is_err(), "a finished replay must wait, not fail in a loop");
         let s = &devices.snapshot()[0];
+        // Finished, not failed: the broken file's error stays the last one.
         assert!(
-            !s.connected && s.last_error.as_deref().unwrap().contains("over"),
+            !s.connected && s.finished.as_deref().unwrap().contains("all 3 sweeps served"),
             "{s:?}"
         );
+        assert!(s.last_error.as_deref().unwrap().contains("broken.pcd"), "{s:?}");
+        assert_eq!(s.json().state, crate::daemon::reply::DeviceState::Finished);
+        assert!(devices.finished().is_some() && devices.trouble().is_empty());
 
         let mut r = ReplayBackend::new(&d, 0.0, true).unwrap();
         for _ in 0..3 {
