@@ -361,7 +361,6 @@ impl Backend for HardwareBackend {
 /// One device path of [`HardwareBackend::check_devices`].
 fn check_device(field: &str, path: &std::path::Path) -> Result<Option<String>> {
     use std::os::unix::fs::{FileTypeExt, OpenOptionsExt};
-    use std::os::unix::io::AsRawFd;
     let shown = crate::spec::escape_controls(&path.display().to_string());
     let meta = match std::fs::metadata(path) {
         Ok(m) => m,
@@ -400,8 +399,7 @@ fn check_device(field: &str, path: &std::path::Path) -> Result<Option<String>> {
             )));
         }
     };
-    // SAFETY: isatty only reads the state of a descriptor this function owns.
-    if unsafe { libc::isatty(file.as_raw_fd()) } != 1 {
+    if !std::io::IsTerminal::is_terminal(&file) {
         anyhow::bail!("{field}: {shown} is a character device but not a terminal: not a serial port");
     }
     Ok(None)
