@@ -22,18 +22,7 @@ fn a_foxglove_client_sees_the_sweep_and_the_detection() {
     let Some(python) = python(&["websockets", "mcap_ros2"]) else {
         return;
     };
-    let dir = tmpdir("view");
-    let port = free_port();
-    let config = format!(
-        "[sim]\nscene = {:?}\nseed = 3\nrealtime = false\n[acquisition]\nmode = \"on_demand\"\n\
-         [server]\nframe_id = \"robot_base\"\n[foxglove]\nlisten = \"127.0.0.1:{port}\"\n",
-        root().join("scenes/fig3_table.toml")
-    );
-    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
-    let _daemon = sqscand(&dir, "sqscand", &[]);
-    wait_for("the view's port", Duration::from_secs(30), || {
-        std::net::TcpStream::connect(("127.0.0.1", port)).is_ok()
-    });
+    let (_daemon, dir, port) = on_demand_view("view");
     let mut client = Proc(
         Command::new(&python)
             .arg(root().join("tests/py/foxglove_client.py"))

@@ -173,25 +173,28 @@ fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(),
     Ok(())
 }
 
+/// One pass over an MCAP file's records: what [`records`] keeps.
+fn scan(bytes: &[u8]) -> Result<Found<'_>, CloudError> {
+    let data = bytes
+        .strip_prefix(super::io::MCAP_MAGIC)
+        .ok_or_else(|| bad("no MCAP magic at the start".into()))?;
+    let mut found = Found::default();
+    records(data, &mut found, 0).map_err(bad)?;
+    Ok(found)
+}
+
+fn bad(msg: String) -> CloudError {
+    CloudError::Format(format!("MCAP: {msg}"))
+}
+
 /// The sweep id and time (Unix s) of sqscand's own MCAP recording, from its `sqscan.sweep`
 /// metadata; `None` for a file without them (one from elsewhere).
 pub fn recorded_sweep(bytes: &[u8]) -> Result<Option<(u64, f64)>, CloudError> {
-    let bad = |msg: String| CloudError::Format(format!("MCAP: {msg}"));
-    let data = bytes
-        .strip_prefix(super::io::MCAP_MAGIC)
-        .ok_or_else(|| bad("no MCAP magic at the start".into()))?;
-    let mut found = Found::default();
-    records(data, &mut found, 0).map_err(bad)?;
-    Ok(found.sweep)
+    Ok(scan(bytes)?.sweep)
 }
 
 pub fn parse_mcap(bytes: &[u8]) -> Result<PointCloud, CloudError> {
-    let bad = |msg: String| CloudError::Format(format!("MCAP: {msg}"));
-    let data = bytes
-        .strip_prefix(super::io::MCAP_MAGIC)
-        .ok_or_else(|| bad("no MCAP magic at the start".into()))?;
-    let mut found = Found::default();
-    records(data, &mut found, 0).map_err(bad)?;
+    let found = scan(bytes)?;
     let Some((topic, message)) = found.cloud else {
         return Err(bad(format!("no {} message in CDR", schema::POINT_CLOUD2)));
     };
