@@ -937,27 +937,7 @@ fn start_rig(dir: &Path, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
 }
 
 fn start_rig_with(dir: &Path, protocol: &str, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
-    let ptu = dir.join("ptu");
-    let sensor = dir.join("sensor");
-    let child = Command::new(env!("CARGO_BIN_EXE_sqscan"))
-        .env("SQSCAN_MODELS_DIR", root().join("models"))
-        .args(["mock", "rig", "--protocol", protocol, "--scene"])
-        .arg(root().join("scenes/fig3_table.toml"))
-        .arg("--ptu-link")
-        .arg(&ptu)
-        .arg("--sensor-link")
-        .arg(&sensor)
-        .args(extra)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(dir.join("rig.log")).unwrap())
-        .spawn()
-        .unwrap();
-    let child = Proc(child);
-    wait_for("the rig's links", Duration::from_secs(30), || {
-        ptu.exists() && sensor.exists()
-    });
-    (child, ptu, sensor)
+    common::mock_rig(dir, protocol, extra)
 }
 
 fn hardware_config(ptu: &Path, sensor: &Path) -> String {
@@ -965,22 +945,7 @@ fn hardware_config(ptu: &Path, sensor: &Path) -> String {
 }
 
 fn hardware_config_with(ptu: &Path, sensor: &Path, protocol: &str, calibration: &str, tilt_to: f64) -> String {
-    format!(
-        r#"
-[hardware]
-calibration = "{}"
-ptu = {{ path = "{}", protocol = "{protocol}" }}
-sensor = {{ path = "{}" }}
-[sweep]
-tilt_from_rad = 0.49
-tilt_to_rad = {tilt_to}
-speed_rad_s = 0.12
-timeout_s = 5.0
-"#,
-        root().join("calibration").join(calibration).display(),
-        ptu.display(),
-        sensor.display()
-    )
+    common::rig_config(ptu, sensor, protocol, calibration, tilt_to)
 }
 
 #[test]
@@ -1300,6 +1265,7 @@ impl sqscan::daemon::Backend for FlatPatch {
         &mut self,
         _forward: bool,
         _devices: &sqscan::daemon::Devices,
+        _joints: &sqscan::daemon::JointFeed,
     ) -> Result<sqscan::daemon::Swept, sqscan::daemon::SweepFailure> {
         tokio::time::sleep(Duration::from_millis(20)).await;
         self.sweeps += 1;

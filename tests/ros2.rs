@@ -116,7 +116,9 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
     );
     assert_eq!(joints[0]["name"], json!(["ptu_pan", "ptu_tilt"]));
     assert!(stamps.windows(2).all(|w| w[0] <= w[1]), "{stamps:?}");
-    assert!((stamps[stamps.len() - 1] - cloud["stamp"].as_f64().unwrap()).abs() < 1e-6);
+    // The joint states go out as the sweep is made, the cloud once it is: each takes its stamp
+    // from the wall clock then, a few microseconds apart.
+    assert!((stamps[stamps.len() - 1] - cloud["stamp"].as_f64().unwrap()).abs() < 1e-3);
 
     // /tf: the pan and tilt joints as transforms at each profile, as the joint states have them:
     // with `/tf_static`, the sensor's frame reaches the base frame at every profile's time with
@@ -238,6 +240,120 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
         .map(String::from)
         .collect();
     assert!(errors.is_empty(), "error lines in a normal start and stop: {errors:#?}");
+}
+
+/// On the mock rig (PowerCube and SQPF sensor on ptys, at their real pace), a subscriber at ROS 2's
+/// default QoS (reliable, keep last 10) gets every joint state of three sweeps: each of the PTU's
+/// position samples as the driver reads it, so that `/tf` carries the joints through every
+/// profile's time. Sent as one burst after each sweep, a default reader kept 84 and 111 of 150.
+#[test]
+fn a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig() {
+    let Some(python) = python(&["cyclonedds"]) else {
+        return;
+    };
+    if !in_private_network("a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig") {
+        return;
+    }
+    let dir = tmpdir("ros2-paced");
+    let (_rig, ptu, sensor) = common::mock_rig(&dir, "powercube", &[]);
+    let config = format!(
+        "{}[acquisition]\nmode = \"on_demand\"\n[server]\nframe_id = \"base_link\"\n[ros2]\nnode = \"scanner\"\n",
+        common::rig_config(&ptu, &sensor, "powercube", "sim_rig.toml", 0.84)
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let _daemon = sqscand(&dir, "sqscand", &[]);
+    let out = Command::new(&python)
+        .arg(root().join("tests/py/dds_sub.py"))
+        .arg("--paced")
+        .arg(dir.join("sqscand.sock"))
+        .arg("3")
+        .arg("90")
+        .output()
+        .unwrap();
+    let log = || std::fs::read_to_string(dir.join("sqscand.log")).unwrap_or_default();
+    assert!(
+        out.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        log()
+    );
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let scans = m["scans"].as_array().unwrap();
+    assert_eq!(scans.len(), 3, "{m}\n{}", log());
+    let samples: u64 = scans
+        .iter()
+        .map(|s| s["sweep"]["report"]["position_samples"].as_u64().expect("a sweep"))
+        .sum();
+    let joints = m["joints"].as_array().unwrap();
+    let stamps: Vec<f64> = joints.iter().map(|j| j["stamp"].as_f64().unwrap()).collect();
+    let gaps: Vec<f64> = stamps.windows(2).map(|w| w[1] - w[0]).collect();
+    assert_eq!(
+        joints.len() as u64,
+        samples,
+        "joint states received of the three sweeps' position samples; gaps over 0.1 s: {:?}\n{}",
+        gaps.iter().filter(|g| **g > 0.1).collect::<Vec<_>>(),
+        log()
+    );
+    assert!(
+        gaps.iter().all(|g| *g > 0.0),
+        "joint states out of time order: {stamps:?}"
+    );
+
+    // /tf: the same samples as transforms.
+    let tf = m["tf"].as_array().unwrap();
+    assert_eq!(tf.len(), joints.len(), "/tf messages received\n{}", log());
+    for (t, j) in tf.iter().zip(joints) {
+        let tilt = j["position"][1].as_f64().unwrap();
+        assert_eq!(t[1]["child"], "ptu_tilt_link");
+        assert!(
+            (t[1]["stamp"].as_f64().unwrap() - j["stamp"].as_f64().unwrap()).abs() < 1e-9,
+            "{t} {j}"
+        );
+        assert!(
+            (t[1]["rotation"][1].as_f64().unwrap() - (tilt / 2.0).sin()).abs() < 1e-9,
+            "{t} {j}"
+        );
+    }
+
+    // Every profile's time lies between two samples at most 0.1 s apart: the tilt link, and
+    // with /tf_static the sensor, reaches the base frame at each profile's time; at the first
+    // and the last profile the interpolated tilt is the sweep's start and end.
+    let clouds = m["clouds"].as_array().unwrap();
+    assert_eq!(clouds.len(), 3, "clouds: {clouds:?}");
+    let tilt_at = |t: f64| -> Option<f64> {
+        let i = stamps.partition_point(|s| *s <= t);
+        if i == 0 || i == stamps.len() {
+            return None;
+        }
+        let (a, b) = (stamps[i - 1], stamps[i]);
+        assert!(b - a < 0.1, "no joint state between {a} and {b} (profile at {t})");
+        let ta = joints[i - 1]["position"][1].as_f64().unwrap();
+        let tb = joints[i]["position"][1].as_f64().unwrap();
+        Some(ta + (t - a) / (b - a) * (tb - ta))
+    };
+    for (cloud, scan) in clouds.iter().zip(scans) {
+        let last = cloud["stamp"].as_f64().unwrap();
+        let first = last - scan["sweep"]["report"]["duration_s"].as_f64().unwrap();
+        let start = tilt_at(first).unwrap_or_else(|| panic!("no joint states around {first}: {stamps:?}"));
+        let end = tilt_at(last).unwrap_or_else(|| panic!("no joint states around {last}: {stamps:?}"));
+        let within: Vec<f64> = stamps.iter().copied().filter(|s| *s >= first && *s <= last).collect();
+        assert!(
+            within.windows(2).all(|w| w[1] - w[0] < 0.1),
+            "a gap in the joint states: {within:?}"
+        );
+        // Back and forth: every other sweep runs from 0.84 rad back to 0.49.
+        let (low, high) = (start.min(end), start.max(end));
+        assert!(
+            (low - 0.49).abs() < 0.03 && (high - 0.84).abs() < 0.03,
+            "tilt {start} .. {end}"
+        );
+    }
+    let errors: Vec<String> = log()
+        .lines()
+        .filter(|l| l.contains("ERROR"))
+        .map(String::from)
+        .collect();
+    assert!(errors.is_empty(), "{errors:#?}");
 }
 
 /// Under systemd's `RestrictAddressFamilies` without `AF_NETLINK`, RustDDS listed no network

@@ -10,7 +10,7 @@ use nalgebra::Point3;
 use sqscan::geometry::PlacedSuperquadric;
 use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::{self, Scene};
-use sqscan::sweep::{Sweep, SweepError, SweepSettings, acquire};
+use sqscan::sweep::{Sweep, SweepError, SweepSettings, acquire, acquire_live};
 use sqscan_drivers::PanTilt;
 use sqscan_drivers::PtuKind;
 use sqscan_drivers::mock::Faults;
@@ -179,10 +179,21 @@ async fn a_sweep_and_its_return_assemble_onto_the_scene() {
     let s = acquire(&mut ptu, &mut sensor, &cal, &there).await.unwrap();
     check_sweep(&scene, &s, there.tilt_from_rad, there.tilt_to_rad, 0);
 
-    // Back again: the same call with the tilts swapped.
+    // Back again: the same call with the tilts swapped, each position sample handed on as it
+    // is read: all those the assembler used, in time order, during the move (the sweep's
+    // profiles lie between the first and the last).
     let back = there.reversed();
-    let s = acquire(&mut ptu, &mut sensor, &cal, &back).await.unwrap();
+    let mut live: Vec<(std::time::Instant, f64)> = Vec::new();
+    let s = acquire_live(&mut ptu, &mut sensor, &cal, &back, |p| live.push((p.t, p.tilt_rad)))
+        .await
+        .unwrap();
     check_sweep(&scene, &s, back.tilt_from_rad, back.tilt_to_rad, 0);
+    assert_eq!(live.len(), s.report.position_samples);
+    assert!(live.windows(2).all(|w| w[0].0 < w[1].0), "samples out of time order");
+    let start = s.start.expect("an assembled sweep's start");
+    let last = start + std::time::Duration::from_secs_f64(*s.stamp_s.last().unwrap());
+    assert!(live[0].0 <= start && live[live.len() - 1].0 >= last);
+    assert!((live[0].1 - back.tilt_from_rad).abs() < 0.01 && (live[live.len() - 1].1 - back.tilt_to_rad).abs() < 0.01);
     rig.shutdown();
 }
 

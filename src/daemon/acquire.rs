@@ -33,7 +33,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
             }
         }
         let result = tokio::select! {
-            r = backend.sweep(forward, &shared.devices) => r,
+            r = backend.sweep(forward, &shared.devices, &shared.joints) => r,
             () = stopped(&mut shutdown) => break,
         };
         match result {

@@ -8,7 +8,7 @@
 
 use std::future::Future;
 use std::sync::Mutex;
-use std::time::{Instant, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
 use super::reply::{DeviceJson, DeviceState};
 
@@ -26,7 +26,16 @@ pub trait Backend: Send + 'static {
     /// failures along the way are noted on `devices`. A failed sweep is dropped and counted by
     /// the caller, which asks again; a backend that must wait before retrying (a device's
     /// backoff) waits in here.
-    fn sweep(&mut self, forward: bool, devices: &Devices) -> impl Future<Output = Result<Swept, SweepFailure>> + Send;
+    ///
+    /// The joint angles go to `joints` as the sweep goes: every position sample a PTU gives
+    /// (hardware), each profile's angles at its time (the simulator), or a recorded sweep's all
+    /// at once (a replay).
+    fn sweep(
+        &mut self,
+        forward: bool,
+        devices: &Devices,
+        joints: &JointFeed,
+    ) -> impl Future<Output = Result<Swept, SweepFailure>> + Send;
 
     /// Leaves the devices quiet; bounded in time (the daemon is stopping).
     fn stop(&mut self) -> impl Future<Output = ()> + Send;
@@ -35,6 +44,78 @@ pub trait Backend: Send + 'static {
     /// a backend that knows no rig (a replay).
     fn mount(&self) -> Option<Mount> {
         None
+    }
+}
+
+/// The PTU's joint angles at one moment.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct JointSample {
+    /// Unix time (s).
+    pub unix_s: f64,
+    pub pan_rad: f64,
+    pub tilt_rad: f64,
+}
+
+/// Where a backend sends the joint angles as it learns them during a sweep, for whoever
+/// publishes them live (ROS 2's joint states and `/tf`). Sending never waits: a follower that
+/// falls more than [`JointFeed::CAPACITY`] samples behind loses the oldest and is told so.
+#[derive(Debug, Clone)]
+pub struct JointFeed(tokio::sync::broadcast::Sender<JointSample>);
+
+impl Default for JointFeed {
+    fn default() -> Self {
+        JointFeed(tokio::sync::broadcast::channel(Self::CAPACITY).0)
+    }
+}
+
+impl JointFeed {
+    /// Samples held for a follower: several sweeps' worth at a PTU's 50 Hz or a profile rate.
+    pub const CAPACITY: usize = 4096;
+
+    /// The angles at host time `t`. Non-finite angles (a sample the assembler would not use
+    /// either) are not sent.
+    pub fn send(&self, t: Instant, pan_rad: f64, tilt_rad: f64) {
+        if !(pan_rad.is_finite() && tilt_rad.is_finite()) || self.0.receiver_count() == 0 {
+            return;
+        }
+        let _ = self.0.send(JointSample {
+            unix_s: unix_s_of(t),
+            pan_rad,
+            tilt_rad,
+        });
+    }
+
+    /// Every profile's angles of a sweep whose last profile was exposed at `last_profile`, in
+    /// time order: each at `last_profile` less its time before the last profile, as the
+    /// published sweep stamps its profiles.
+    pub fn send_profiles(&self, sweep: &Sweep, last_profile: Instant) {
+        let last_stamp = sweep.stamp_s.last().copied().unwrap_or(0.0);
+        for (i, (pan, tilt)) in sweep.pan_rad.iter().zip(&sweep.tilt_rad).enumerate() {
+            let before = (last_stamp - sweep.stamp_s.get(i).copied().unwrap_or(last_stamp)).max(0.0);
+            let t = Duration::try_from_secs_f64(before)
+                .ok()
+                .and_then(|d| last_profile.checked_sub(d))
+                .unwrap_or(last_profile);
+            self.send(t, *pan, *tilt);
+        }
+    }
+
+    pub fn subscribe(&self) -> tokio::sync::broadcast::Receiver<JointSample> {
+        self.0.subscribe()
+    }
+}
+
+/// Unix time (s) of host time `t`: now on the wall clock less (or plus) how long ago it was.
+pub fn unix_s_of(t: Instant) -> f64 {
+    let now = Instant::now();
+    let wall = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .unwrap_or(Duration::ZERO)
+        .as_secs_f64();
+    if t <= now {
+        wall - now.duration_since(t).as_secs_f64()
+    } else {
+        wall + t.duration_since(now).as_secs_f64()
     }
 }
 

@@ -10,7 +10,7 @@ use sqscan_drivers::{AnyPtu, Error as DriverError, Link, PanTilt, PtuSettings, S
 use crate::calibration::Calibration;
 use crate::sweep::{self, SweepError, SweepSettings};
 
-use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
+use super::backend::{Backend, DeviceStatus, Devices, JointFeed, SweepFailure, Swept};
 use super::config::{HardwareConfig, SensorEndpoint, SweepConfig};
 
 /// First and longest wait before reopening a device that failed.
@@ -285,7 +285,7 @@ impl Backend for HardwareBackend {
         ]
     }
 
-    async fn sweep(&mut self, forward: bool, devices: &Devices) -> Result<Swept, SweepFailure> {
+    async fn sweep(&mut self, forward: bool, devices: &Devices, joints: &JointFeed) -> Result<Swept, SweepFailure> {
         self.ensure_open(devices).await?;
         let settings = if forward {
             self.settings.clone()
@@ -297,7 +297,10 @@ impl Backend for HardwareBackend {
                 message: "devices not open".into(),
             });
         };
-        let result = sweep::acquire(ptu, sensor, &self.calib, &settings).await;
+        let result = sweep::acquire_live(ptu, sensor, &self.calib, &settings, |s| {
+            joints.send(s.t, s.pan_rad, s.tilt_rad)
+        })
+        .await;
         match result {
             Ok(mut sweep) => {
                 sweep.report.profile_times = match self.cfg.sensor {

@@ -53,7 +53,7 @@ use anyhow::{Result, bail};
 
 use crate::model::{self, Model};
 
-pub use backend::{Backend, DeviceStatus, Devices, Recorded, SweepFailure, Swept};
+pub use backend::{Backend, DeviceStatus, Devices, JointFeed, JointSample, Recorded, SweepFailure, Swept};
 use config::{BackendConfig, Config};
 use hardware::HardwareBackend;
 use replay::ReplayBackend;

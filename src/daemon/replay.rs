@@ -22,7 +22,7 @@ use serde::Deserialize;
 use crate::cloud::{PointCloud, read_cloud};
 use crate::sweep::{Sweep, SweepReport};
 
-use super::backend::{Backend, DeviceStatus, Devices, Recorded, SweepFailure, Swept};
+use super::backend::{Backend, DeviceStatus, Devices, JointFeed, Recorded, SweepFailure, Swept};
 
 /// The one device the replay shows in `status`.
 const DEVICE: &str = "replay";
@@ -273,7 +273,7 @@ impl Backend for ReplayBackend {
         vec![d]
     }
 
-    async fn sweep(&mut self, _forward: bool, devices: &Devices) -> Result<Swept, SweepFailure> {
+    async fn sweep(&mut self, _forward: bool, devices: &Devices, joints: &JointFeed) -> Result<Swept, SweepFailure> {
         if self.next == self.items.len() {
             if !self.looping {
                 let n = self.items.len();
@@ -301,15 +301,19 @@ impl Backend for ReplayBackend {
         };
         self.previous = Some((Instant::now(), item.time));
         match loaded {
-            Ok(sweep) => Ok(Swept {
-                sweep,
-                started,
-                last_profile: Instant::now(),
-                recorded: Some(Recorded {
-                    id: item.id,
-                    file: item.cloud,
-                }),
-            }),
+            Ok(sweep) => {
+                let last_profile = Instant::now();
+                joints.send_profiles(&sweep, last_profile);
+                Ok(Swept {
+                    sweep,
+                    started,
+                    last_profile,
+                    recorded: Some(Recorded {
+                        id: item.id,
+                        file: item.cloud,
+                    }),
+                })
+            }
             Err(message) => {
                 devices.note_error(DEVICE, &message);
                 Err(SweepFailure { message })
@@ -509,12 +513,24 @@ mod tests {
         let devices = Devices::default();
         let mut r = ReplayBackend::new(&d, 0.0, false).unwrap();
         devices.set(r.devices());
-        let a = r.sweep(true, &devices).await.unwrap();
+        let a = r.sweep(true, &devices, &JointFeed::default()).await.unwrap();
         assert_eq!(a.recorded.as_ref().unwrap().id, Some(1));
-        assert_eq!(r.sweep(true, &devices).await.unwrap().recorded.unwrap().id, Some(2));
-        let e = r.sweep(true, &devices).await.err().unwrap();
+        assert_eq!(
+            r.sweep(true, &devices, &JointFeed::default())
+                .await
+                .unwrap()
+                .recorded
+                .unwrap()
+                .id,
+            Some(2)
+        );
+        let e = r.sweep(true, &devices, &JointFeed::default()).await.err().unwrap();
         assert!(e.message.contains("broken.pcd"), "{}", e.message);
-        let over = tokio::time::timeout(Duration::from_millis(200), r.sweep(true, &devices)).await;
+        let over = tokio::time::timeout(
+            Duration::from_millis(200),
+            r.sweep(true, &devices, &JointFeed::default()),
+        )
+        .await;
         assert!(over.is_err(), "a finished replay must wait, not fail in a loop");
         let s = &devices.snapshot()[0];
         // Finished, not failed: the broken file's error stays the last one.
@@ -528,8 +544,16 @@ mod tests {
 
         let mut r = ReplayBackend::new(&d, 0.0, true).unwrap();
         for _ in 0..3 {
-            let _ = r.sweep(true, &devices).await;
+            let _ = r.sweep(true, &devices, &JointFeed::default()).await;
         }
-        assert_eq!(r.sweep(true, &devices).await.unwrap().recorded.unwrap().id, Some(1));
+        assert_eq!(
+            r.sweep(true, &devices, &JointFeed::default())
+                .await
+                .unwrap()
+                .recorded
+                .unwrap()
+                .id,
+            Some(1)
+        );
     }
 }

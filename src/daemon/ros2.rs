@@ -4,7 +4,8 @@
 //! - the points topic (default `/sqscan/points`, `sensor_msgs/msg/PointCloud2`): every
 //!   completed sweep, organized, stamped with its last profile's time;
 //! - the joint states (`/sqscan/joint_states`, `sensor_msgs/msg/JointState`): the PTU's pan and
-//!   tilt at each profile, for `robot_state_publisher`;
+//!   tilt as each sweep goes (every position sample a rig's PTU gives, each profile's angles
+//!   from the simulator), for `robot_state_publisher`;
 //! - the detections (`/sqscan/detections`, `vision_msgs/msg/Detection3DArray`): every
 //!   detection as it is made, one object a message, an empty array for "not here";
 //! - the markers (`/sqscan/markers`, `visualization_msgs/msg/MarkerArray`): each detection's
@@ -13,7 +14,7 @@
 //! - `/tf_static` (`tf2_msgs/msg/TFMessage`, transient local): the PTU's mount in the base frame
 //!   and the sensor's on the tilt link, from the rig's calibration;
 //! - `/tf` (`tf2_msgs/msg/TFMessage`, with `publish_tf`, the default): the pan and tilt joints as
-//!   transforms at each profile, so that the sensor's frame reaches the base frame with no
+//!   transforms with each joint state, so that the sensor's frame reaches the base frame with no
 //!   `robot_state_publisher`.
 //!
 //! The messages are encoded once, by `crate::ros` (as the MCAP recordings and the live view
@@ -24,6 +25,7 @@
 
 use std::ops::Range;
 use std::sync::Arc;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::SystemTime;
 
 use anyhow::{Context as _, Result, anyhow};
@@ -43,14 +45,16 @@ use crate::ros::{self, Time};
 /// subscriber that does not acknowledge must not stall the sweeps.
 const WAIT_WHEN_FULL: std::time::Duration = std::time::Duration::from_millis(200);
 
-/// The pause before each joint state of a sweep. Published back to back, a sweep's 150 joint
-/// states reached a Cyclone DDS subscriber with a run of 30 to 100 of them missing in about one
-/// sweep in ten, and the reliable writer never repaired the run; paced, none went missing in
-/// 30 sweeps. 150 of them take 30 ms, far less than a sweep.
+/// The pause before each joint state. They come at a PTU's sample rate (20-50 ms apart) while
+/// a sweep goes, but all at once from a replay or a simulator that does not keep the rig's pace;
+/// published back to back, a sweep's 150 joint states reached a Cyclone DDS subscriber with a
+/// run of 30 to 100 of them missing in about one sweep in ten, and the reliable writer never
+/// repaired the run; paced, none went missing in 30 sweeps. 150 of them take 30 ms.
 const JOINT_STATE_PACE: std::time::Duration = std::time::Duration::from_micros(200);
 
-/// Joint states a sweep's worth of history holds: a message a profile, 150 at the rig's pace;
-/// kept for `depth` sweeps, as the other topics keep `depth` messages.
+/// Joint states a sweep's worth of history holds: a PTU's samples (about 150 over a sweep at
+/// 50 Hz) or a message a profile; kept for `depth` sweeps, as the other topics keep `depth`
+/// messages.
 const JOINT_STATES_PER_SWEEP: usize = 1000;
 
 /// A message in CDR as `crate::ros` encodes it (with its 4-byte encapsulation header), given to
@@ -121,8 +125,13 @@ impl Serialize for Encoded {
     }
 }
 
-/// Messages waiting for the publishing thread; past this the newest is dropped with a warning.
+/// Sweeps and detections waiting for the publishing thread; past this the newest is dropped
+/// with a warning (a sweep holds its cloud: the bound is on memory).
 const QUEUE: usize = 16;
+
+/// Messages of any kind waiting for the publishing thread: a few sweeps' joint samples (24 bytes
+/// each) besides the [`QUEUE`] sweeps and detections.
+const JOINT_QUEUE: usize = 4096;
 
 /// The node, made and with its publishers, before the daemon says it is ready: a configuration
 /// that asks for a node that cannot start is refused at start-up, not after "listening".
@@ -171,11 +180,16 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, started: Started) -> Resu
             tracing::warn!("/tf_static: {e:?}");
         }
     }
-    let (tx, rx) = mpsc::channel::<Event>(QUEUE);
-    let publisher = std::thread::Builder::new()
-        .name("ros2".into())
-        .spawn(move || publish_loop(rx, pubs, frame))
-        .context("the ROS 2 publishing thread")?;
+    let (tx, rx) = mpsc::channel::<Event>(QUEUE + JOINT_QUEUE);
+    // Sweeps and detections queued: at most QUEUE of them, whatever the joint samples do.
+    let heavy = Arc::new(AtomicUsize::new(0));
+    let publisher = {
+        let heavy = heavy.clone();
+        std::thread::Builder::new()
+            .name("ros2".into())
+            .spawn(move || publish_loop(rx, &heavy, pubs, frame))
+            .context("the ROS 2 publishing thread")?
+    };
     tracing::info!(
         "ROS 2 node {}{}{} on domain {}",
         cfg.namespace,
@@ -183,9 +197,21 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, started: Started) -> Resu
         cfg.node,
         cfg.domain_id
     );
-    let mut follow = topics::Follow::new(shared, "ROS 2 publishing");
+    let mut follow = topics::Follow::new(shared, "ROS 2 publishing").with_joints(shared);
     while let Some(event) = follow.next().await {
-        if tx.try_send(event).is_err() {
+        let queued = match event {
+            Event::Joints(_) => tx.try_send(event).is_ok(),
+            event => {
+                // Counted before it is sent: the thread may take it at once.
+                if heavy.fetch_add(1, Ordering::SeqCst) < QUEUE && tx.try_send(event).is_ok() {
+                    true
+                } else {
+                    heavy.fetch_sub(1, Ordering::SeqCst);
+                    false
+                }
+            }
+        };
+        if !queued {
             tracing::warn!("ROS 2 publishing is behind: a message was dropped");
         }
     }
@@ -320,24 +346,28 @@ fn start(cfg: &Ros2Config) -> Result<(Context, Node, Publishers)> {
     Ok((context, node, pubs))
 }
 
-fn publish_loop(mut rx: mpsc::Receiver<Event>, pubs: Publishers, frame: String) {
+fn publish_loop(mut rx: mpsc::Receiver<Event>, heavy: &AtomicUsize, pubs: Publishers, frame: String) {
     while let Some(out) = rx.blocking_recv() {
+        if !matches!(out, Event::Joints(_)) {
+            heavy.fetch_sub(1, Ordering::SeqCst);
+        }
         match out {
-            Event::Sweep(entry) => {
-                let mut transforms = pubs.tf.as_ref().map(|_| topics::tf_joints(&entry));
-                for (_, data) in topics::joint_states(&entry) {
-                    std::thread::sleep(JOINT_STATE_PACE);
-                    if let Err(e) = pubs.joints.publish(Encoded::new(data)) {
-                        tracing::warn!("ROS 2 joint states of sweep {}: {e:?}", entry.id);
-                        break;
-                    }
-                    if let (Some(tf), Some((_, data))) = (&pubs.tf, transforms.as_mut().and_then(Iterator::next)) {
-                        if let Err(e) = tf.publish(Encoded::new(data)) {
-                            tracing::warn!("ROS 2 /tf of sweep {}: {e:?}", entry.id);
-                            break;
-                        }
-                    }
+            Event::Joints(j) => {
+                let stamp = Time::from_unix_s(j.unix_s);
+                std::thread::sleep(JOINT_STATE_PACE);
+                if let Err(e) = pubs
+                    .joints
+                    .publish(Encoded::new(topics::joint_state(stamp, j.pan_rad, j.tilt_rad)))
+                {
+                    tracing::warn!("ROS 2 joint state at {:.3}: {e:?}", j.unix_s);
                 }
+                if let Some(tf) = &pubs.tf
+                    && let Err(e) = tf.publish(Encoded::new(topics::tf_joint(stamp, j.pan_rad, j.tilt_rad)))
+                {
+                    tracing::warn!("ROS 2 /tf at {:.3}: {e:?}", j.unix_s);
+                }
+            }
+            Event::Sweep(entry) => {
                 let (_, data) = topics::cloud(&entry, &frame);
                 if let Err(e) = pubs.points.publish(Encoded::point_cloud2(data)) {
                     tracing::warn!("ROS 2 cloud of sweep {}: {e:?}", entry.id);

@@ -10,7 +10,7 @@ use anyhow::{Context, Result};
 use crate::numeric::stream_seed;
 use crate::sim::{self, Scene};
 
-use super::backend::{Backend, DeviceStatus, Devices, SweepFailure, Swept};
+use super::backend::{Backend, DeviceStatus, Devices, JointFeed, SweepFailure, Swept};
 use super::config::SweepConfig;
 
 /// The simulated scanner.
@@ -71,7 +71,7 @@ impl Backend for SimBackend {
         vec![d]
     }
 
-    async fn sweep(&mut self, forward: bool, _devices: &Devices) -> Result<Swept, SweepFailure> {
+    async fn sweep(&mut self, forward: bool, _devices: &Devices, joints: &JointFeed) -> Result<Swept, SweepFailure> {
         let started = Instant::now();
         let mut scene = (*self.scene).clone();
         if !forward {
@@ -85,14 +85,32 @@ impl Backend for SimBackend {
             .map_err(|e| SweepFailure {
                 message: format!("simulator failed: {e}"),
             })?;
-        if self.realtime {
-            // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest.
+        let last_profile = if self.realtime {
+            // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest,
+            // and each profile's angles go out at its time, as a PTU's samples would.
+            for ((stamp, pan), tilt) in sweep.stamp_s.iter().zip(&sweep.pan_rad).zip(&sweep.tilt_rad) {
+                let at = Duration::try_from_secs_f64(*stamp)
+                    .ok()
+                    .and_then(|d| started.checked_add(d))
+                    .unwrap_or(started);
+                tokio::time::sleep_until(at.into()).await;
+                joints.send(at, *pan, *tilt);
+            }
             tokio::time::sleep_until((started + duration).into()).await;
-        }
+            let last = sweep.stamp_s.last().copied().unwrap_or(0.0);
+            Duration::try_from_secs_f64(last)
+                .ok()
+                .and_then(|d| started.checked_add(d))
+                .unwrap_or(started)
+        } else {
+            let now = Instant::now();
+            joints.send_profiles(&sweep, now);
+            now
+        };
         Ok(Swept {
             sweep,
             started,
-            last_profile: Instant::now(),
+            last_profile,
             recorded: None,
         })
     }

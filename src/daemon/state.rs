@@ -338,6 +338,8 @@ pub struct Shared {
     pub failure: watch::Sender<Option<String>>,
     /// Every detection as it is made, for whoever shows them (the live view).
     pub detected: tokio::sync::broadcast::Sender<DetectedEvent>,
+    /// The PTU's joint angles as the sweeps go (ROS 2 publishes them).
+    pub joints: super::backend::JointFeed,
 }
 
 /// A detection made, on which sweep, of which model.
@@ -378,6 +380,7 @@ impl Shared {
             shutdown: watch::channel(false).0,
             // A viewer that falls this far behind misses detections (it is told it lagged).
             detected: tokio::sync::broadcast::channel(64).0,
+            joints: Default::default(),
         }
     }
 

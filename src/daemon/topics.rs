@@ -11,7 +11,7 @@ use std::time::{Duration, SystemTime};
 
 use nalgebra::{Isometry3, Vector3};
 
-use super::backend::Mount;
+use super::backend::{JointSample, Mount};
 use super::state::{Detected, DetectedEvent, Shared, SweepEntry};
 use crate::calibration;
 use crate::model::Model;
@@ -63,10 +63,13 @@ pub fn first_profile_time(entry: &SweepEntry) -> Time {
 
 /// Each profile's `JointState` (pan and tilt), in time order, with its stamp.
 pub fn joint_states(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
-    profiles(entry).map(|(stamp, pan, tilt)| {
-        let h = Header { stamp, frame_id: "" };
-        (stamp, ros::joint_state(&h, &JOINT_NAMES, &[pan, tilt]))
-    })
+    profiles(entry).map(|(stamp, pan, tilt)| (stamp, joint_state(stamp, pan, tilt)))
+}
+
+/// One `JointState`: the pan and tilt at `stamp`.
+pub fn joint_state(stamp: Time, pan: f64, tilt: f64) -> Vec<u8> {
+    let h = Header { stamp, frame_id: "" };
+    ros::joint_state(&h, &JOINT_NAMES, &[pan, tilt])
 }
 
 /// The PTU frame (where the pan and tilt axes meet).
@@ -100,27 +103,29 @@ pub fn tf_static(frame: &str, m: &Mount, stamp: Time) -> Vec<u8> {
 /// Each profile's joints as transforms (`/tf`): the pan link in the PTU frame, the tilt link
 /// in the pan link, as the calibration chains them.
 pub fn tf_joints(entry: &SweepEntry) -> impl Iterator<Item = (Time, Vec<u8>)> + '_ {
-    profiles(entry).map(|(stamp, pan, tilt)| {
-        let data = ros::tf_message(&[
-            Transform {
-                header: Header {
-                    stamp,
-                    frame_id: PTU_FRAME,
-                },
-                child: PAN_FRAME,
-                transform: calibration::pan_link(pan),
+    profiles(entry).map(|(stamp, pan, tilt)| (stamp, tf_joint(stamp, pan, tilt)))
+}
+
+/// The joints at `stamp` as transforms (`/tf`).
+pub fn tf_joint(stamp: Time, pan: f64, tilt: f64) -> Vec<u8> {
+    ros::tf_message(&[
+        Transform {
+            header: Header {
+                stamp,
+                frame_id: PTU_FRAME,
             },
-            Transform {
-                header: Header {
-                    stamp,
-                    frame_id: PAN_FRAME,
-                },
-                child: TILT_FRAME,
-                transform: calibration::tilt_link(tilt),
+            child: PAN_FRAME,
+            transform: calibration::pan_link(pan),
+        },
+        Transform {
+            header: Header {
+                stamp,
+                frame_id: PAN_FRAME,
             },
-        ]);
-        (stamp, data)
-    })
+            child: TILT_FRAME,
+            transform: calibration::tilt_link(tilt),
+        },
+    ])
 }
 
 /// The sweep's range image (`sensor_msgs/Image`, `32FC1`): a row a profile, a column a sensor
@@ -249,12 +254,15 @@ pub fn detections(entry: &SweepEntry, detections: &[(Arc<Model>, Arc<Detected>)]
 pub enum Event {
     Sweep(Arc<SweepEntry>),
     Detection(DetectedEvent),
+    /// The joint angles as a sweep goes (only to a follower that asked for them).
+    Joints(JointSample),
 }
 
 /// The daemon's sweeps and detections as they come, until it stops.
 pub struct Follow {
     sweeps: tokio::sync::watch::Receiver<Option<Arc<SweepEntry>>>,
     detected: tokio::sync::broadcast::Receiver<DetectedEvent>,
+    joints: Option<tokio::sync::broadcast::Receiver<JointSample>>,
     shutdown: tokio::sync::watch::Receiver<bool>,
     /// Who follows, for the warning when detections were skipped.
     who: &'static str,
@@ -265,9 +273,16 @@ impl Follow {
         Follow {
             sweeps: shared.latest.subscribe(),
             detected: shared.detected.subscribe(),
+            joints: None,
             shutdown: shared.shutdown.subscribe(),
             who,
         }
+    }
+
+    /// Follows the joint angles too, as the backend reads them during each sweep.
+    pub fn with_joints(mut self, shared: &Shared) -> Follow {
+        self.joints = Some(shared.joints.subscribe());
+        self
     }
 
     /// The next sweep or detection; `None` once the daemon is stopping.
@@ -286,6 +301,11 @@ impl Follow {
                     Err(RecvError::Lagged(n)) => tracing::warn!("{} fell behind and skipped {n} detections", self.who),
                     Err(RecvError::Closed) => return None,
                 },
+                Some(sample) = next_joint(&mut self.joints) => match sample {
+                    Ok(sample) => return Some(Event::Joints(sample)),
+                    Err(RecvError::Lagged(n)) => tracing::warn!("{} fell behind and skipped {n} joint samples", self.who),
+                    Err(RecvError::Closed) => self.joints = None,
+                },
                 r = self.shutdown.changed() => {
                     if r.is_err() || *self.shutdown.borrow() {
                         return None;
@@ -293,6 +313,17 @@ impl Follow {
                 }
             }
         }
+    }
+}
+
+/// The next joint sample of a follower that follows them; `None` (the branch disabled) for one
+/// that does not.
+async fn next_joint(
+    joints: &mut Option<tokio::sync::broadcast::Receiver<JointSample>>,
+) -> Option<Result<JointSample, tokio::sync::broadcast::error::RecvError>> {
+    match joints {
+        Some(rx) => Some(rx.recv().await),
+        None => None,
     }
 }
 

@@ -144,6 +144,8 @@ async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
                 })
                 .await;
             }
+            // The view draws each sweep's joint states with the sweep.
+            topics::Event::Joints(_) => {}
         }
     }
     let _ = server.stop();

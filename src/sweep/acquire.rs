@@ -38,6 +38,19 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
     calib: &Calibration,
     settings: &SweepSettings,
 ) -> Result<Sweep, SweepError> {
+    acquire_live(ptu, sensor, calib, settings, |_| {}).await
+}
+
+/// [`acquire`], handing `live` every position sample of the sweep as it is read (those of
+/// steps 2, 4 and 6, in time order): the joint angles while the sweep is still going, for a
+/// joint-state publisher.
+pub async fn acquire_live<P: PanTilt, R: ProfileSource>(
+    ptu: &mut P,
+    sensor: &mut R,
+    calib: &Calibration,
+    settings: &SweepSettings,
+    mut live: impl FnMut(&PositionSample) + Send,
+) -> Result<Sweep, SweepError> {
     settings.validate()?;
     let approach = Goal {
         pan_rad: settings.pan_rad,
@@ -63,6 +76,7 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
 
     // 2. The sample before the first exposure.
     let mut samples: Vec<PositionSample> = vec![ptu.position().await.map_err(SweepError::Ptu)?];
+    live(&samples[0]);
 
     // 3. Acquisition on.
     sensor.start().await.map_err(SweepError::Sensor)?;
@@ -77,6 +91,10 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
         loop {
             tokio::select! {
                 r = &mut sweep => break Ok(r),
+                Some(s) = rx.recv() => {
+                    live(&s);
+                    samples.push(s);
+                }
                 r = sensor.next_profile(settings.timeout) => match r {
                     Ok(p) => profiles.push(p),
                     Err(e) => break Err(e),
@@ -86,6 +104,7 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
     };
     drop(tx);
     while let Ok(s) = rx.try_recv() {
+        live(&s);
         samples.push(s);
     }
     let last = match moved {
@@ -138,7 +157,9 @@ pub async fn acquire<P: PanTilt, R: ProfileSource>(
     }
 
     // 6. The sample after the last exposure.
-    samples.push(ptu.position().await.map_err(SweepError::Ptu)?);
+    let after = ptu.position().await.map_err(SweepError::Ptu)?;
+    live(&after);
+    samples.push(after);
 
     let sweep = assemble(&samples, &profiles, calib, settings.sensor_latency_s)?;
     tracing::debug!(report = ?sweep.report, "sweep assembled");

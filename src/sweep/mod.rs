@@ -50,7 +50,7 @@ use sqscan_drivers::sensor::ReceivedProfile;
 use crate::calibration::Calibration;
 use crate::cloud::{Field, FieldData, PointCloud};
 
-pub use acquire::acquire;
+pub use acquire::{acquire, acquire_live};
 
 /// What happened to the profiles of one sweep.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize, schemars::JsonSchema)]

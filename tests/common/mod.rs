@@ -199,3 +199,52 @@ pub fn raise_open_files() -> u64 {
     }
     r.rlim_cur
 }
+
+/// `sqscan mock rig` (the `protocol` PTU and the SQPF sensor on ptys, rendering the Fig. 3
+/// table) in its own process, with `extra` arguments, its log `dir/rig.log`; returns once both
+/// links exist, with the PTU's and the sensor's link.
+pub fn mock_rig(dir: &Path, protocol: &str, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
+    use std::process::{Command, Stdio};
+    let ptu = dir.join("ptu");
+    let sensor = dir.join("sensor");
+    let child = Command::new(env!("CARGO_BIN_EXE_sqscan"))
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
+        .args(["mock", "rig", "--protocol", protocol, "--scene"])
+        .arg(root().join("scenes/fig3_table.toml"))
+        .arg("--ptu-link")
+        .arg(&ptu)
+        .arg("--sensor-link")
+        .arg(&sensor)
+        .args(extra)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(dir.join("rig.log")).unwrap())
+        .spawn()
+        .unwrap();
+    let child = Proc(child);
+    wait_for("the rig's links", std::time::Duration::from_secs(30), || {
+        ptu.exists() && sensor.exists()
+    });
+    (child, ptu, sensor)
+}
+
+/// The `[hardware]` and `[sweep]` tables for a [`mock_rig`]: its links, the calibration
+/// `calibration/CALIBRATION`, a sweep from 0.49 rad to `tilt_to` at 0.12 rad/s.
+pub fn rig_config(ptu: &Path, sensor: &Path, protocol: &str, calibration: &str, tilt_to: f64) -> String {
+    format!(
+        r#"
+[hardware]
+calibration = "{}"
+ptu = {{ path = "{}", protocol = "{protocol}" }}
+sensor = {{ path = "{}" }}
+[sweep]
+tilt_from_rad = 0.49
+tilt_to_rad = {tilt_to}
+speed_rad_s = 0.12
+timeout_s = 5.0
+"#,
+        root().join("calibration").join(calibration).display(),
+        ptu.display(),
+        sensor.display()
+    )
+}

@@ -4,9 +4,15 @@ IDL definitions of the messages, as ROS 2 maps them to DDS (topic `rt/<name>`, t
 namespace with only loopback.
 
 Usage: dds_sub.py SOCKET OBJECT SECONDS [DOMAIN]
+       dds_sub.py --paced SOCKET SWEEPS SECONDS [DOMAIN]
 
 Waits until the daemon's topics have matched, asks the daemon (its socket) to find
 OBJECT, then prints one JSON object: the reply, and what arrived on each topic.
+
+With --paced it reads the joint states, `/tf` and the clouds as a ROS 2 node at the default
+QoS does (reliable, volatile, keep last 10), taking what has arrived every few milliseconds as
+an executor would, while another thread asks the daemon for SWEEPS scans one after the other;
+it prints the scans' replies and every message it received.
 """
 
 import json
@@ -14,6 +20,7 @@ import math
 import socket
 import struct
 import sys
+import threading
 import time
 from dataclasses import dataclass
 
@@ -313,7 +320,75 @@ def cloud_summary(m):
     }
 
 
+def joint_state(m):
+    return {"stamp": stamp(m.header), "name": list(m.name), "position": list(m.position)}
+
+
+def tf_transforms(m):
+    return [
+        {
+            "parent": t.header.frame_id,
+            "child": t.child_frame_id,
+            "stamp": stamp(t.header),
+            "rotation": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+                         t.transform.rotation.w],
+        }
+        for t in m.transforms
+    ]
+
+
+def paced():
+    path, sweeps, seconds = sys.argv[2], int(sys.argv[3]), float(sys.argv[4])
+    domain = int(sys.argv[5]) if len(sys.argv) > 5 else 0
+    dp = DomainParticipant(domain)
+    # rclcpp's default: reliable, volatile, keep last 10.
+    default = Qos(Policy.Reliability.Reliable(duration(milliseconds=100)), Policy.Durability.Volatile,
+                  Policy.History.KeepLast(10))
+    readers = {
+        "joints": DataReader(dp, Topic(dp, "rt/sqscan/joint_states", JointState), qos=default),
+        "tf": DataReader(dp, Topic(dp, "rt/tf", TFMessage), qos=default),
+        "points": DataReader(dp, Topic(dp, "rt/sqscan/points", PointCloud2), qos=default),
+    }
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        if all(r.get_subscription_matched_status().current_count > 0 for r in readers.values()):
+            break
+        time.sleep(0.05)
+    matched = {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
+    # The readers have matched the writers; a moment for the writers to match them.
+    time.sleep(0.5)
+    scans = []
+
+    def ask_scans():
+        for _ in range(sweeps):
+            scans.append(ask(path, {"cmd": "scan", "timeout_s": seconds}))
+
+    asking = threading.Thread(target=ask_scans)
+    asking.start()
+    got = {k: [] for k in readers}
+    done_at = None
+    while time.monotonic() - t0 < seconds:
+        for k, r in readers.items():
+            got[k].extend(r.take(N=100))
+        if not asking.is_alive():
+            done_at = done_at or time.monotonic()
+            # The last sweep's cloud, and the samples after its last profile, still on their way.
+            if time.monotonic() - done_at > 1.0:
+                break
+        time.sleep(0.005)
+    asking.join(timeout=1)
+    print(json.dumps({
+        "matched": matched,
+        "scans": scans,
+        "joints": [joint_state(m) for m in got["joints"]],
+        "tf": [tf_transforms(m) for m in got["tf"]],
+        "clouds": [{"stamp": stamp(m.header), "height": m.height, "width": m.width} for m in got["points"]],
+    }))
+
+
 def main():
+    if sys.argv[1] == "--paced":
+        return paced()
     path, obj, seconds = sys.argv[1], sys.argv[2], float(sys.argv[3])
     domain = int(sys.argv[4]) if len(sys.argv) > 4 else 0
     dp = DomainParticipant(domain)
@@ -356,9 +431,7 @@ def main():
     for k, r in readers.items():
         got[k].extend(r.take(N=1000))
     out["clouds"] = [cloud_summary(m) for m in got["points"]]
-    out["joints"] = [
-        {"stamp": stamp(m.header), "name": list(m.name), "position": list(m.position)} for m in got["joints"]
-    ]
+    out["joints"] = [joint_state(m) for m in got["joints"]]
     out["detections"] = [
         {
             "frame_id": m.header.frame_id,
@@ -391,19 +464,7 @@ def main():
         for m in got["tf_static"]
         for t in m.transforms
     ]
-    out["tf"] = [
-        [
-            {
-                "parent": t.header.frame_id,
-                "child": t.child_frame_id,
-                "stamp": stamp(t.header),
-                "rotation": [t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
-                             t.transform.rotation.w],
-            }
-            for t in m.transforms
-        ]
-        for m in got["tf"]
-    ]
+    out["tf"] = [tf_transforms(m) for m in got["tf"]]
     print(json.dumps(out))
 
 
