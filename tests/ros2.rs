@@ -315,6 +315,24 @@ fn a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig()
         );
     }
 
+    // The chain from the base frame to the sensor: /tf_static's two links around /tf's two.
+    let links: Vec<(&str, &str)> = m["tf_static"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .chain(tf[0].as_array().unwrap())
+        .map(|t| (t["parent"].as_str().unwrap(), t["child"].as_str().unwrap()))
+        .collect();
+    let mut frame = "base_link";
+    for _ in 0..4 {
+        frame = links
+            .iter()
+            .find(|(parent, _)| *parent == frame)
+            .unwrap_or_else(|| panic!("no transform from {frame}: {links:?}"))
+            .1;
+    }
+    assert_eq!(frame, "sqscan_sensor", "{links:?}");
+
     // Every profile's time lies between two samples at most 0.1 s apart: the tilt link, and
     // with /tf_static the sensor, reaches the base frame at each profile's time; at the first
     // and the last profile the interpolated tilt is the sweep's start and end.

@@ -348,6 +348,10 @@ def paced():
         "joints": DataReader(dp, Topic(dp, "rt/sqscan/joint_states", JointState), qos=default),
         "tf": DataReader(dp, Topic(dp, "rt/tf", TFMessage), qos=default),
         "points": DataReader(dp, Topic(dp, "rt/sqscan/points", PointCloud2), qos=default),
+        # As tf2's static listener subscribes.
+        "tf_static": DataReader(dp, Topic(dp, "rt/tf_static", TFMessage),
+                                qos=Qos(Policy.Reliability.Reliable(duration(milliseconds=100)),
+                                        Policy.Durability.TransientLocal, Policy.History.KeepLast(100))),
     }
     t0 = time.monotonic()
     while time.monotonic() - t0 < seconds:
@@ -383,6 +387,7 @@ def paced():
         "joints": [joint_state(m) for m in got["joints"]],
         "tf": [tf_transforms(m) for m in got["tf"]],
         "clouds": [{"stamp": stamp(m.header), "height": m.height, "width": m.width} for m in got["points"]],
+        "tf_static": [t for m in got["tf_static"] for t in tf_transforms(m)],
     }))
 
 
