@@ -34,14 +34,15 @@ fi
 export SQSCAN_REQUIRE_PACKAGE_TOOLS=1
 
 # The MCAP, live-view and ROS 2 tests check the daemon with independent readers from PyPI (mcap,
-# mcap-ros2-support's ROS 2 decoder, websockets for a Foxglove client, and Eclipse Cyclone DDS,
-# whose wheel carries its C library), in a venv of their own under target/.
+# mcap-ros2-support's ROS 2 decoder, rosbags for the recordings as rosbag2 bags, websockets for a
+# Foxglove client, and Eclipse Cyclone DDS, whose wheel carries its C library), in a venv of
+# their own under target/.
 venv=target/py-venv
-if ! "$venv/bin/python" -c "import mcap, mcap_ros2, websockets, cyclonedds" >/dev/null 2>&1; then
-    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support, websockets, cyclonedds)"
+if ! "$venv/bin/python" -c "import mcap, mcap_ros2, rosbags, websockets, cyclonedds" >/dev/null 2>&1; then
+    echo "test.sh: making $venv (PyPI: mcap, mcap-ros2-support, rosbags, websockets, cyclonedds)"
     python3 -m venv "$venv"
     "$venv/bin/pip" install --quiet --disable-pip-version-check \
-        mcap==1.6.0 mcap-ros2-support==0.6.0 websockets==15.0.1 cyclonedds==11.0.1
+        mcap==1.6.0 mcap-ros2-support==0.6.0 rosbags==0.11.9 websockets==15.0.1 cyclonedds==11.0.1
 fi
 export SQSCAN_PYTHON="$PWD/$venv/bin/python"
 export SQSCAN_REQUIRE_PYTHON_TOOLS=1

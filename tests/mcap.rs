@@ -200,3 +200,90 @@ fn a_recorded_sweep_reads_back_with_the_pypi_mcap_reader() {
     assert_eq!(again["confidence"], found["confidence"]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A recording directory is a rosbag2 bag with MCAP storage: PyPI `rosbags` opens it, lists
+/// each topic with the QoS it was offered at (`/tf_static` transient local), reads the clouds and
+/// the detections in time order from every file the directory keeps (pruned to the newest two
+/// of three), and finds in it everything it finds in a bag its own writer makes of the same
+/// messages. In file order too, every MCAP file's messages are in log-time order (the
+/// transforms of each profile once came 2.9 s after all the joint states).
+#[test]
+fn a_recording_directory_opens_as_a_rosbag2_bag() {
+    let Some(python) = python(&["mcap", "rosbags"]) else {
+        return;
+    };
+    // At the rig's pace: the sweeps follow each other in time, as a rig's do (a simulator that
+    // does not keep the pace stamps each sweep as just made, overlapping the one before).
+    let dir = tmpdir("bag");
+    let config = format!(
+        "[sim]\nscene = {:?}\nseed = 3\nrealtime = true\n[acquisition]\nmode = \"on_demand\"\n\
+         [record]\ndir = \"rec\"\nmcap = true\nkeep = 2\n[watch]\nobjects = [\"cup\"]\n",
+        root().join("scenes/fig3_table.toml")
+    );
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let _daemon = sqscand(&dir, "sqscand", &[]);
+    for _ in 0..3 {
+        let scan = ask(&socket, json!({"cmd":"scan","timeout_s":60}));
+        assert!(scan["sweep"]["id"].is_u64(), "{scan}");
+    }
+    let rec = dir.join("rec");
+    let metadata = rec.join("metadata.yaml");
+    wait_for("the third sweep in the bag", Duration::from_secs(30), || {
+        std::fs::read_to_string(&metadata).is_ok_and(|m| m.contains("sweep-00000003.mcap"))
+    });
+    let yaml = std::fs::read_to_string(&metadata).unwrap();
+    assert!(
+        yaml.contains("  version: 5\n") && !yaml.contains("sweep-00000001.mcap"),
+        "{yaml}"
+    );
+
+    let out = Command::new(&python)
+        .arg(root().join("tests/py/read_bag.py"))
+        .arg(&rec)
+        .arg(dir.join("rosbags-bag"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let m: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(m["differences"], json!([]), "{m}");
+    let topics = &m["bag"]["topics"];
+    for (topic, ty) in [
+        ("/sqscan/points", "sensor_msgs/msg/PointCloud2"),
+        ("/sqscan/joint_states", "sensor_msgs/msg/JointState"),
+        ("/sqscan/detections", "vision_msgs/msg/Detection3DArray"),
+        ("/sqscan/markers", "visualization_msgs/msg/MarkerArray"),
+        ("/sqscan/range", "sensor_msgs/msg/Image"),
+        ("/tf", "tf2_msgs/msg/TFMessage"),
+        ("/tf_static", "tf2_msgs/msg/TFMessage"),
+    ] {
+        assert_eq!(topics[topic]["type"], ty, "{topic}: {topics}");
+        assert_eq!(topics[topic]["qos"][0]["reliability"], "reliable", "{topic}: {topics}");
+    }
+    assert_eq!(
+        topics["/tf_static"]["qos"][0]["durability"], "transient_local",
+        "{topics}"
+    );
+    assert_eq!(topics["/tf_static"]["count"], 2);
+    assert_eq!(topics["/sqscan/points"]["qos"][0]["durability"], "volatile");
+    assert_eq!(topics["/sqscan/points"]["qos"][0]["depth"], 5);
+    assert_eq!(topics["/sqscan/points"]["count"], 2);
+    assert_eq!(m["in_time_order"], true);
+    let files = m["files_in_log_time_order"].as_object().unwrap();
+    assert_eq!(files.len(), 2, "{files:?}");
+    assert!(files.values().all(|v| v == true), "{files:?}");
+
+    // The clouds and the cup's detections, decoded, in time order, one a sweep.
+    let clouds = m["clouds"].as_array().unwrap();
+    assert_eq!(clouds.len(), 2);
+    for c in clouds {
+        assert_eq!(c["frame"], "base_link");
+        assert_eq!(c["t"], c["stamp"], "log time is the stamp");
+    }
+    assert!(clouds[0]["t"].as_u64() < clouds[1]["t"].as_u64());
+    let found = m["detections"].as_array().unwrap();
+    assert_eq!(found.len(), 2, "{found:?}");
+    for d in found {
+        assert_eq!(d["found"][0]["class"], "cup", "{d}");
+    }
+}

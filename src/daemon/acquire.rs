@@ -120,7 +120,8 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
     let written = tokio::task::spawn_blocking(move || {
         record::write_sweep(&dir, &e, &frame, extras)
             .map_err(|err| (true, format!("sweep {id} not recorded: {err:#}")))?;
-        record::prune(&dir, keep).map_err(|err| (false, format!("pruning the recordings: {err:#}")))
+        record::prune(&dir, keep).map_err(|err| (false, format!("pruning the recordings: {err:#}")))?;
+        record::index(&dir).map_err(|err| (false, format!("indexing the recordings: {err:#}")))
     })
     .await
     .unwrap_or_else(|join| {

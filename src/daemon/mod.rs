@@ -19,6 +19,8 @@
 
 mod acquire;
 mod backend;
+#[cfg(feature = "mcap")]
+mod bag;
 pub mod cli;
 mod cloud;
 pub mod config;

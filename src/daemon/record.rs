@@ -72,8 +72,10 @@ fn write_files(dir: &Path, entry: &SweepEntry, frame: &str, extras: Extras) -> R
     #[cfg(feature = "mcap")]
     if let Some(detections) = &extras.mcap {
         let name = format!("{stem}.mcap");
-        super::record_mcap::write(&dir.join(&name), entry, detections, extras.mount.as_ref(), frame, &meta)?;
+        let stats =
+            super::record_mcap::write(&dir.join(&name), entry, detections, extras.mount.as_ref(), frame, &meta)?;
         meta["mcap"] = json!(name);
+        meta["bag"] = serde_json::to_value(stats)?;
     }
     #[cfg(not(feature = "mcap"))]
     let _ = extras;
@@ -82,6 +84,18 @@ fn write_files(dir: &Path, entry: &SweepEntry, frame: &str, extras: Extras) -> R
         w.write_all(b"\n")?;
         Ok(())
     })
+}
+
+/// Makes the directory's MCAP files a rosbag2 bag again after a sweep was recorded or pruned
+/// (its `metadata.yaml`, [`super::bag`]); without the `mcap` feature, nothing.
+pub fn index(dir: &Path) -> Result<()> {
+    #[cfg(feature = "mcap")]
+    return super::bag::write_metadata(dir).context("the bag's metadata.yaml");
+    #[cfg(not(feature = "mcap"))]
+    {
+        let _ = dir;
+        Ok(())
+    }
 }
 
 /// Removes all but the newest `keep` recordings (by id in the name), PCD and JSON together;

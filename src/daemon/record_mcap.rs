@@ -1,5 +1,7 @@
 //! A sweep recorded as an MCAP file of ROS 2 messages (the `mcap` feature): what Foxglove opens
-//! and what `ros2 bag` tools read, beside or instead of the PCD. One file a sweep:
+//! and what `ros2 bag` tools read, beside or instead of the PCD, one of the storage files of the
+//! recording directory's rosbag2 bag ([`super::bag`]). One file a sweep, its messages in
+//! log-time order, each channel with the `offered_qos_profiles` rosbag2 records:
 //! - `/sqscan/points` (`sensor_msgs/msg/PointCloud2`): the organized cloud, stamped with the
 //!   last profile's time;
 //! - `/sqscan/joint_states` (`sensor_msgs/msg/JointState`): the PTU's pan and tilt at each
@@ -21,14 +23,15 @@ use std::sync::Arc;
 use anyhow::{Context, Result};
 
 use super::backend::Mount;
+use super::bag::{self, FileStats};
 use super::state::{Detected, SweepEntry};
 use super::topics;
 use crate::atomic::write_atomic;
 use crate::model::Model;
-use crate::ros::{Time, schema};
+use crate::ros::Time;
 
 /// Writes `path` (atomically, as the PCD and JSON are) for one sweep and the detections made on
-/// it.
+/// it; returns what it holds, for the bag's metadata.
 pub fn write(
     path: &Path,
     entry: &SweepEntry,
@@ -36,49 +39,60 @@ pub fn write(
     mount: Option<&Mount>,
     frame: &str,
     meta: &serde_json::Value,
-) -> Result<()> {
+) -> Result<FileStats> {
+    let mut stats = FileStats::default();
     write_atomic(path, |w| {
         let options = mcap::WriteOptions::new()
             .compression(None)
             .profile("ros2")
             .library(concat!("sqscand ", env!("CARGO_PKG_VERSION")));
         let mut out = options.create(&mut *w).context("starting the MCAP file")?;
-        let none = BTreeMap::new();
-        let mut channel = |name: &str, schema_text: String, topic: &str| -> Result<u16> {
-            let s = out.add_schema(name, "ros2msg", schema_text.as_bytes())?;
-            Ok(out.add_channel(s, topic, "cdr", &none)?)
-        };
-        let points = channel(schema::POINT_CLOUD2, schema::point_cloud2(), topics::POINTS)?;
-        let joints = channel(schema::JOINT_STATE, schema::joint_state(), topics::JOINTS)?;
-        let found = channel(
-            schema::DETECTION3D_ARRAY,
-            schema::detection3d_array(),
+        let mut channels: BTreeMap<&str, u16> = BTreeMap::new();
+        let mut topics_used = vec![
+            topics::JOINTS,
+            "/tf",
+            topics::POINTS,
+            topics::RANGE,
             topics::DETECTIONS,
-        )?;
-        // The joint states first, in time order, then the cloud and the detections at the end.
-        let range = channel(schema::IMAGE, schema::image(), topics::RANGE)?;
-        let tf = channel(schema::TF_MESSAGE, schema::tf_message(), "/tf")?;
-        let drawn = channel(schema::MARKER_ARRAY, schema::marker_array(), topics::MARKERS)?;
+            topics::MARKERS,
+        ];
+        if mount.is_some() {
+            topics_used.insert(0, "/tf_static");
+        }
+        for topic in topics_used {
+            let (name, definition) = bag::topic_type(topic).context("a recorded topic without a type")?;
+            let s = out.add_schema(name, "ros2msg", definition().as_bytes())?;
+            // As rosbag2 records a topic: with the QoS it was offered at.
+            let qos = BTreeMap::from([("offered_qos_profiles".to_string(), bag::offered_qos(topic))]);
+            channels.insert(topic, out.add_channel(s, topic, "cdr", &qos)?);
+        }
+        let mut sequence: BTreeMap<&str, u32> = BTreeMap::new();
+        // In log-time order, as a bag's messages are: the mount at the first profile's time, each
+        // profile's joint state and transforms, then the cloud and the rest at the last's.
+        let mut put = |topic: &'static str, stamp: Time, data: &[u8]| -> Result<()> {
+            let n = sequence.entry(topic).or_default();
+            out.write_to_known_channel(&message(channels[topic], *n, stamp), data)?;
+            *n += 1;
+            stats.count(topic, stamp.nanos());
+            Ok(())
+        };
         if let Some(m) = mount {
-            let tf_static = channel(schema::TF_MESSAGE, schema::tf_message(), "/tf_static")?;
             // Stamped with the first profile's time: every message of the file finds it.
             let first = topics::first_profile_time(entry);
-            out.write_to_known_channel(&message(tf_static, 0, first), &topics::tf_static(frame, m, first))?;
+            put("/tf_static", first, &topics::tf_static(frame, m, first))?;
         }
-        for (i, (stamp, data)) in topics::joint_states(entry).enumerate() {
-            out.write_to_known_channel(&message(joints, i as u32, stamp), &data)?;
-        }
-        for (i, (stamp, data)) in topics::tf_joints(entry).enumerate() {
-            out.write_to_known_channel(&message(tf, i as u32, stamp), &data)?;
+        for ((stamp, joint), (_, tf)) in topics::joint_states(entry).zip(topics::tf_joints(entry)) {
+            put(topics::JOINTS, stamp, &joint)?;
+            put("/tf", stamp, &tf)?;
         }
         let (stamp, data) = topics::cloud(entry, frame);
-        out.write_to_known_channel(&message(points, 0, stamp), &data)?;
+        put(topics::POINTS, stamp, &data)?;
         let (stamp, data) = topics::range_image(entry);
-        out.write_to_known_channel(&message(range, 0, stamp), &data)?;
+        put(topics::RANGE, stamp, &data)?;
         let (stamp, data) = topics::detections(entry, detections, frame);
-        out.write_to_known_channel(&message(found, 0, stamp), &data)?;
+        put(topics::DETECTIONS, stamp, &data)?;
         let (stamp, data) = topics::markers(entry, detections, frame);
-        out.write_to_known_channel(&message(drawn, 0, stamp), &data)?;
+        put(topics::MARKERS, stamp, &data)?;
         let mut fields = BTreeMap::new();
         if let Some(m) = meta.as_object() {
             for (k, v) in m {
@@ -94,7 +108,8 @@ pub fn write(
         })?;
         out.finish().context("finishing the MCAP file")?;
         Ok(())
-    })
+    })?;
+    Ok(stats)
 }
 
 fn message(channel_id: u16, sequence: u32, stamp: Time) -> mcap::records::MessageHeader {

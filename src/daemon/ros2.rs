@@ -52,10 +52,7 @@ const WAIT_WHEN_FULL: std::time::Duration = std::time::Duration::from_millis(200
 /// repaired the run; paced, none went missing in 30 sweeps. 150 of them take 30 ms.
 const JOINT_STATE_PACE: std::time::Duration = std::time::Duration::from_micros(200);
 
-/// Joint states a sweep's worth of history holds: a PTU's samples (about 150 over a sweep at
-/// 50 Hz) or a message a profile; kept for `depth` sweeps, as the other topics keep `depth`
-/// messages.
-const JOINT_STATES_PER_SWEEP: usize = 1000;
+use topics::JOINT_STATES_PER_SWEEP;
 
 /// A message in CDR as `crate::ros` encodes it (with its 4-byte encapsulation header), given to
 /// RustDDS's CDR serializer, which writes the body as it is: byte by byte, but for `blob`, the

@@ -27,6 +27,10 @@ pub const DETECTIONS: &str = "/sqscan/detections";
 pub const RANGE: &str = "/sqscan/range";
 /// The detections drawn (`visualization_msgs/msg/MarkerArray`).
 pub const MARKERS: &str = "/sqscan/markers";
+/// Joint states a sweep's worth of history holds: a PTU's samples (about 150 over a sweep at
+/// 50 Hz) or a message a profile; kept for `depth` sweeps, as the other topics keep `depth`
+/// messages.
+pub const JOINT_STATES_PER_SWEEP: usize = 1000;
 /// The joints' names in `JointState`.
 pub const JOINT_NAMES: [&str; 2] = ["ptu_pan", "ptu_tilt"];
 
