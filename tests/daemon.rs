@@ -967,6 +967,47 @@ fn mock_devices_on_ptys_find_the_cup() {
     assert_eq!(scan["sweep"]["report"]["profile_times"], "profile", "{scan}");
 }
 
+/// `sqscand --check --probe` opens the rig's devices and says what they report, without moving
+/// the unit; with the sensor gone it fails naming it.
+#[test]
+fn check_probe_reports_the_rigs_devices() {
+    let dir = tmpdir("probe");
+    let (rig, ptu, sensor) = start_rig(&dir, &[]);
+    std::fs::write(dir.join("sqscand.toml"), hardware_config(&ptu, &sensor)).unwrap();
+    let probe = || {
+        Command::new(env!("CARGO_BIN_EXE_sqscand"))
+            .arg("--config")
+            .arg(dir.join("sqscand.toml"))
+            .args(["--check", "--probe"])
+            .env("SQSCAN_MODELS_DIR", root().join("models"))
+            .stdin(Stdio::null())
+            .output()
+            .unwrap()
+    };
+    let out = probe();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}{}", String::from_utf8_lossy(&out.stderr));
+    let ptu_line = text
+        .lines()
+        .find(|l| l.starts_with("ptu "))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(
+        ptu_line.contains("PowerCube") && ptu_line.contains("limits pan ["),
+        "{ptu_line}"
+    );
+    let sensor_line = text
+        .lines()
+        .find(|l| l.starts_with("sensor "))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(sensor_line.contains("SQPF profiles of 256 columns"), "{sensor_line}");
+    assert!(!sensor_line.contains("calibration has"), "{sensor_line}");
+    drop(rig);
+    wait_for("the rig to go", Duration::from_secs(10), || !sensor.exists());
+    let out = probe();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("ptu "), "{err}");
+}
+
 #[test]
 fn a_flir_ptu_d46_rig_finds_the_cup() {
     // A PTU-D46 tilts down at negative positions (tilt range -47..+31 deg): mounted with tilt
@@ -1650,6 +1691,65 @@ fn an_unplugged_gige_camera_drops_the_sweep_and_comes_back() {
     );
     let (_d, socket) = start_daemon(&dir, &config, &[]);
     unplugged_device_comes_back(&dir, &socket, 1, "sensor", "sensor");
+}
+
+/// A camera that answers but is not a line-profile camera (aravis's stock emulator: no
+/// `AcquisitionLineRate`) was retried forever while `find` said no sweep had completed: the
+/// daemon now stops at start naming the feature, leaving no socket.
+#[cfg(feature = "gige")]
+#[test]
+fn a_gige_camera_without_a_needed_feature_stops_the_start_naming_it() {
+    if !in_private_network("a_gige_camera_without_a_needed_feature_stops_the_start_naming_it") {
+        return;
+    }
+    let dir = tmpdir("gige-stock");
+    let (_rig, ptu, _sensor) = start_rig(&dir, &[]);
+    let _camera = sqscan_drivers::mock::gige::StockFakeCamera::start("127.0.0.1").unwrap();
+    // A range format it has: the first feature it lacks is then the line rate.
+    let config = gige_config(&ptu, "features = [{ name = \"PixelFormat\", value = \"Mono16\" }]");
+    std::fs::write(dir.join("sqscand.toml"), config).unwrap();
+    let socket = dir.join("sqscand.sock");
+    let out = Command::new(env!("CARGO_BIN_EXE_sqscand"))
+        .arg("--config")
+        .arg(dir.join("sqscand.toml"))
+        .arg("--socket")
+        .arg(&socket)
+        .env("SQSCAN_MODELS_DIR", root().join("models"))
+        .env_remove("NOTIFY_SOCKET")
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "started with a 2D camera: {err}");
+    assert!(
+        err.contains("sensor gige://127.0.0.1") && err.contains("camera feature AcquisitionLineRate"),
+        "{err}"
+    );
+    assert!(!socket.exists(), "a socket was left behind");
+}
+
+/// A camera that does not answer yet (a robot may power it later) does not stop the start: the
+/// daemon serves, says the sensor is down and why, and keeps trying.
+#[cfg(feature = "gige")]
+#[test]
+fn an_unreachable_gige_camera_is_retried() {
+    if !in_private_network("an_unreachable_gige_camera_is_retried") {
+        return;
+    }
+    let dir = tmpdir("gige-absent");
+    let (_rig, ptu, _sensor) = start_rig(&dir, &[]);
+    let (_d, socket) = start_daemon(&dir, &gige_config(&ptu, ""), &[]);
+    let mut c = Client::connect(&socket);
+    wait_for("two failed opens of the camera", Duration::from_secs(30), || {
+        let s = c.ask(json!({"cmd":"status"}));
+        s["devices"][1]["failures"].as_u64().is_some_and(|n| n >= 2)
+    });
+    let s = c.ask(json!({"cmd":"status"}));
+    assert_eq!(s["devices"][1]["state"], "fault", "{s}");
+    assert!(
+        s["devices"][1]["last_error"].as_str().unwrap().contains("127.0.0.1"),
+        "{s}"
+    );
 }
 
 /// A models directory with the shipped models and one broken file, which the daemon logs as an

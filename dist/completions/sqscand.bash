@@ -23,7 +23,7 @@ _sqscand() {
 
     case "${cmd}" in
         sqscand)
-            opts="-h -V --config --socket --models-dir --replay --replay-speed --replay-loop --replay-step --check --help --version"
+            opts="-h -V --config --socket --models-dir --replay --replay-speed --replay-loop --replay-step --check --probe --help --version"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 1 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0

@@ -6,5 +6,6 @@ complete -c sqscand -l replay-speed -d 'With --replay: 1 replays at the recorded
 complete -c sqscand -l replay-loop -d 'With --replay: start again after the last sweep instead of stopping there'
 complete -c sqscand -l replay-step -d 'With --replay: serve one recorded sweep a request, the next each time a client asks for a fresh one (`sqscan scan`, or a `find` whose newest sweep is too old), at once; the file\'s acquisition mode becomes on_demand'
 complete -c sqscand -l check -d 'Run every start-up check (configuration, models, scene or calibration, serial devices) and exit'
+complete -c sqscand -l probe -d 'With --check: also open the configured PTU and sensor and say what they report (the PTU is not homed or moved; an SQPF sensor is started for one profile); fails naming the device that does not answer'
 complete -c sqscand -s h -l help -d 'Print help (see more with \'--help\')'
 complete -c sqscand -s V -l version -d 'Print version'

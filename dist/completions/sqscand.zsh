@@ -23,6 +23,7 @@ _sqscand() {
 '--replay-loop[With --replay\: start again after the last sweep instead of stopping there]' \
 '(--replay-speed)--replay-step[With --replay\: serve one recorded sweep a request, the next each time a client asks for a fresh one (\`sqscan scan\`, or a \`find\` whose newest sweep is too old), at once; the file'\''s acquisition mode becomes on_demand]' \
 '--check[Run every start-up check (configuration, models, scene or calibration, serial devices) and exit]' \
+'--probe[With --check\: also open the configured PTU and sensor and say what they report (the PTU is not homed or moved; an SQPF sensor is started for one profile); fails naming the device that does not answer]' \
 '-h[Print help (see more with '\''--help'\'')]' \
 '--help[Print help (see more with '\''--help'\'')]' \
 '-V[Print version]' \

@@ -114,6 +114,15 @@ fn main() -> ExitCode {
                 models.len(),
                 config.models_dir.display()
             );
+            if cli.probe {
+                let rt = tokio::runtime::Builder::new_current_thread()
+                    .enable_all()
+                    .build()
+                    .context("cannot start the runtime")?;
+                for line in rt.block_on(sqscan::daemon::probe(&config))? {
+                    println!("{line}");
+                }
+            }
             return Ok(());
         }
         let rt = tokio::runtime::Builder::new_multi_thread()

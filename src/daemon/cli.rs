@@ -49,4 +49,9 @@ pub struct DaemonCli {
     /// Run every start-up check (configuration, models, scene or calibration, serial devices) and exit
     #[arg(long)]
     pub check: bool,
+    /// With --check: also open the configured PTU and sensor and say what they report (the PTU
+    /// is not homed or moved; an SQPF sensor is started for one profile); fails naming the device
+    /// that does not answer
+    #[arg(long, requires = "check")]
+    pub probe: bool,
 }

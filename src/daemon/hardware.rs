@@ -55,6 +55,18 @@ impl ProfileSource for Sensor {
     }
 }
 
+/// Closes a sensor and waits until it is released, so that the next open (the acquisition's, or
+/// another program's) finds it free.
+async fn close_sensor(sensor: Sensor) {
+    match sensor {
+        Sensor::Sqpf(s) => drop(s),
+        #[cfg(feature = "gige")]
+        Sensor::Gige(c) => {
+            let _ = tokio::task::spawn_blocking(move || c.close()).await;
+        }
+    }
+}
+
 /// A device slot: the open device or when to try opening it again.
 struct Slot<T> {
     device: Option<T>,
@@ -213,6 +225,123 @@ impl HardwareBackend {
                 )));
             }
         })
+    }
+
+    /// At start-up, a GigE Vision camera that answers but lacks a feature the sensor needs, or
+    /// refuses a value the configuration sets, stops the start naming the feature: retrying
+    /// would not change it. One that does not answer yet is left to the acquisition, which
+    /// retries it with backoff (a robot may power its camera later). Other sensors and the PTU
+    /// are opened by the acquisition alone.
+    pub async fn check_camera(&self) -> Result<()> {
+        if !matches!(self.cfg.sensor, SensorEndpoint::Gige(_)) {
+            return Ok(());
+        }
+        match self.open_sensor().await {
+            Ok(sensor) => {
+                close_sensor(sensor).await;
+                Ok(())
+            }
+            Err(e @ DriverError::Feature { .. }) => Err(anyhow::anyhow!(
+                "sensor {}: {e} (docs/DAEMON.md lists the features the sensor needs)",
+                self.cfg.sensor
+            )),
+            Err(e) => {
+                tracing::warn!("sensor {}: {e}; trying again once the daemon runs", self.cfg.sensor);
+                Ok(())
+            }
+        }
+    }
+
+    /// `sqscand --check --probe`: opens each configured device and says what it found, one line
+    /// a device, leaving the PTU where it stands (no homing, no move) and the sensor stopped.
+    /// An SQPF sensor is started for one profile.
+    pub async fn probe(&self) -> Result<Vec<String>> {
+        let ptu_line = self
+            .probe_ptu()
+            .await
+            .with_context(|| format!("ptu {}", self.cfg.ptu_path.display()))?;
+        let sensor_line = self
+            .probe_sensor()
+            .await
+            .with_context(|| format!("sensor {}", self.cfg.sensor))?;
+        Ok(vec![ptu_line, sensor_line])
+    }
+
+    async fn probe_ptu(&self) -> Result<String> {
+        let settings = PtuSettings {
+            baud: Some(self.cfg.ptu_baud),
+            pan: self.calib.pan_axis(),
+            tilt: self.calib.tilt_axis(),
+            pan_module: self.cfg.pan_module,
+            tilt_module: self.cfg.tilt_module,
+        };
+        let mut ptu = self.cfg.ptu_kind.open(&self.cfg.ptu_path, &settings).await?;
+        let state = ptu.state().await?;
+        let l = ptu.limits();
+        let axis = |a: &sqscan_drivers::AxisState| {
+            format!(
+                "{:.4} rad{}{}",
+                a.position_rad,
+                if a.homed { "" } else { ", not homed" },
+                if a.fault { ", fault" } else { "" }
+            )
+        };
+        Ok(format!(
+            "ptu {}: {} at {} baud: pan {}, tilt {}; limits pan [{:.4}, {:.4}] rad, tilt [{:.4}, {:.4}] rad",
+            self.cfg.ptu_path.display(),
+            self.cfg.ptu_kind.model(),
+            self.cfg.ptu_baud,
+            axis(&state.pan),
+            axis(&state.tilt),
+            l.pan_rad.0,
+            l.pan_rad.1,
+            l.tilt_rad.0,
+            l.tilt_rad.1
+        ))
+    }
+
+    async fn probe_sensor(&self) -> Result<String> {
+        let mut sensor = self.open_sensor().await?;
+        let line = match &mut sensor {
+            Sensor::Sqpf(s) => {
+                s.start().await?;
+                let first = s.next_profile(Duration::from_secs(2)).await;
+                let stopped = s.stop().await;
+                let p = first?.profile;
+                stopped?;
+                let mut line = format!(
+                    "sensor {}: SQPF profiles of {} columns, {} fraction bits{}",
+                    self.cfg.sensor,
+                    p.columns(),
+                    p.fraction_bits,
+                    if p.intensity.is_some() { ", with intensity" } else { "" }
+                );
+                if p.columns() != self.calib.columns || p.fraction_bits != self.calib.fraction_bits {
+                    line.push_str(&format!(
+                        " (the calibration has {} columns, {} fraction bits: its profiles would be dropped)",
+                        self.calib.columns, self.calib.fraction_bits
+                    ));
+                }
+                line
+            }
+            #[cfg(feature = "gige")]
+            Sensor::Gige(c) => {
+                let i = c.info();
+                format!(
+                    "sensor {}: {} {} (serial {}): {} columns, {} profiles a block at {} Hz, {}",
+                    self.cfg.sensor,
+                    i.vendor,
+                    i.model,
+                    i.serial,
+                    i.width,
+                    i.rows_per_frame,
+                    i.line_rate_hz,
+                    i.pixel_format
+                )
+            }
+        };
+        close_sensor(sensor).await;
+        Ok(line)
     }
 
     /// Opens what is closed (respecting each device's backoff), waiting at most until the

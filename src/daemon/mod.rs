@@ -121,6 +121,17 @@ pub fn check(config: &Config) -> Result<BTreeMap<String, Arc<Model>>> {
     Ok(models)
 }
 
+/// `sqscand --check --probe`: [`check`], then opens the configured devices (a rig's PTU and
+/// sensor) and returns a line on each; an error names the device that failed. Other backends
+/// have no devices: their line says so.
+pub async fn probe(config: &Config) -> Result<Vec<String>> {
+    match &config.backend {
+        BackendConfig::Hardware(h) => HardwareBackend::new(h, &config.sweep)?.probe().await,
+        BackendConfig::Sim { .. } => Ok(vec!["the simulator has no devices to probe".into()]),
+        BackendConfig::Replay { .. } => Ok(vec!["a replay has no devices to probe".into()]),
+    }
+}
+
 /// A running daemon's handle, for `main` and for tests that run it in-process.
 pub struct Daemon {
     pub shared: Arc<Shared>,
@@ -147,6 +158,7 @@ impl Daemon {
                 for w in HardwareBackend::check_devices(h)? {
                     tracing::warn!("{w}");
                 }
+                backend.check_camera().await?;
                 let listeners = Listeners::bind(&config).await?;
                 Daemon::serve(config, models, backend, listeners, notifier)
             }

@@ -120,6 +120,26 @@ struct State {
     next_row: Mutex<Option<Instant>>,
 }
 
+/// aravis's own camera emulator with aravis's stock description (what `arv-fake-gv-camera`
+/// serves): a 2D camera with none of the line-profile features (no `DeviceScanType`, no
+/// `AcquisitionLineRate`), for checking that such a camera is refused by name. Serves until
+/// dropped.
+pub struct StockFakeCamera {
+    _emulator: GvFakeCamera,
+}
+
+impl StockFakeCamera {
+    pub fn start(address: &str) -> Result<StockFakeCamera, Error> {
+        let emulator = GvFakeCamera::new_full(Some(address), Some("GV01"), None);
+        if !emulator.is_running() {
+            return Err(Error::Camera(format!(
+                "stock mock at {address}: the emulator did not start (is the address on an interface, and port 3956 free?)"
+            )));
+        }
+        Ok(StockFakeCamera { _emulator: emulator })
+    }
+}
+
 /// A running mock camera. Dropping it unplugs it: the emulator stops and closes its sockets.
 pub struct FakeLineCamera {
     emulator: Option<GvFakeCamera>,
