@@ -1,4 +1,4 @@
-//! Hostile and broken input to the detector (issue 18): each case that once gave a wrong answer
+//! Hostile and broken input to the detector: each case that once gave a wrong answer
 //! keeps a test named after it. Bounds are asserted with a wide margin; the tight figures are in
 //! BENCHMARKS.md.
 

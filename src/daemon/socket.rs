@@ -63,7 +63,7 @@ mod tests {
         d
     }
 
-    /// Issue 18: `sqscand --socket FILE` deleted a regular file as a "stale socket".
+    /// `sqscand --socket FILE` once deleted a regular file as a "stale socket".
     #[tokio::test]
     async fn a_regular_file_is_not_taken_for_a_stale_socket() {
         let d = scratch("file");
@@ -75,7 +75,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
     }
 
-    /// Issue 18: the socket was bound under the umask's bits and only then given its mode. Now
+    /// The socket was once bound under the umask's bits and only then given its mode. Now
     /// it appears at its path with its mode, answers there, and leaves no private directory.
     #[tokio::test]
     async fn the_socket_appears_with_its_mode_and_a_stale_one_is_replaced() {

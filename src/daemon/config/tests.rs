@@ -103,7 +103,7 @@ fn errors_name_the_field() {
     assert!(e.contains("sokcet"), "{e}");
 }
 
-/// Issue 18: each of these passed, and some made `--check` itself panic
+/// Each of these passed, and some made `--check` itself panic
 /// (`Duration::from_secs_f64(1e20)`), killed a task at start (a pool of 2^62 threads, a
 /// sweep at 1e-300 rad/s) or left the daemon sweeping forever with nothing logged.
 #[test]
