@@ -377,6 +377,45 @@ fn the_tea_box_standing_is_not_answered_lying_across_free_space() {
     }
 }
 
+/// The Weetabix box as learned from mOSD learn28 (`sqscan learn --label 2`): 52 x 180 x 261 mm.
+const LEARNED_WEETABIX_BOX: &str =
+    "name = \"weetabix_box\"\n[[part]]\nname = \"body\"\na = [0.026, 0.09, 0.1304]\ne1 = 0.1\ne2 = 0.1\n";
+
+/// In mOSD test8 the Weetabix box (object 3) lies flat behind the gittis box standing in front of
+/// it, which hides more than half of its top: its best placement covered 41 % of its visible
+/// side, short of the 45 % the acceptance test asks, and it was not found. The surface another
+/// object hides now counts where the rest of the side, where the sensor could see it, was seen.
+/// Over seeds 0-4 it is found there and never on the gittis box (object 2); with hidden surface
+/// not counted, not at seed 5.
+#[test]
+fn the_weetabix_box_half_hidden_behind_the_gittis_box_is_found() {
+    let cloud = read_cloud(&data("test8.pcd")).unwrap();
+    let at = centroids(&cloud, &[2, 3]);
+    let (gittis, weetabix) = (at[0].1, at[1].1);
+    let model = Model::from_toml_str(LEARNED_WEETABIX_BOX, std::path::Path::new("weetabix_box.toml")).unwrap();
+    let found_near = |params: &Params, p: Point3<f64>| {
+        detect(&cloud.points, &model, params)
+            .detections
+            .iter()
+            .filter(|d| d.found && (Point3::from(d.pose.translation.vector) - p).norm() < 0.05)
+            .count()
+    };
+    for seed in 0..5u64 {
+        assert!(
+            found_near(&every_instance(seed), weetabix) > 0,
+            "seed {seed}: not found"
+        );
+        assert_eq!(
+            found_near(&every_instance(seed), gittis),
+            0,
+            "seed {seed}: on the gittis box"
+        );
+    }
+    let mut hidden_not_counted = every_instance(5);
+    hidden_not_counted.acceptance.min_coverage_hidden = 1.0;
+    assert_eq!(found_near(&hidden_not_counted, weetabix), 0);
+}
+
 /// `sqscan learn --at X,Y,Z` on the carried file, its JSON report.
 fn learn_at(file: &str, at: &str) -> serde_json::Value {
     let dir = std::env::temp_dir().join(format!(

@@ -84,6 +84,9 @@ pub fn assess(
     let worst = margins.iter().copied().fold(f64::INFINITY, f64::min);
     let worst = if worst.is_nan() { f64::NEG_INFINITY } else { worst };
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
+    // Short of coverage alone: the surface missing may be hidden by what stands in front.
+    let others = margins[1..].iter().copied().fold(f64::INFINITY, f64::min);
+    let short_of_coverage = (worst < 0.0 && others >= 0.0 && coverage >= acc.min_coverage_hidden).then_some(others);
     Detection {
         found: worst >= 0.0,
         confidence,
@@ -91,6 +94,7 @@ pub fn assess(
         parts,
         connection_errors,
         upright: None,
+        short_of_coverage,
     }
 }
 
@@ -155,7 +159,7 @@ pub fn free_space(
         if accepted >= limit {
             break;
         }
-        if !d.found {
+        if !d.found && d.short_of_coverage.is_none() {
             continue;
         }
         if i >= checked {
@@ -196,7 +200,7 @@ pub fn judge_in_order<T: Sync, R: Send>(
                 break;
             }
             let (r, mut d) = make(&items[i]);
-            if d.found {
+            if d.found || d.short_of_coverage.is_some() {
                 check_free_space(prep, &mut d, params);
             }
             let passed = d.found;
@@ -222,7 +226,20 @@ pub fn judge_in_order<T: Sync, R: Send>(
 /// The free-space check of one candidate: each part's visible surface must not be where the
 /// sensor saw through; it clears `found` when a part fails and bounds the confidence by the
 /// margin.
+///
+/// A candidate short of coverage alone is accepted here where each part's covered and hidden
+/// surface together reach the coverage bound, and what of it the sensor could see it did
+/// (`min_seen_hidden`): an object behind another, or under what stands on it, shows less than
+/// its visible side.
 pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
+    let acc = &params.acceptance;
+    let hidden_rescue = if d.found { None } else { d.short_of_coverage };
+    if let Some(others) = hidden_rescue {
+        // Judged again with the hidden surface counted: the other margins, and the coverage
+        // with what is hidden below.
+        d.found = true;
+        d.confidence = 1.0 / (1.0 + (-4.0 * others).exp());
+    }
     for (k, part) in d.parts.iter().enumerate() {
         let Some(placed) = part.placed else { continue };
         let vis = visibility::visibility(
@@ -235,8 +252,15 @@ pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
         );
         let t = placed.pose.translation.vector;
         tracing::debug!("visibility {} at ({:.3} {:.3} {:.3}) {vis}", part.name, t.x, t.y, t.z);
-        let margin = (vis.seen_ratio() - params.acceptance.min_seen) / 0.1;
-        if margin < 0.0 || vis.reaches_into_free_space(params.acceptance.max_deep_see_through) {
+        let mut margin = (vis.seen_ratio() - acc.min_seen) / 0.1;
+        if hidden_rescue.is_some() {
+            let hidden = vis.occluded as f64 / (vis.facing as f64).max(1.0);
+            let with_hidden = (part.scores.coverage + hidden - acc.min_coverage) / 0.15;
+            margin = margin
+                .min((vis.seen_ratio() - acc.min_seen_hidden) / 0.1)
+                .min(with_hidden);
+        }
+        if margin < 0.0 || vis.reaches_into_free_space(acc.max_deep_see_through) {
             d.found = false;
         }
         d.confidence = d.confidence.min(1.0 / (1.0 + (-4.0 * margin).exp()));
@@ -325,6 +349,7 @@ mod tests {
             parts: Vec::new(),
             connection_errors: Vec::new(),
             upright: None,
+            short_of_coverage: None,
         };
         let items: Vec<usize> = (0..12).collect();
         let make = |passing: &'static [usize]| {

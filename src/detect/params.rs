@@ -40,6 +40,14 @@ pub struct Params {
 pub struct Acceptance {
     /// Least share of the visible surface that must hold points.
     pub min_coverage: f64,
+    /// Least coverage of a candidate whose other measures pass and whose missing surface is
+    /// hidden behind other objects: it is accepted where the covered and the hidden surface
+    /// together reach `min_coverage` and the part of it in the sensor's view was seen
+    /// (`min_seen_hidden`).
+    pub min_coverage_hidden: f64,
+    /// Least [`super::visibility::Visibility::seen_ratio`] of a candidate accepted with hidden
+    /// surface.
+    pub min_seen_hidden: f64,
     /// Most inside points per surface point.
     pub max_interior_ratio: f64,
     /// Most points just outside the surface per surface point.
@@ -67,6 +75,8 @@ impl Default for Acceptance {
     fn default() -> Self {
         Acceptance {
             min_coverage: 0.45,
+            min_coverage_hidden: 0.3,
+            min_seen_hidden: 0.9,
             max_interior_ratio: 0.15,
             max_shell_ratio: 0.08,
             max_continued_ratio: 0.1,

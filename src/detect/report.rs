@@ -31,6 +31,10 @@ pub struct Detection {
     /// For a model with an open part, on a support plane: whether its opening faces up (false:
     /// it stands on its rim).
     pub upright: Option<bool>,
+    /// The acceptance test failed on coverage alone, by no more than the surface that another
+    /// object may hide: the least of its other margins; the free-space check decides (see
+    /// [`super::accept::check_free_space`]).
+    pub short_of_coverage: Option<f64>,
 }
 
 /// Milliseconds spent in each stage.
@@ -178,6 +182,7 @@ mod tests {
             ],
             connection_errors: vec![(2.6f64.to_radians(), 0.004)],
             upright: None,
+            short_of_coverage: None,
         };
         assert_eq!(
             d.to_string(),
