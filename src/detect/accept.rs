@@ -86,7 +86,10 @@ pub fn assess(
     let confidence = 1.0 / (1.0 + (-4.0 * worst).exp());
     // Short of coverage alone: the surface missing may be hidden by what stands in front.
     let others = margins[1..].iter().copied().fold(f64::INFINITY, f64::min);
-    let short_of_coverage = (worst < 0.0 && others >= 0.0 && coverage >= acc.min_coverage_hidden).then_some(others);
+    // (Not a compound missing a part: nothing says that part is hidden.)
+    let all_placed = parts.iter().all(|p| p.placed.is_some());
+    let short_of_coverage =
+        (worst < 0.0 && others >= 0.0 && all_placed && coverage >= acc.min_coverage_hidden).then_some(others);
     Detection {
         found: worst >= 0.0,
         confidence,
