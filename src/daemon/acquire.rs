@@ -113,7 +113,7 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
         extras.mcap = Some(found);
         extras.mount = shared.mount;
     }
-    let (keep, frame) = (config.record_keep, config.frame_id.clone());
+    let (keep, frame, mcap) = (config.record_keep, config.frame_id.clone(), config.record_mcap);
     let e = entry.clone();
     let id = entry.id;
     // (whether the sweep's recording is lost, what failed)
@@ -121,7 +121,7 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
         record::write_sweep(&dir, &e, &frame, extras)
             .map_err(|err| (true, format!("sweep {id} not recorded: {err:#}")))?;
         record::prune(&dir, keep).map_err(|err| (false, format!("pruning the recordings: {err:#}")))?;
-        record::index(&dir).map_err(|err| (false, format!("indexing the recordings: {err:#}")))
+        record::index(&dir, mcap).map_err(|err| (false, format!("indexing the recordings: {err:#}")))
     })
     .await
     .unwrap_or_else(|join| {

@@ -146,16 +146,20 @@ impl HardwareBackend {
         })
     }
 
-    async fn open_ptu(&self) -> Result<AnyPtu<SerialLink>, DriverError> {
-        let path = &self.cfg.ptu_path;
-        let settings = PtuSettings {
+    /// How the configured PTU is opened: its line speed, module ids and the calibration's axes.
+    fn ptu_settings(&self) -> PtuSettings {
+        PtuSettings {
             baud: Some(self.cfg.ptu_baud),
             pan: self.calib.pan_axis(),
             tilt: self.calib.tilt_axis(),
             pan_module: self.cfg.pan_module,
             tilt_module: self.cfg.tilt_module,
-        };
-        let mut ptu = self.cfg.ptu_kind.open(path, &settings).await?;
+        }
+    }
+
+    async fn open_ptu(&self) -> Result<AnyPtu<SerialLink>, DriverError> {
+        let path = &self.cfg.ptu_path;
+        let mut ptu = self.cfg.ptu_kind.open(path, &self.ptu_settings()).await?;
         // A unit that lost its reference (power cycle) or latched a fault (the unplug) must be
         // homed before it moves; one that is fine is left where it is.
         let state = ptu.state().await?;
@@ -230,15 +234,16 @@ impl HardwareBackend {
     /// At start-up, a GigE Vision camera that answers but lacks a feature the sensor needs, or
     /// refuses a value the configuration sets, stops the start naming the feature: retrying
     /// would not change it. One that does not answer yet is left to the acquisition, which
-    /// retries it with backoff (a robot may power its camera later). Other sensors and the PTU
-    /// are opened by the acquisition alone.
-    pub async fn check_camera(&self) -> Result<()> {
+    /// retries it with backoff (a robot may power its camera later). A camera that opens is kept
+    /// open for the first sweep. Other sensors and the PTU are opened by the acquisition alone.
+    pub async fn check_camera(&mut self) -> Result<()> {
         if !matches!(self.cfg.sensor, SensorEndpoint::Gige(_)) {
             return Ok(());
         }
         match self.open_sensor().await {
             Ok(sensor) => {
-                close_sensor(sensor).await;
+                tracing::info!("sensor open on {}", self.cfg.sensor);
+                self.sensor.opened(sensor);
                 Ok(())
             }
             Err(e @ DriverError::Feature { .. }) => Err(anyhow::anyhow!(
@@ -268,14 +273,7 @@ impl HardwareBackend {
     }
 
     async fn probe_ptu(&self) -> Result<String> {
-        let settings = PtuSettings {
-            baud: Some(self.cfg.ptu_baud),
-            pan: self.calib.pan_axis(),
-            tilt: self.calib.tilt_axis(),
-            pan_module: self.cfg.pan_module,
-            tilt_module: self.cfg.tilt_module,
-        };
-        let mut ptu = self.cfg.ptu_kind.open(&self.cfg.ptu_path, &settings).await?;
+        let mut ptu = self.cfg.ptu_kind.open(&self.cfg.ptu_path, &self.ptu_settings()).await?;
         let state = ptu.state().await?;
         let l = ptu.limits();
         let axis = |a: &sqscan_drivers::AxisState| {
@@ -396,21 +394,27 @@ impl Backend for HardwareBackend {
     }
 
     fn devices(&self) -> Vec<DeviceStatus> {
+        let mut sensor = DeviceStatus::new(
+            "sensor",
+            self.cfg.sensor.to_string(),
+            match self.cfg.sensor {
+                SensorEndpoint::Gige(_) => "GigE Vision line-profile camera",
+                _ => "SQPF profile sensor",
+            }
+            .into(),
+        );
+        // A camera opened by the start-up check.
+        if self.sensor.device.is_some() {
+            sensor.connected = true;
+            sensor.opens = 1;
+        }
         vec![
             DeviceStatus::new(
                 "ptu",
                 self.cfg.ptu_path.display().to_string(),
                 format!("{} at {} baud", self.cfg.ptu_kind.model(), self.cfg.ptu_baud),
             ),
-            DeviceStatus::new(
-                "sensor",
-                self.cfg.sensor.to_string(),
-                match self.cfg.sensor {
-                    SensorEndpoint::Gige(_) => "GigE Vision line-profile camera",
-                    _ => "SQPF profile sensor",
-                }
-                .into(),
-            ),
+            sensor,
         ]
     }
 

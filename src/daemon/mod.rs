@@ -154,7 +154,7 @@ impl Daemon {
                 Daemon::serve(config, models, backend, listeners, notifier)
             }
             BackendConfig::Hardware(h) => {
-                let backend = HardwareBackend::new(h, &config.sweep)?;
+                let mut backend = HardwareBackend::new(h, &config.sweep)?;
                 for w in HardwareBackend::check_devices(h)? {
                     tracing::warn!("{w}");
                 }

@@ -87,15 +87,15 @@ fn write_files(dir: &Path, entry: &SweepEntry, frame: &str, extras: Extras) -> R
 }
 
 /// Makes the directory's MCAP files a rosbag2 bag again after a sweep was recorded or pruned
-/// (its `metadata.yaml`, [`super::bag`]); without the `mcap` feature, nothing.
-pub fn index(dir: &Path) -> Result<()> {
+/// (its `metadata.yaml`, [`super::bag`]), where MCAP files are recorded (`mcap`) or a bag is
+/// already there (recorded before, its files being pruned); without the `mcap` feature, nothing.
+pub fn index(dir: &Path, mcap: bool) -> Result<()> {
     #[cfg(feature = "mcap")]
-    return super::bag::write_metadata(dir).context("the bag's metadata.yaml");
-    #[cfg(not(feature = "mcap"))]
-    {
-        let _ = dir;
-        Ok(())
+    if mcap || dir.join(super::bag::METADATA).exists() {
+        return super::bag::write_metadata(dir).context("the bag's metadata.yaml");
     }
+    let _ = (dir, mcap);
+    Ok(())
 }
 
 /// Removes all but the newest `keep` recordings (by id in the name), PCD and JSON together;

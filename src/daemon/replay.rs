@@ -511,26 +511,18 @@ mod tests {
         write(&d.join("broken.pcd"), &organized(1, 3));
         meta(&d, 2, 11.0);
         let devices = Devices::default();
+        let joints = JointFeed::default();
         let mut r = ReplayBackend::new(&d, 0.0, false).unwrap();
         devices.set(r.devices());
-        let a = r.sweep(true, &devices, &JointFeed::default()).await.unwrap();
+        let a = r.sweep(true, &devices, &joints).await.unwrap();
         assert_eq!(a.recorded.as_ref().unwrap().id, Some(1));
         assert_eq!(
-            r.sweep(true, &devices, &JointFeed::default())
-                .await
-                .unwrap()
-                .recorded
-                .unwrap()
-                .id,
+            r.sweep(true, &devices, &joints).await.unwrap().recorded.unwrap().id,
             Some(2)
         );
-        let e = r.sweep(true, &devices, &JointFeed::default()).await.err().unwrap();
+        let e = r.sweep(true, &devices, &joints).await.err().unwrap();
         assert!(e.message.contains("broken.pcd"), "{}", e.message);
-        let over = tokio::time::timeout(
-            Duration::from_millis(200),
-            r.sweep(true, &devices, &JointFeed::default()),
-        )
-        .await;
+        let over = tokio::time::timeout(Duration::from_millis(200), r.sweep(true, &devices, &joints)).await;
         assert!(over.is_err(), "a finished replay must wait, not fail in a loop");
         let s = &devices.snapshot()[0];
         // Finished, not failed: the broken file's error stays the last one.
@@ -544,15 +536,10 @@ mod tests {
 
         let mut r = ReplayBackend::new(&d, 0.0, true).unwrap();
         for _ in 0..3 {
-            let _ = r.sweep(true, &devices, &JointFeed::default()).await;
+            let _ = r.sweep(true, &devices, &joints).await;
         }
         assert_eq!(
-            r.sweep(true, &devices, &JointFeed::default())
-                .await
-                .unwrap()
-                .recorded
-                .unwrap()
-                .id,
+            r.sweep(true, &devices, &joints).await.unwrap().recorded.unwrap().id,
             Some(1)
         );
     }

@@ -88,20 +88,18 @@ impl Backend for SimBackend {
         let last_profile = if self.realtime {
             // The real rig takes the sweep's duration; pacing keeps sweep ages and rates honest,
             // and each profile's angles go out at its time, as a PTU's samples would.
-            for ((stamp, pan), tilt) in sweep.stamp_s.iter().zip(&sweep.pan_rad).zip(&sweep.tilt_rad) {
-                let at = Duration::try_from_secs_f64(*stamp)
+            let at = |s: f64| {
+                Duration::try_from_secs_f64(s)
                     .ok()
                     .and_then(|d| started.checked_add(d))
-                    .unwrap_or(started);
-                tokio::time::sleep_until(at.into()).await;
-                joints.send(at, *pan, *tilt);
+                    .unwrap_or(started)
+            };
+            for ((stamp, pan), tilt) in sweep.stamp_s.iter().zip(&sweep.pan_rad).zip(&sweep.tilt_rad) {
+                tokio::time::sleep_until(at(*stamp).into()).await;
+                joints.send(at(*stamp), *pan, *tilt);
             }
             tokio::time::sleep_until((started + duration).into()).await;
-            let last = sweep.stamp_s.last().copied().unwrap_or(0.0);
-            Duration::try_from_secs_f64(last)
-                .ok()
-                .and_then(|d| started.checked_add(d))
-                .unwrap_or(started)
+            at(sweep.stamp_s.last().copied().unwrap_or(0.0))
         } else {
             let now = Instant::now();
             joints.send_profiles(&sweep, now);

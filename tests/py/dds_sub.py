@@ -320,6 +320,16 @@ def cloud_summary(m):
     }
 
 
+def wait_matched(readers, seconds):
+    """Waits up to SECONDS for every reader to match a writer; how many each matched."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < seconds:
+        if all(r.get_subscription_matched_status().current_count > 0 for r in readers.values()):
+            break
+        time.sleep(0.05)
+    return {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
+
+
 def joint_state(m):
     return {"stamp": stamp(m.header), "name": list(m.name), "position": list(m.position)}
 
@@ -354,11 +364,7 @@ def paced():
                                         Policy.Durability.TransientLocal, Policy.History.KeepLast(100))),
     }
     t0 = time.monotonic()
-    while time.monotonic() - t0 < seconds:
-        if all(r.get_subscription_matched_status().current_count > 0 for r in readers.values()):
-            break
-        time.sleep(0.05)
-    matched = {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
+    matched = wait_matched(readers, seconds)
     # The readers have matched the writers; a moment for the writers to match them.
     time.sleep(0.5)
     scans = []
@@ -414,11 +420,7 @@ def main():
         "tf": DataReader(dp, Topic(dp, "rt/tf", TFMessage), qos=Qos(reliable, Policy.History.KeepLast(1000))),
     }
     t0 = time.monotonic()
-    while time.monotonic() - t0 < seconds:
-        if all(r.get_subscription_matched_status().current_count > 0 for r in readers.values()):
-            break
-        time.sleep(0.05)
-    matched = {k: r.get_subscription_matched_status().current_count for k, r in readers.items()}
+    matched = wait_matched(readers, seconds)
     out = {"matched": matched, "match_s": time.monotonic() - t0}
     print(json.dumps({"progress": "matched", **matched}), file=sys.stderr, flush=True)
     out["reply"] = ask(path, {"cmd": "find", "object": obj, "timeout_s": 60})
