@@ -164,6 +164,61 @@ pub fn initial_poses(
     out
 }
 
+/// The starts turned so that the part's axis nearest the support plane's normal lies along it,
+/// where it was more than a few degrees off: objects rest on the table or on something parallel
+/// to it, and a patch across an edge of a box lying there (its front and its top) has central
+/// moments at 45 degrees to the box's faces, a basin the fit does not leave. Each is placed one
+/// half-size behind the patch, as in [`initial_poses`].
+fn level_starts(
+    shape: &Superquadric,
+    sample: &[Point3<f64>],
+    starts: &[Isometry3<f64>],
+    normal: &Vector3<f64>,
+) -> Vec<Isometry3<f64>> {
+    const MIN_TILT: f64 = 0.15;
+    if shape.is_revolution() {
+        return Vec::new();
+    }
+    let (c, e) = crate::geometry::principal_axes(sample);
+    let patch_normal = e[0];
+    let mut out = Vec::new();
+    for s in starts {
+        let r = s.rotation;
+        let Some((k, cos)) = (0..3)
+            .map(|k| (k, (r * Vector3::ith(k, 1.0)).dot(normal)))
+            .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+        else {
+            continue;
+        };
+        let axis = r * Vector3::ith(k, 1.0);
+        let target = if cos >= 0.0 { *normal } else { -normal };
+        if axis.dot(&target).clamp(-1.0, 1.0).acos() < MIN_TILT {
+            continue;
+        }
+        let Some(turn) = UnitQuaternion::rotation_between(&axis, &target) else {
+            continue;
+        };
+        let q = turn * r;
+        let local_n = q.inverse() * patch_normal;
+        let depth = (local_n.x * shape.a[0])
+            .abs()
+            .max((local_n.y * shape.a[1]).abs())
+            .max((local_n.z * shape.a[2]).abs());
+        // The same side of the patch as the start it came from.
+        let side = (s.translation.vector - c).try_normalize(1e-12).unwrap_or(-patch_normal);
+        let start = Isometry3::from_parts((c + side * depth).into(), q);
+        // Starts a turn of the patch apart level to the same pose (the box across its edge).
+        let repeats = |o: &Isometry3<f64>| {
+            o.rotation.angle_to(&q) < MIN_TILT
+                && (o.translation.vector - start.translation.vector).norm() < 0.25 * depth
+        };
+        if !out.iter().any(repeats) {
+            out.push(start);
+        }
+    }
+    out
+}
+
 /// Fit the best of several starts: every start gets a short fit on half the sample, the best
 /// continues on all of it. A trial's pose only has to be good enough for the refinement to take
 /// over, so its fit stops at a 0.1 % improvement.
@@ -297,7 +352,14 @@ fn trial(
     check: &PlaneCheck,
 ) -> Option<(usize, Fit)> {
     let radius = sample_radius(shape);
-    let mut starts = initial_poses(shape, sample, space.viewpoint, check.rest_axis(space));
+    let rest_axis = check.rest_axis(space);
+    let mut starts = initial_poses(shape, sample, space.viewpoint, rest_axis);
+    if rest_axis.is_none()
+        && let Some(plane) = space.plane
+    {
+        let level = level_starts(shape, sample, &starts, &plane.normal);
+        starts.extend(level);
+    }
     // A start turned so that the part reaches through the support plane further than the
     // sample spans is turned the wrong way for this patch (a flat part set on its edge
     // beside a patch near the table): fitted, it ends where the plane does not allow it,
@@ -532,5 +594,86 @@ mod tests {
         let of_subset = spatial_regions(&morton, &subset, 4);
         let expected: Vec<usize> = morton.iter().map(|&i| i as usize).filter(|i| i % 3 != 0).collect();
         assert_eq!(of_subset.concat(), expected);
+    }
+}
+
+#[cfg(test)]
+mod level_start_tests {
+    use super::*;
+
+    /// A box lying on the plane z = 0: 52 mm high (its x), 180 mm deep (its y, along the world's
+    /// y), 261 mm long (its z, along the world's x), as the Weetabix box lies under a stack.
+    fn lying_box() -> (Superquadric, Isometry3<f64>) {
+        let shape = Superquadric::new([0.026, 0.09, 0.1305], 0.1, 0.1, 0.0, 0.0).unwrap();
+        let r = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[Vector3::z(), -Vector3::y(), Vector3::x()]));
+        let pose = Isometry3::from_parts(
+            Vector3::new(0.0, 0.0, 0.026).into(),
+            UnitQuaternion::from_rotation_matrix(&r),
+        );
+        (shape, pose)
+    }
+
+    /// The points of its front face (y = -0.09) and its top (z = 0.052) within `radius` of the
+    /// middle of the edge between them: the patch a seed on that edge draws.
+    fn patch_across_the_edge(radius: f64) -> Vec<Point3<f64>> {
+        let edge = Point3::new(0.0, -0.09, 0.052);
+        let mut out = Vec::new();
+        for i in -40..=40 {
+            for j in 0..=40 {
+                let u = 0.003 * i as f64;
+                let w = 0.003 * j as f64;
+                for p in [Point3::new(u, -0.09, 0.052 - w), Point3::new(u, -0.09 + w, 0.052)] {
+                    if (p - edge).norm() <= radius && p.z >= 0.0 {
+                        out.push(p);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Whether two box frames agree up to the box's symmetries: each axis along the same line.
+    fn same_frame(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>, degrees: f64) -> bool {
+        (0..3).all(|k| {
+            let c = (a * Vector3::ith(k, 1.0)).dot(&(b * Vector3::ith(k, 1.0))).abs();
+            c >= degrees.to_radians().cos()
+        })
+    }
+
+    #[test]
+    fn a_patch_across_a_lying_boxs_edge_gets_a_start_level_with_the_table() {
+        let (shape, truth) = lying_box();
+        let sample = patch_across_the_edge(sample_radius(&shape));
+        let viewpoint = Some(Point3::new(0.0, -0.8, 0.6));
+        let starts = initial_poses(&shape, &sample, viewpoint, None);
+        // The patch's moments lie at 45 degrees to both faces: no start is the box's frame.
+        assert!(!starts.iter().any(|s| same_frame(&s.rotation, &truth.rotation, 15.0)));
+        let level = level_starts(&shape, &sample, &starts, &Vector3::z());
+        assert!(!level.is_empty());
+        for s in &level {
+            let up = (0..3)
+                .map(|k| (s.rotation * Vector3::ith(k, 1.0)).z.abs())
+                .fold(0.0, f64::max);
+            assert!(up > 1.0 - 1e-9, "a level start has an axis along the normal: {up}");
+        }
+        let right = level
+            .iter()
+            .filter(|s| same_frame(&s.rotation, &truth.rotation, 1.0))
+            .count();
+        assert!(right >= 1, "no level start in the box's frame");
+        // Fitted from all of them, the box ends where it lies: its height and its depth behind
+        // the front face (the patch does not show its ends: along its length it may slide).
+        let all: Vec<Isometry3<f64>> = starts.iter().chain(&level).copied().collect();
+        let fit = fit_from_starts(&shape, &all, &sample, 60).unwrap();
+        let error = fit.placed.pose.translation.vector - truth.translation.vector;
+        assert!(error.y.hypot(error.z) < 0.005, "fitted {error:?} m from the truth");
+        assert!(same_frame(&fit.placed.pose.rotation, &truth.rotation, 3.0));
+        // From the moment starts alone the fit stays in their basin.
+        let alone = fit_from_starts(&shape, &starts, &sample, 60).unwrap();
+        let error = alone.placed.pose.translation.vector - truth.translation.vector;
+        assert!(
+            error.y.hypot(error.z) > 0.01 || !same_frame(&alone.placed.pose.rotation, &truth.rotation, 3.0),
+            "the moment starts alone found it: {error:?}"
+        );
     }
 }
