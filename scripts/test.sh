@@ -68,6 +68,11 @@ fi
 export SQSCAN_NODE_MODULES="$PWD/$js/node_modules"
 export SQSCAN_REQUIRE_NODE_TOOLS=1
 
+# Lints first: clippy and rustdoc clean under -D warnings, every target and feature (the lints
+# allowed on purpose are in Cargo.toml's [workspace.lints], each with its reason).
+cargo clippy --workspace --all-targets --all-features --locked -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --document-private-items --all-features --locked
+
 # The GigE Vision and ROS 2 (DDS) tests run inside a private network namespace with only loopback
 # (unshare -n, root): they say SKIPPED where none can be had.
 cargo test --workspace --locked --all-features

@@ -203,10 +203,10 @@ impl Model {
                     format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a),
                 ));
             }
-            if let Some(m) = p.m {
-                if !(1..=1000).contains(&m) {
-                    return Err(bad(field("m"), format!("{m} hypotheses: give 1 to 1000")));
-                }
+            if let Some(m) = p.m
+                && !(1..=1000).contains(&m)
+            {
+                return Err(bad(field("m"), format!("{m} hypotheses: give 1 to 1000")));
             }
             let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
             parts.push(Part {

@@ -176,7 +176,9 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
     std::fs::create_dir_all(&dir).unwrap();
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
     // (scene, [(object, class, pose, support)], [(part, centroid, pose)])
-    let scenes: [(&str, &[(&str, &str, &str, &str)], &[(&str, [f64; 3], &str)]); 2] = [
+    type Objects<'a> = &'a [(&'a str, &'a str, &'a str, &'a str)];
+    type Parts<'a> = &'a [(&'a str, [f64; 3], &'a str)];
+    let scenes: [(&str, Objects, Parts); 2] = [
         (
             "mug_on_book",
             &[

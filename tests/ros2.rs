@@ -1026,7 +1026,7 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
     const PHANTOMS: u64 = 1_000_000;
     const DATAGRAMS: u64 = 300_000;
     let closed_port = |p: u64| 20000 + 2 * (p as u32 % 10000);
-    let mut rng = Rng(0x5eed_0f_f100d);
+    let mut rng = Rng(0x5eed0ff100d);
     let out = UdpSocket::bind("127.0.0.1:0").unwrap();
     let mut peak = before;
     let mut sent = 0u64;

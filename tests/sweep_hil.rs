@@ -85,11 +85,7 @@ fn check_sweep(scene: &Scene, s: &Sweep, from: f64, to: f64, corrupt_every: usiz
     assert_eq!(r.kept + dropped, r.received, "{r:?}");
     assert_eq!(r.dropped_duplicate + r.dropped_out_of_order, 0, "{r:?}");
     // A frame failing its CRC is skipped by the decoder: its sequence number is missing.
-    let corrupted = if corrupt_every == 0 {
-        0
-    } else {
-        r.received / corrupt_every
-    };
+    let corrupted = r.received.checked_div(corrupt_every).unwrap_or(0);
     assert!(
         r.missing_seq >= corrupted.saturating_sub(1) && r.missing_seq <= corrupted + 1,
         "{} missing, every {corrupt_every}th frame corrupted: {r:?}",

@@ -16,7 +16,7 @@ use super::state::Shared;
 
 /// `cloud` payloads in memory at once, over all clients: each is held from its encoding until
 /// the client's writer has written it (or given up on a client that does not read, after
-/// [`WRITE_TIMEOUT`]), so clients that ask for clouds and never read cannot pile them up.
+/// [`WRITE_TIMEOUT`](super::server::WRITE_TIMEOUT)), so clients that ask for clouds and never read cannot pile them up.
 pub const CLOUD_SLOTS: usize = 4;
 
 /// How often a `cloud` request looks whether its client has read what was sent to it.

@@ -1,5 +1,5 @@
 //! The hardware backend: a pan-tilt unit and a profile sensor, opened (and reopened after a
-//! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire`].
+//! fault, with backoff) by the daemon, swept with [`crate::sweep::acquire()`].
 
 use std::time::{Duration, Instant};
 

@@ -53,8 +53,11 @@ pub struct SweepEntry {
     detections: Mutex<HashMap<DetectionKey, DetectionCell>>,
     /// The filtered cloud without its plane, by the load it was made under (the range cut is
     /// the configuration's); `None` where making it failed.
-    scenes: Mutex<HashMap<u64, Arc<OnceCell<Option<Arc<detect::Scene>>>>>>,
+    scenes: Mutex<HashMap<u64, SceneCell>>,
 }
+
+/// One load's filtered scene, made by whoever asks first and awaited by the rest.
+type SceneCell = Arc<OnceCell<Option<Arc<detect::Scene>>>>;
 
 /// One detection of a sweep, made by whoever asks first and awaited by the rest.
 type DetectionCell = Arc<OnceCell<Arc<Detected>>>;

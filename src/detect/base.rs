@@ -116,10 +116,10 @@ impl BaseCap {
                 .filter(|(r, _)| (lo..lo + 0.15).contains(r))
                 .map(|p| p.1)
                 .collect();
-            if hs.len() >= MIN {
-                if let Some(h) = median(&mut hs) {
-                    best = best.max(h - m);
-                }
+            if hs.len() >= MIN
+                && let Some(h) = median(&mut hs)
+            {
+                best = best.max(h - m);
             }
         }
         best

@@ -109,7 +109,7 @@ pub(super) fn spun_placements(
             }
         }
     }
-    out.sort_by(|a, b| b.0.cmp(&a.0));
+    out.sort_by_key(|o| std::cmp::Reverse(o.0));
     out.truncate(SPIN_KEPT);
     out
 }

@@ -177,7 +177,8 @@ pub fn score(
                     // A vessel on its rim shows only its outside, which its model follows to
                     // within the approximation tolerance (the plane check allows as much): the
                     // upturned mOSD white bowl's wall lay 3-6 mm inside the model's near its base.
-                    if !in_base && !(on_rim && d > -tolerance) {
+                    let followed = on_rim && d > -tolerance;
+                    if !in_base && !followed {
                         inside_points += 1;
                     }
                 } else if d > -tolerance {

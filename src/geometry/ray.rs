@@ -23,7 +23,9 @@ impl Superquadric {
     /// starts inside returns `Some(0)`.
     pub fn ray_hit(&self, origin: &Vector3<f64>, dir: &Vector3<f64>, t_max: f64) -> Option<f64> {
         let dir_len = dir.norm();
-        if !(dir_len > 0.0 && dir_len.is_finite()) || !(t_max >= 0.0) {
+        // Written so that a NaN length or limit takes the early return.
+        let usable = dir_len > 0.0 && dir_len.is_finite() && t_max >= 0.0;
+        if !usable {
             return None;
         }
         // Clip to the bounding box, slightly grown so the surface never sits on the clip points.

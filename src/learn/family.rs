@@ -44,7 +44,7 @@ pub(super) fn ln_gamma(x: f64) -> f64 {
 /// this share.
 pub(super) const REVOLUTION_TOLERANCE: f64 = 0.05;
 
-/// The general or the revolution result of [`fit_superquadric`]'s stages (Occam: one view
+/// The general or the revolution result of [`fit_superquadric`](super::stages::fit_superquadric)'s stages (Occam: one view
 /// rarely tells a slightly oval or squarish section from a round one, and the round one is what
 /// the detector fits with 5 DoF and scores modulo its spin).
 pub(super) fn choose_family(mut finals: Vec<FamilyResult>) -> FamilyResult {

@@ -1,7 +1,7 @@
 //! Learning a model by showing the object: full superquadric recovery from a single-view scan.
 //! See `docs/LEARN.md` for the method and its choices.
 //!
-//! 1. [`segment`] (`segment.rs`): remove the supporting plane and keep the largest connected
+//! 1. [`segment`](mod@segment) (`segment.rs`): remove the supporting plane and keep the largest connected
 //!    cluster standing on it (a voxel flood fill).
 //! 2. The fit (`stages.rs`): robust Levenberg-Marquardt (`robust.rs`) over the 13 parameters of
 //!    `state.rs` (a1 a2 a3, e1 e2, kx ky, 3 rotation, 3 translation) from several starts

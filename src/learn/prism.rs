@@ -140,7 +140,9 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
         ));
     }
     // The smallest rectangle holding the top's 1-99 % extents, by whole degrees.
-    let mut best: Option<(f64, f64, Vector2<f64>, [f64; 2], Vector2<f64>)> = None;
+    // (area, angle, centre, half sizes, first axis)
+    type Rectangle = (f64, f64, Vector2<f64>, [f64; 2], Vector2<f64>);
+    let mut best: Option<Rectangle> = None;
     for deg in 0..90 {
         let t = (deg as f64).to_radians();
         let (d1, d2) = (Vector2::new(t.cos(), t.sin()), Vector2::new(-t.sin(), t.cos()));

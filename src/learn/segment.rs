@@ -33,7 +33,7 @@ pub fn segment(points: &[Point3<f64>], params: &LearnParams) -> Segmentation {
     };
     let Some(best) = clusters
         .iter()
-        .position(|c| on_plane(c))
+        .position(on_plane)
         .or((!clusters.is_empty()).then_some(0))
     else {
         return Segmentation {

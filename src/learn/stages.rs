@@ -102,15 +102,14 @@ pub fn fit_superquadric(
     // profile gives its shape directly, where the closed shape fitted to both of its walls
     // comes out too small (see `profile.rs`).
     let round_allowed = params.shape != ShapeFamily::General;
-    if let (true, true, Some(pl), Some(v)) = (open_top, round_allowed, plane, params.viewpoint) {
-        if let Some(measured) = profile::measure(&points, pl, &v) {
-            if let Some((shape, rms)) = profile::fit(&measured) {
-                tracing::debug!("outer wall profile fit: rms {:.2} mm, {shape}", rms * 1e3);
-                let s = profile::state(&measured, &shape, pl);
-                let name = "outer wall profile".to_string();
-                return Ok(recovered(&points, s, PROFILE_DELTA, name, true, up.as_ref(), params));
-            }
-        }
+    if let (true, true, Some(pl), Some(v)) = (open_top, round_allowed, plane, params.viewpoint)
+        && let Some(measured) = profile::measure(&points, pl, &v)
+        && let Some((shape, rms)) = profile::fit(&measured)
+    {
+        tracing::debug!("outer wall profile fit: rms {:.2} mm, {shape}", rms * 1e3);
+        let s = profile::state(&measured, &shape, pl);
+        let name = "outer wall profile".to_string();
+        return Ok(recovered(&points, s, PROFILE_DELTA, name, true, up.as_ref(), params));
     }
     // A closed object standing on the plane with its top in view is measured: the fit below
     // fills the hidden back coarsely (see `prism.rs`).

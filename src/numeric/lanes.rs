@@ -314,8 +314,8 @@ const TWO52_BITS: u64 = 0x4330_0000_0000_0000;
 const ROUND: f64 = 6_755_399_441_055_744.0;
 /// `ln 2` in two parts: the first with its low bits zero, so `k * LN2_HI` is exact for the
 /// exponents of doubles.
-const LN2_HI: f64 = 6.931_471_803_691_238_164_90e-1;
-const LN2_LO: f64 = 1.908_214_929_270_587_700_02e-10;
+const LN2_HI: f64 = 6.931_471_803_691_238e-1;
+const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
 /// `1/3, 1/5, ...`: `atanh(s)/s - 1 = s^2 (1/3 + s^2/5 + ...)`; |s| < 0.172 makes the 10th term
 /// below 1e-17 relative.
 const LN_SERIES: [f64; 9] = [

@@ -79,20 +79,20 @@ impl<'a> Caster<'a> {
     ) -> Option<(f64, u32, Vector3<f64>)> {
         let mut best: Option<(f64, u32, Vector3<f64>)> = None;
         let mut limit = t_max;
-        if let Some(t) = &self.scene.table {
-            if let Some(s) = plane_hit(origin, dir, t.height, limit) {
-                let p = origin + dir * s;
-                if t.contains_xy(p.x, p.y) {
-                    best = Some((s, LABEL_TABLE, Vector3::z()));
-                    limit = s;
-                }
-            }
-        }
-        if self.scene.floor {
-            if let Some(s) = plane_hit(origin, dir, 0.0, limit) {
-                best = Some((s, LABEL_FLOOR, Vector3::z()));
+        if let Some(t) = &self.scene.table
+            && let Some(s) = plane_hit(origin, dir, t.height, limit)
+        {
+            let p = origin + dir * s;
+            if t.contains_xy(p.x, p.y) {
+                best = Some((s, LABEL_TABLE, Vector3::z()));
                 limit = s;
             }
+        }
+        if self.scene.floor
+            && let Some(s) = plane_hit(origin, dir, 0.0, limit)
+        {
+            best = Some((s, LABEL_FLOOR, Vector3::z()));
+            limit = s;
         }
         for &i in candidates {
             let (label, part, centre, radius, open) = &self.parts[i];
@@ -103,26 +103,26 @@ impl<'a> Caster<'a> {
             if d2 > radius * radius || along - radius > limit || along + radius < 0.0 {
                 continue;
             }
-            if let Some(s) = part.ray_hit(origin, dir, limit) {
-                if s < limit {
-                    let local = part.to_local(&(origin + dir * s));
-                    let g = part.shape.residual_grad(&local).grad;
-                    let (s, g) = if *open && crate::model::is_lid(&g) {
-                        // An open container has no lid: the ray goes in through the opening and
-                        // meets the inside of the wall or the bottom (a zero-thickness wall: the
-                        // same surface seen from within), unless it leaves through the opening
-                        // again.
-                        match inner_hit(part, origin, dir, s, *radius) {
-                            Some((s_in, g_in)) if s_in < limit => (s_in, -g_in),
-                            _ => continue,
-                        }
-                    } else {
-                        (s, g)
-                    };
-                    let n = (part.pose.rotation * g).try_normalize(1e-300).unwrap_or(-dir);
-                    best = Some((s, *label, n));
-                    limit = s;
-                }
+            if let Some(s) = part.ray_hit(origin, dir, limit)
+                && s < limit
+            {
+                let local = part.to_local(&(origin + dir * s));
+                let g = part.shape.residual_grad(&local).grad;
+                let (s, g) = if *open && crate::model::is_lid(&g) {
+                    // An open container has no lid: the ray goes in through the opening and
+                    // meets the inside of the wall or the bottom (a zero-thickness wall: the
+                    // same surface seen from within), unless it leaves through the opening
+                    // again.
+                    match inner_hit(part, origin, dir, s, *radius) {
+                        Some((s_in, g_in)) if s_in < limit => (s_in, -g_in),
+                        _ => continue,
+                    }
+                } else {
+                    (s, g)
+                };
+                let n = (part.pose.rotation * g).try_normalize(1e-300).unwrap_or(-dir);
+                best = Some((s, *label, n));
+                limit = s;
             }
         }
         best
@@ -138,12 +138,12 @@ impl<'a> Caster<'a> {
         let dir = v / len;
         let start = from + dir * SHADOW_EPSILON;
         let t_max = len - SHADOW_EPSILON;
-        if let Some(t) = &self.scene.table {
-            if let Some(s) = plane_hit(&start, &dir, t.height, t_max) {
-                let p = start + dir * s;
-                if s > SHADOW_EPSILON && t.contains_xy(p.x, p.y) {
-                    return false;
-                }
+        if let Some(t) = &self.scene.table
+            && let Some(s) = plane_hit(&start, &dir, t.height, t_max)
+        {
+            let p = start + dir * s;
+            if s > SHADOW_EPSILON && t.contains_xy(p.x, p.y) {
+                return false;
             }
         }
         for (_, part, centre, radius, open) in &self.parts {
@@ -206,7 +206,7 @@ fn open_crossings_clear(
     let end = start + dir * t_max;
     match part.ray_hit(&end, &(-dir), t_max) {
         // The segment ends inside the part: it does not cross the surface again.
-        Some(back) if back == 0.0 => true,
+        Some(0.0) => true,
         Some(back) => crate::model::is_lid(&local_normal(part, &(start + dir * (t_max - back)))),
         None => true,
     }

@@ -126,7 +126,7 @@ impl Sweep {
             return Err(SweepError::TooFewProfiles {
                 kept: self.profiles,
                 needed,
-                report: self.report,
+                report: Box::new(self.report),
             });
         }
         Ok(self)
@@ -156,7 +156,8 @@ pub enum SweepError {
     TooFewProfiles {
         kept: usize,
         needed: usize,
-        report: SweepReport,
+        // Boxed: the report is large, and every sweep's `Result` would carry its size.
+        report: Box<SweepReport>,
     },
     /// No position sample to take joint angles from.
     #[error("no PTU position samples: cannot place any profile")]

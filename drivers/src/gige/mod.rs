@@ -1,6 +1,6 @@
 //! GigE Vision line-profile cameras (SICK Ranger3 and Ruler3000 class, GenICam): what a frame
 //! of such a camera means, as pure functions, and (with the `gige` feature) the camera itself
-//! through aravis ([`camera`]).
+//! through aravis (the `camera` module).
 //!
 //! In its 3D mode (`DeviceScanType = Linescan3D`) the camera sends each GigE Vision frame as a
 //! block of profiles: one image row a profile, `Height` rows a block, `Width` columns, each

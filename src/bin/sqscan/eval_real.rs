@@ -100,14 +100,13 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         (None, Some(id)) => Target::Identity(id.clone()),
         (None, None) => bail!("give --class or --identity"),
     };
-    if let Target::Identity(id) = &target {
-        if !scenes
+    if let Target::Identity(id) = &target
+        && !scenes
             .iter()
             .flat_map(|s| &s.objects)
             .any(|o| o.identity.as_deref() == Some(id))
-        {
-            bail!("{}: no object has the identity {id:?}", a.labels.display());
-        }
+    {
+        bail!("{}: no object has the identity {id:?}", a.labels.display());
     }
     let (catalogue, catalogue_path) = catalogue(&a)?;
     let rule = Rule {

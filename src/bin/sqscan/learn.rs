@@ -183,10 +183,10 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     for (i, p) in cloud.points.iter().enumerate() {
         if p.iter().all(|v| v.is_finite()) {
             let q = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            if let Some(r) = a.max_range {
-                if (q - params.viewpoint.unwrap()).norm() > r {
-                    continue;
-                }
+            if let Some(r) = a.max_range
+                && (q - params.viewpoint.unwrap()).norm() > r
+            {
+                continue;
             }
             points.push(q);
             if let Some(l) = label_field {

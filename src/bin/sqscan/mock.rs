@@ -342,8 +342,9 @@ impl MockRigArgs {
 
 #[cfg(feature = "gige")]
 type Camera = sqscan_drivers::mock::gige::FakeLineCamera;
+// Without GigE Vision there is no camera to hold: a value of this type cannot exist.
 #[cfg(not(feature = "gige"))]
-type Camera = ();
+type Camera = std::convert::Infallible;
 
 #[cfg(feature = "gige")]
 fn start_camera_with(
