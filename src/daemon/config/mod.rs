@@ -431,7 +431,33 @@ impl Config {
         let mut c = Config::embedded_default();
         c.source = Some(path.to_owned());
 
-        let s = &raw.server;
+        c.apply_server(&raw.server, path, &rel)?;
+        c.backend = Self::backend(&raw, path, &rel)?;
+        c.continuous = one_of(
+            path,
+            "acquisition.mode",
+            raw.acquisition.mode.as_deref(),
+            &[("continuous", true), ("on_demand", false)],
+        )?;
+
+        c.apply_sweep(&raw.sweep, path)?;
+        c.apply_detect(&raw.detect, path)?;
+        if let Some(r) = &raw.record {
+            c.apply_record(r, path, &rel)?;
+        }
+        if let Some(f) = &raw.foxglove {
+            c.apply_foxglove(f, path)?;
+        }
+        if let Some(r) = &raw.ros2 {
+            c.ros2 = Some(ros2_config(path, r)?);
+        }
+        c.watch = raw.watch.objects.clone();
+        Ok(c)
+    }
+
+    /// `[server]`: the socket, TCP, the models, the frame and the client limits.
+    fn apply_server(&mut self, s: &ServerFile, path: &Path, rel: &impl Fn(&Path) -> PathBuf) -> Result<(), SpecError> {
+        let c = self;
         if let Some(p) = &s.socket {
             c.socket = rel(p);
         }
@@ -500,6 +526,11 @@ impl Config {
             c.idle_timeout = Duration::from_secs_f64(t);
         }
 
+        Ok(())
+    }
+
+    /// `[acquisition] backend` and the table of the backend it names.
+    fn backend(raw: &ConfigFile, path: &Path, rel: &impl Fn(&Path) -> PathBuf) -> Result<BackendConfig, SpecError> {
         let backend = match raw.acquisition.backend.as_deref() {
             None if raw.hardware.is_some() && raw.replay.is_some() => {
                 return Err(SpecError::invalid(
@@ -513,7 +544,7 @@ impl Config {
             None => "sim",
             Some(b) => b,
         };
-        c.backend = match backend {
+        Ok(match backend {
             "sim" => {
                 let sim = raw.sim.as_ref();
                 BackendConfig::Sim {
@@ -586,15 +617,13 @@ impl Config {
                     format!("{other:?}: give \"sim\", \"hardware\" or \"replay\""),
                 ));
             }
-        };
-        c.continuous = one_of(
-            path,
-            "acquisition.mode",
-            raw.acquisition.mode.as_deref(),
-            &[("continuous", true), ("on_demand", false)],
-        )?;
+        })
+    }
 
-        let w = &raw.sweep;
+    /// `[sweep]`: the tilt range and speed (which the hardware backend needs), the profiles a
+    /// sweep must keep, its pause and timeout.
+    fn apply_sweep(&mut self, w: &SweepFile, path: &Path) -> Result<(), SpecError> {
+        let c = self;
         c.sweep.pan_rad = within(path, "sweep.pan_rad", w.pan_rad, limits::ANGLE_RAD, "rad")?;
         c.sweep.tilt_from_rad = within(path, "sweep.tilt_from_rad", w.tilt_from_rad, limits::ANGLE_RAD, "rad")?;
         c.sweep.tilt_to_rad = within(path, "sweep.tilt_to_rad", w.tilt_to_rad, limits::ANGLE_RAD, "rad")?;
@@ -644,67 +673,71 @@ impl Config {
             }
         }
 
-        if let Some(s) = raw.detect.seed {
+        Ok(())
+    }
+
+    /// `[detect]`: the seed, the workers and the range cut.
+    fn apply_detect(&mut self, d: &DetectFile, path: &Path) -> Result<(), SpecError> {
+        let c = self;
+        if let Some(s) = d.seed {
             c.detect_seed = s;
         }
-        if let Some(n) = count_within(path, "detect.workers", raw.detect.workers, limits::WORKERS)? {
+        if let Some(n) = count_within(path, "detect.workers", d.workers, limits::WORKERS)? {
             c.detect_workers = n;
         }
-        c.max_range_m = within(
-            path,
-            "detect.max_range_m",
-            raw.detect.max_range_m,
-            limits::MAX_RANGE_M,
-            "m",
-        )?;
+        c.max_range_m = within(path, "detect.max_range_m", d.max_range_m, limits::MAX_RANGE_M, "m")?;
 
-        if let Some(r) = &raw.record {
-            c.record_dir = Some(rel(&r.dir));
-            c.record_keep = count_within(path, "record.keep", r.keep, limits::RECORD_KEEP)?.unwrap_or(20);
-            if r.mcap && !cfg!(feature = "mcap") {
-                return Err(SpecError::invalid(
-                    path,
-                    "record.mcap",
-                    "this sqscand was built without MCAP recording (cargo feature `mcap`)",
-                ));
-            }
-            c.record_mcap = r.mcap;
+        Ok(())
+    }
+
+    /// `[record]`: where sweeps are recorded, how many are kept, and whether as MCAP.
+    fn apply_record(&mut self, r: &RecordFile, path: &Path, rel: &impl Fn(&Path) -> PathBuf) -> Result<(), SpecError> {
+        let c = self;
+        c.record_dir = Some(rel(&r.dir));
+        c.record_keep = count_within(path, "record.keep", r.keep, limits::RECORD_KEEP)?.unwrap_or(20);
+        if r.mcap && !cfg!(feature = "mcap") {
+            return Err(SpecError::invalid(
+                path,
+                "record.mcap",
+                "this sqscand was built without MCAP recording (cargo feature `mcap`)",
+            ));
         }
-        if let Some(f) = &raw.foxglove {
-            let addr: std::net::SocketAddr = f.listen.parse().map_err(|_| {
-                SpecError::invalid(
-                    path,
-                    "foxglove.listen",
-                    format!("{:?}: give an address and port, e.g. \"127.0.0.1:8765\"", f.listen),
-                )
-            })?;
-            if !addr.ip().is_loopback() {
-                return Err(SpecError::invalid(
-                    path,
-                    "foxglove.listen",
-                    format!(
-                        "{addr}: the view has no authentication, so it listens on loopback only \
-                         (reach it from elsewhere through an SSH tunnel)"
-                    ),
-                ));
-            }
-            if !cfg!(feature = "foxglove") {
-                return Err(SpecError::invalid(
-                    path,
-                    "foxglove.listen",
-                    "this sqscand was built without the live view (cargo feature `foxglove`)",
-                ));
-            }
-            c.foxglove_listen = Some(addr);
-            if let Some(mb) = count_within(path, "foxglove.backlog_mb", f.backlog_mb, limits::VIEW_BACKLOG_MB)? {
-                c.foxglove_backlog_bytes = mb << 20;
-            }
+        c.record_mcap = r.mcap;
+        Ok(())
+    }
+
+    /// `[foxglove]`: the live view's address (loopback only) and its backlog.
+    fn apply_foxglove(&mut self, f: &FoxgloveFile, path: &Path) -> Result<(), SpecError> {
+        let c = self;
+        let addr: std::net::SocketAddr = f.listen.parse().map_err(|_| {
+            SpecError::invalid(
+                path,
+                "foxglove.listen",
+                format!("{:?}: give an address and port, e.g. \"127.0.0.1:8765\"", f.listen),
+            )
+        })?;
+        if !addr.ip().is_loopback() {
+            return Err(SpecError::invalid(
+                path,
+                "foxglove.listen",
+                format!(
+                    "{addr}: the view has no authentication, so it listens on loopback only \
+                     (reach it from elsewhere through an SSH tunnel)"
+                ),
+            ));
         }
-        if let Some(r) = &raw.ros2 {
-            c.ros2 = Some(ros2_config(path, r)?);
+        if !cfg!(feature = "foxglove") {
+            return Err(SpecError::invalid(
+                path,
+                "foxglove.listen",
+                "this sqscand was built without the live view (cargo feature `foxglove`)",
+            ));
         }
-        c.watch = raw.watch.objects.clone();
-        Ok(c)
+        c.foxglove_listen = Some(addr);
+        if let Some(mb) = count_within(path, "foxglove.backlog_mb", f.backlog_mb, limits::VIEW_BACKLOG_MB)? {
+            c.foxglove_backlog_bytes = mb << 20;
+        }
+        Ok(())
     }
 }
 
