@@ -182,117 +182,150 @@ impl Model {
         }
         let mut parts: Vec<Part> = Vec::with_capacity(file.part.len());
         for (i, p) in file.part.into_iter().enumerate() {
-            let field = |f: &str| format!("part[{i}] ({}).{f}", p.name);
-            if p.name.is_empty() {
-                return Err(bad(format!("part[{i}].name"), "must not be empty".into()));
-            }
-            if parts.iter().any(|q| q.name == p.name) {
-                return Err(bad(field("name"), "two parts share this name".into()));
-            }
-            let shape = Superquadric::new(p.a, p.e1, p.e2, p.kx, p.ky).map_err(|e| {
-                let f = match e {
-                    crate::geometry::ShapeError::Size { .. } => "a",
-                    crate::geometry::ShapeError::Exponent { name, .. } => name,
-                    crate::geometry::ShapeError::Taper { name, .. } => name,
-                };
-                bad(field(f), e.to_string())
-            })?;
-            if shape.max_size() > 2.0 {
-                return Err(bad(
-                    field("a"),
-                    format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a),
-                ));
-            }
-            if let Some(m) = p.m
-                && !(1..=1000).contains(&m)
-            {
-                return Err(bad(field("m"), format!("{m} hypotheses: give 1 to 1000")));
-            }
-            let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
-            parts.push(Part {
-                name: p.name,
-                shape,
-                pose_in_object,
-                hypotheses: p.m,
-                open: p.open,
-            });
+            let part = Self::part_from_file(i, p, &parts, path)?;
+            parts.push(part);
         }
         let mut connections = Vec::new();
         for (i, c) in file.connection.into_iter().enumerate() {
-            let field = |f: &str| format!("connection[{i}].{f}");
-            let mut idx = [0usize; 2];
-            for (k, n) in c.parts.iter().enumerate() {
-                idx[k] = parts
-                    .iter()
-                    .position(|p| &p.name == n)
-                    .ok_or_else(|| bad(field("parts"), format!("no part named {n:?}")))?;
-            }
-            if idx[0] == idx[1] {
-                return Err(bad(field("parts"), "a part cannot connect to itself".into()));
-            }
-            let angle = match (c.angle_rad, c.angle_deg) {
-                (Some(r), None) => r,
-                (None, Some(d)) => d.to_radians(),
-                _ => {
-                    return Err(bad(
-                        field("angle_rad"),
-                        "give exactly one of angle_rad, angle_deg".into(),
-                    ));
-                }
-            };
-            if !(0.0..=std::f64::consts::PI + 1e-9).contains(&angle) {
-                return Err(bad(field("angle_rad"), format!("{angle} rad is outside [0, pi]")));
-            }
-            if !(c.distance.is_finite() && c.distance >= 0.0 && c.distance < 2.0) {
-                return Err(bad(
-                    field("distance"),
-                    format!("{} m is not a centre distance in metres", c.distance),
-                ));
-            }
-            // The given connectivity must be the one the part poses have.
-            let (pa, pb) = (&parts[idx[0]], &parts[idx[1]]);
-            let signed = pa.shape.is_tapered() && pb.shape.is_tapered();
-            let za = pa.pose_in_object.rotation * Vector3::z();
-            let zb = pb.pose_in_object.rotation * Vector3::z();
-            let posed_angle = axis_angle(&za, &zb, signed);
-            let given_angle = if signed {
-                angle
-            } else {
-                angle.min(std::f64::consts::PI - angle)
-            };
-            if (posed_angle - given_angle).abs() > ANGLE_TOLERANCE_RAD {
-                return Err(bad(
-                    field("angle"),
-                    format!(
-                        "{:.2} deg, but the part poses put the z axes {:.2} deg apart",
-                        angle.to_degrees(),
-                        posed_angle.to_degrees()
-                    ),
-                ));
-            }
-            let posed_distance = (pa.pose_in_object.translation.vector - pb.pose_in_object.translation.vector).norm();
-            if (posed_distance - c.distance).abs() > DISTANCE_TOLERANCE_M {
-                return Err(bad(
-                    field("distance"),
-                    format!(
-                        "{} m, but the part poses put the centres {posed_distance:.4} m apart",
-                        c.distance
-                    ),
-                ));
-            }
-            if connections
-                .iter()
-                .any(|k: &Connection| (k.parts == idx) || (k.parts == [idx[1], idx[0]]))
-            {
-                return Err(bad(field("parts"), "these parts are already connected".into()));
-            }
-            connections.push(Connection {
-                parts: idx,
-                angle,
-                distance: c.distance,
-            });
+            let connection = Self::connection_from_file(i, c, &parts, &connections, path)?;
+            connections.push(connection);
         }
-        // The connections must tie all parts into one tree: the detector votes a compound over them.
+        Self::check_tree(&parts, &connections, path)?;
+        Ok(Model {
+            name,
+            description: file.description,
+            parts,
+            connections,
+            source: path.to_owned(),
+        })
+    }
+
+    /// One `[[part]]` table, checked against the parts before it.
+    fn part_from_file(i: usize, p: PartFile, before: &[Part], path: &Path) -> Result<Part, SpecError> {
+        let bad = |field: String, msg: String| SpecError::invalid(path, field, msg);
+        let field = |f: &str| format!("part[{i}] ({}).{f}", p.name);
+        if p.name.is_empty() {
+            return Err(bad(format!("part[{i}].name"), "must not be empty".into()));
+        }
+        if before.iter().any(|q| q.name == p.name) {
+            return Err(bad(field("name"), "two parts share this name".into()));
+        }
+        let shape = Superquadric::new(p.a, p.e1, p.e2, p.kx, p.ky).map_err(|e| {
+            let f = match e {
+                crate::geometry::ShapeError::Size { .. } => "a",
+                crate::geometry::ShapeError::Exponent { name, .. } => name,
+                crate::geometry::ShapeError::Taper { name, .. } => name,
+            };
+            bad(field(f), e.to_string())
+        })?;
+        if shape.max_size() > 2.0 {
+            return Err(bad(
+                field("a"),
+                format!("{:?} m: sizes are half-sizes in metres; is this in mm?", p.a),
+            ));
+        }
+        if let Some(m) = p.m
+            && !(1..=1000).contains(&m)
+        {
+            return Err(bad(field("m"), format!("{m} hypotheses: give 1 to 1000")));
+        }
+        let pose_in_object = p.pose.to_isometry().map_err(|m| bad(field("pose"), m))?;
+        Ok(Part {
+            name: p.name,
+            shape,
+            pose_in_object,
+            hypotheses: p.m,
+            open: p.open,
+        })
+    }
+
+    /// One `[[connection]]` table: its parts by name, its angle and distance as the part poses
+    /// have them, not one given before.
+    fn connection_from_file(
+        i: usize,
+        c: ConnectionFile,
+        parts: &[Part],
+        before: &[Connection],
+        path: &Path,
+    ) -> Result<Connection, SpecError> {
+        let bad = |field: String, msg: String| SpecError::invalid(path, field, msg);
+        let field = |f: &str| format!("connection[{i}].{f}");
+        let mut idx = [0usize; 2];
+        for (k, n) in c.parts.iter().enumerate() {
+            idx[k] = parts
+                .iter()
+                .position(|p| &p.name == n)
+                .ok_or_else(|| bad(field("parts"), format!("no part named {n:?}")))?;
+        }
+        if idx[0] == idx[1] {
+            return Err(bad(field("parts"), "a part cannot connect to itself".into()));
+        }
+        let angle = match (c.angle_rad, c.angle_deg) {
+            (Some(r), None) => r,
+            (None, Some(d)) => d.to_radians(),
+            _ => {
+                return Err(bad(
+                    field("angle_rad"),
+                    "give exactly one of angle_rad, angle_deg".into(),
+                ));
+            }
+        };
+        if !(0.0..=std::f64::consts::PI + 1e-9).contains(&angle) {
+            return Err(bad(field("angle_rad"), format!("{angle} rad is outside [0, pi]")));
+        }
+        if !(c.distance.is_finite() && c.distance >= 0.0 && c.distance < 2.0) {
+            return Err(bad(
+                field("distance"),
+                format!("{} m is not a centre distance in metres", c.distance),
+            ));
+        }
+        // The given connectivity must be the one the part poses have.
+        let (pa, pb) = (&parts[idx[0]], &parts[idx[1]]);
+        let signed = pa.shape.is_tapered() && pb.shape.is_tapered();
+        let za = pa.pose_in_object.rotation * Vector3::z();
+        let zb = pb.pose_in_object.rotation * Vector3::z();
+        let posed_angle = axis_angle(&za, &zb, signed);
+        let given_angle = if signed {
+            angle
+        } else {
+            angle.min(std::f64::consts::PI - angle)
+        };
+        if (posed_angle - given_angle).abs() > ANGLE_TOLERANCE_RAD {
+            return Err(bad(
+                field("angle"),
+                format!(
+                    "{:.2} deg, but the part poses put the z axes {:.2} deg apart",
+                    angle.to_degrees(),
+                    posed_angle.to_degrees()
+                ),
+            ));
+        }
+        let posed_distance = (pa.pose_in_object.translation.vector - pb.pose_in_object.translation.vector).norm();
+        if (posed_distance - c.distance).abs() > DISTANCE_TOLERANCE_M {
+            return Err(bad(
+                field("distance"),
+                format!(
+                    "{} m, but the part poses put the centres {posed_distance:.4} m apart",
+                    c.distance
+                ),
+            ));
+        }
+        if before
+            .iter()
+            .any(|k: &Connection| (k.parts == idx) || (k.parts == [idx[1], idx[0]]))
+        {
+            return Err(bad(field("parts"), "these parts are already connected".into()));
+        }
+        Ok(Connection {
+            parts: idx,
+            angle,
+            distance: c.distance,
+        })
+    }
+
+    /// The connections must tie all parts into one tree: the detector votes a compound over them.
+    fn check_tree(parts: &[Part], connections: &[Connection], path: &Path) -> Result<(), SpecError> {
+        let bad = |field: String, msg: String| SpecError::invalid(path, field, msg);
         if connections.len() != parts.len() - 1 {
             return Err(bad(
                 "connection".into(),
@@ -307,7 +340,7 @@ impl Model {
         let mut reached = vec![false; parts.len()];
         reached[0] = true;
         for _ in 0..parts.len() {
-            for c in &connections {
+            for c in connections {
                 if reached[c.parts[0]] || reached[c.parts[1]] {
                     reached[c.parts[0]] = true;
                     reached[c.parts[1]] = true;
@@ -320,13 +353,7 @@ impl Model {
                 format!("part {:?} is not connected to the others", parts[i].name),
             ));
         }
-        Ok(Model {
-            name,
-            description: file.description,
-            parts,
-            connections,
-            source: path.to_owned(),
-        })
+        Ok(())
     }
 
     pub fn is_compound(&self) -> bool {
@@ -400,4 +427,68 @@ pub fn load_dir(dir: &Path) -> Result<Vec<Result<Model, SpecError>>, SpecError> 
         .collect();
     paths.sort();
     Ok(paths.iter().map(|p| Model::from_file(p)).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PART: &str = "[[part]]\nname = \"body\"\na = [0.04, 0.04, 0.05]\ne1 = 0.3\ne2 = 1.0\n";
+    const HANDLE: &str = "[[part]]\nname = \"handle\"\na = [0.01, 0.02, 0.03]\ne1 = 0.3\ne2 = 1.0\npose = { position = [0.06, 0.0, 0.0] }\n";
+
+    /// The error a broken model file gives: its field and message.
+    fn refused(text: &str) -> (String, String) {
+        match Model::from_toml_str(text, Path::new("broken.toml")) {
+            Err(SpecError::Invalid { field, message, .. }) => (field, message),
+            other => panic!("{text}\n -> {other:?}"),
+        }
+    }
+
+    #[test]
+    fn broken_model_files_are_refused_naming_the_field() {
+        let cases: [(String, &str, &str); 10] = [
+            ("name = \"two words\"\n".to_owned() + PART, "name", "non-empty word"),
+            ("name = \"x\"\n".to_owned(), "part", "0 parts given"),
+            (format!("{PART}{PART}"), "part[1] (body).name", "share this name"),
+            (PART.replace("0.3", "-1.0"), "part[0] (body).e1", ""),
+            (PART.replace("0.05]", "50.0]"), "part[0] (body).a", "in mm?"),
+            (format!("{PART}m = 0\n"), "part[0] (body).m", "give 1 to 1000"),
+            (
+                format!(
+                    "{PART}{HANDLE}[[connection]]\nparts = [\"body\", \"body\"]\nangle_deg = 0.0\ndistance = 0.06\n"
+                ),
+                "connection[0].parts",
+                "itself",
+            ),
+            (
+                format!(
+                    "{PART}{HANDLE}[[connection]]\nparts = [\"body\", \"lid\"]\nangle_deg = 0.0\ndistance = 0.06\n"
+                ),
+                "connection[0].parts",
+                "no part named \"lid\"",
+            ),
+            (
+                format!(
+                    "{PART}{HANDLE}[[connection]]\nparts = [\"body\", \"handle\"]\nangle_deg = 0.0\ndistance = 0.08\n"
+                ),
+                "connection[0].distance",
+                "0.0600 m apart",
+            ),
+            (
+                format!("{PART}{HANDLE}"),
+                "connection",
+                "2 parts need 1 connections, 0 given",
+            ),
+        ];
+        for (text, field, message) in &cases {
+            let (f, m) = refused(text);
+            assert_eq!(&f, field, "{text}");
+            assert!(m.contains(message), "{f}: {m}");
+        }
+        // The same file with its connection right loads.
+        let good =
+            format!("{PART}{HANDLE}[[connection]]\nparts = [\"body\", \"handle\"]\nangle_deg = 0.0\ndistance = 0.06\n");
+        let model = Model::from_toml_str(&good, Path::new("good.toml")).unwrap();
+        assert_eq!((model.parts.len(), model.connections.len()), (2, 1));
+    }
 }
