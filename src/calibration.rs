@@ -322,7 +322,9 @@ impl Calibration {
                 sign * q.w
             )
         };
-        let _ = writeln!(s, "description = {:?}", description);
+        // TOML's own quoting: Rust's `{:?}` escapes a control character as `\u{1b}`, which TOML
+        // does not read.
+        let _ = writeln!(s, "description = {}", toml::Value::String(description.to_owned()));
         let _ = writeln!(s, "columns = {}", self.columns);
         let _ = writeln!(s, "fraction_bits = {}", self.fraction_bits);
         let _ = writeln!(
@@ -449,8 +451,8 @@ mod tests {
                 other => panic!("not a validation error: {other:?}"),
             }
         };
-        // Written back, the table reads back the same.
-        let text = cal.to_toml("with a lookup table");
+        // Written back, the table reads back the same, whatever the description holds.
+        let text = cal.to_toml("with a lookup table, \"quotes\", a tab\t, an escape \u{1b} and a backslash \\");
         assert!(text.contains("[lookup]"));
         assert_eq!(Calibration::from_toml_str(&text, &path).unwrap(), cal);
 
