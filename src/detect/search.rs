@@ -147,11 +147,7 @@ pub fn initial_poses(
         }
         for r in rots {
             // The half-size along the patch normal: how far behind the patch the centre lies.
-            let local_n = r.inverse() * normal;
-            let depth = (local_n.x * shape.a[0])
-                .abs()
-                .max((local_n.y * shape.a[1]).abs())
-                .max((local_n.z * shape.a[2]).abs());
+            let depth = depth_behind(shape, &(r.inverse() * normal));
             for o in &outward {
                 let centre = c - o * depth;
                 out.push(Isometry3::from_parts(
@@ -162,6 +158,15 @@ pub fn initial_poses(
         }
     }
     out
+}
+
+/// The half-size of `shape` along the patch normal `n` (in the start's frame): how far behind
+/// the patch a start's centre lies.
+fn depth_behind(shape: &Superquadric, n: &Vector3<f64>) -> f64 {
+    (n.x * shape.a[0])
+        .abs()
+        .max((n.y * shape.a[1]).abs())
+        .max((n.z * shape.a[2]).abs())
 }
 
 /// The starts turned so that the part's axis nearest the support plane's normal lies along it,
@@ -199,11 +204,7 @@ fn level_starts(
             continue;
         };
         let q = turn * r;
-        let local_n = q.inverse() * patch_normal;
-        let depth = (local_n.x * shape.a[0])
-            .abs()
-            .max((local_n.y * shape.a[1]).abs())
-            .max((local_n.z * shape.a[2]).abs());
+        let depth = depth_behind(shape, &(q.inverse() * patch_normal));
         // The same side of the patch as the start it came from.
         let side = (s.translation.vector - c).try_normalize(1e-12).unwrap_or(-patch_normal);
         let start = Isometry3::from_parts((c + side * depth).into(), q);
