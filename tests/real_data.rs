@@ -8,7 +8,7 @@ use nalgebra::{Point3, Vector3};
 use sqscan::cloud::{FieldData, PointCloud, read_cloud};
 use sqscan::detect::{Params, detect};
 use sqscan::model::Model;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 mod common;
 use common::real_data as data;
@@ -251,6 +251,20 @@ fn white_bowl_seen_from_inside_is_found() {
 #[test]
 fn upside_down_white_bowl_is_found_by_its_foot() {
     found_standing("learn37.pcd", "white_bowl", &[3], false, 0..3);
+}
+
+/// mOSD learn40: the yellow pot stands upside down. Its model, as `sqscan learn` takes it from
+/// the pot standing upright in mOSD learn36, is 109 mm tall where the pot's wall is 102 mm: a
+/// trial fitted to a patch of its base and wall reached 10-15 mm through the table, past what
+/// the plane allows, and every trial on the pot was thrown away. Set on the table, they find it.
+#[test]
+fn the_upturned_pot_is_found_though_its_model_stands_taller() {
+    let m = Model::from_toml_str(
+        "name = \"yellow_pot\"\n[[part]]\nname = \"body\"\na = [0.0857, 0.0857, 0.0544]\ne1 = 0.181818\ne2 = 1.0\nopen = true\n",
+        Path::new("yellow_pot.toml"),
+    )
+    .unwrap();
+    found_standing_as("learn40.pcd", &m, &[4], false, 0..3);
 }
 
 /// The model `sqscan learn` writes from object `label` of the carried scan `file`, loaded.

@@ -84,6 +84,36 @@ impl PlaneCheck {
             .is_none_or(|p| !self.reaches_through(placed, p, self.tolerance + slack))
     }
 
+    /// The pose, or where it reaches through the plane by at most `lift` (m) beyond what
+    /// [`PlaneCheck::allows`], the same pose moved along the plane's normal onto the deepest
+    /// place allowed; `None` where even that is not allowed (an open container lying on its
+    /// side, or a pose deeper through the plane).
+    pub fn allowed_or_lifted(
+        &self,
+        space: &SearchSpace<'_>,
+        placed: &PlacedSuperquadric,
+        lift: f64,
+    ) -> Option<PlacedSuperquadric> {
+        let Some(plane) = space.plane.as_ref() else {
+            return Some(*placed);
+        };
+        let z = placed.pose.rotation * Vector3::z();
+        if self.open && z.dot(&plane.normal).abs() < MAX_REST_TILT.cos() {
+            return None;
+        }
+        if !self.reaches_through(placed, plane, self.tolerance) {
+            return Some(*placed);
+        }
+        let excess = self.penetration(placed, plane) - self.tolerance;
+        if excess > lift {
+            return None;
+        }
+        let mut out = *placed;
+        // A micrometre more, so that rounding cannot leave it a hair too deep for the check.
+        out.pose.translation.vector += plane.normal * (excess + 1e-6);
+        Some(out)
+    }
+
     /// Whether the pose is possible for an object resting on or above the plane: it does not
     /// reach through it, and an open container stands on its base or its rim.
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {

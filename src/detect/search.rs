@@ -15,7 +15,7 @@
 //! of the scene and from its own random stream, and keeps the distinct refined ones that are
 //! possible against the support plane.
 
-use super::fit::{Fit, fit_pose_tol};
+use super::fit::{Fit, fit_pose_tol, measure_of_fit};
 pub use super::plane_check::{PlaneCheck, approximation_tolerance};
 use super::prepare::RangeNoise;
 pub use super::refine::refine_band;
@@ -369,9 +369,15 @@ fn trial(
     if starts.is_empty() {
         return None;
     }
-    let f = fit_from_starts(shape, &starts, sample, settings.fit_iterations)?;
-    if !check.allows(space, &f.placed) {
-        return None;
+    let mut f = fit_from_starts(shape, &starts, sample, settings.fit_iterations)?;
+    // A patch on an object's top says little about where its bottom is: a model a few
+    // millimetres taller than the object (learned from a view where its rim or handles stood
+    // higher) or leaning a few degrees, fitted to the patch, reaches through the table the object
+    // stands on. Set on the plane, it is where the object is.
+    let lifted = check.allowed_or_lifted(space, &f.placed, f64::INFINITY)?;
+    if lifted.pose != f.placed.pose {
+        f.placed = lifted;
+        f.m = measure_of_fit(&lifted, sample);
     }
     Some((consensus(space, &f.placed, band), f))
 }
