@@ -11,12 +11,12 @@ use std::time::{Duration, Instant};
 use tokio::sync::Semaphore;
 
 use super::reply::{CloudHeader, ErrorCode, Reply};
-use super::server::wait_for_sweep;
 use super::state::Shared;
+use super::waiting::wait_for_sweep;
 
 /// `cloud` payloads in memory at once, over all clients: each is held from its encoding until
 /// the client's writer has written it (or given up on a client that does not read, after
-/// [`WRITE_TIMEOUT`](super::server::WRITE_TIMEOUT)), so clients that ask for clouds and never read cannot pile them up.
+/// the writer's timeout, `WRITE_TIMEOUT` of `outbox.rs`), so clients that ask for clouds and never read cannot pile them up.
 pub const CLOUD_SLOTS: usize = 4;
 
 /// How often a `cloud` request looks whether its client has read what was sent to it.

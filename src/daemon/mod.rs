@@ -15,20 +15,26 @@
 //!
 //! Module arrows point one way: `backend` (the trait and the types it hands over) at the
 //! bottom; `simulator` and `hardware` implement it; `state` holds what the tasks share;
-//! `acquire` and `server` run on it.
+//! `acquire` and `server` run on it. Within the server: `server` accepts clients, `connection`
+//! serves one (its reader and its `Handler`, a method a request kind), over
+//! `outbox` (its queue and writer); `answer` replies to requests, `cloud` sends points, and
+//! both wait for sweeps through `waiting`.
 
 mod acquire;
+mod answer;
 mod backend;
 #[cfg(feature = "mcap")]
 mod bag;
 pub mod cli;
 mod cloud;
 pub mod config;
+mod connection;
 mod hardware;
 mod idle;
 mod lines;
 pub mod memory;
 pub mod notify;
+mod outbox;
 pub mod protocol;
 mod record;
 #[cfg(feature = "mcap")]
@@ -45,6 +51,7 @@ mod state;
 mod topics;
 #[cfg(feature = "foxglove")]
 mod view;
+mod waiting;
 
 use std::collections::BTreeMap;
 use std::path::Path;

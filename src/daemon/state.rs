@@ -331,7 +331,7 @@ pub struct Shared {
     /// `cloud` payloads in memory at once (`cloud::CLOUD_SLOTS`).
     pub cloud_slots: Arc<Semaphore>,
     /// `cloud` requests waiting for one of those slots: while there are any, a transfer that
-    /// makes no progress loses its slot sooner (`server::STALL_WHILE_WANTED`).
+    /// makes no progress loses its slot sooner (`outbox::STALL_WHILE_WANTED`).
     pub cloud_waiting: std::sync::atomic::AtomicUsize,
     pub started: Instant,
     /// Turns true when the daemon is stopping.
