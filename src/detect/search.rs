@@ -32,6 +32,11 @@ use rayon::prelude::*;
 
 /// Iterations of the short fit every start gets before the best one continues.
 const SCREEN_ITERATIONS: usize = 4;
+/// A trial whose fit reaches through the support plane is set on it where its sample's RMS
+/// distance from the fit is at most this many noise sigmas: the sample of about 30 points then
+/// lies on the fit as the sensor's noise allows (its RMS spreads by about an eighth of a sigma),
+/// with room for the model approximating the object.
+const LIFT_NOISE: f64 = 1.5;
 /// A trial needs at least this many points around its seed to say anything about the pose.
 pub(super) const MIN_SAMPLE: usize = 8;
 
@@ -370,12 +375,19 @@ fn trial(
         return None;
     }
     let mut f = fit_from_starts(shape, &starts, sample, settings.fit_iterations)?;
-    // A patch on an object's top says little about where its bottom is: a model a few
-    // millimetres taller than the object (learned from a view where its rim or handles stood
-    // higher) or leaning a few degrees, fitted to the patch, reaches through the table the object
-    // stands on. Set on the plane, it is where the object is.
-    let lifted = check.allowed_or_lifted(space, &f.placed, f64::INFINITY)?;
-    if lifted.pose != f.placed.pose {
+    if !check.allows(space, &f.placed) {
+        // A patch on an object's top says little about where its bottom is: a model a few
+        // millimetres taller than the object (learned from a view where its rim or handles
+        // stood higher) or leaning a few degrees, fitted to the patch, reaches through the table
+        // the object stands on. Where the patch lies on the fit to within the sensor's noise,
+        // the fit is right for what was seen, and set on the plane (by no more than the plane's
+        // own tolerance again) it is where the object is. A fit that misses its own patch by
+        // more, or reaches deeper, is another shape's (a cup sunk into a bowl), and is dropped.
+        let centre = Point3::from(f.placed.pose.translation.vector);
+        if rms_distance(&f.placed, sample, band) > LIFT_NOISE * space.noise.at(&centre) {
+            return None;
+        }
+        let lifted = check.allowed_or_lifted(space, &f.placed, check.tolerance)?;
         f.placed = lifted;
         f.m = measure_of_fit(&lifted, sample);
     }
@@ -387,6 +399,26 @@ fn trial(
 fn better(support: usize, f: &Fit, best: &Option<(usize, Fit)>) -> bool {
     best.as_ref()
         .is_none_or(|(s, b)| support > *s || (support == *s && f.m < b.m))
+}
+
+/// The RMS distance (m) of `points` from the placed surface, those farther than `reach` counted
+/// at `reach`.
+fn rms_distance(placed: &PlacedSuperquadric, points: &[Point3<f64>], reach: f64) -> f64 {
+    if points.is_empty() {
+        return f64::INFINITY;
+    }
+    let kernel = PlacedKernel::new(placed);
+    let (mut sum, mut near) = (0.0, 0usize);
+    let mut batch = NearBatch::new(&kernel, reach, |_, _, rg| {
+        let d = PlacedSuperquadric::distance_from(rg).abs().min(reach);
+        sum += d * d;
+        near += 1;
+    });
+    for (i, p) in points.iter().enumerate() {
+        batch.push(i, p);
+    }
+    batch.finish();
+    ((sum + (points.len() - near) as f64 * reach * reach) / points.len() as f64).sqrt()
 }
 
 widened! {
