@@ -115,16 +115,7 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
             format!("expected a JSON object like {{\"cmd\":\"status\"}}, got {v}"),
         ));
     };
-    let id = obj.get("id").cloned();
-    if let Some(v) = &id {
-        let n = v.to_string().len();
-        if n > MAX_ID_BYTES {
-            return Err(err(
-                &None,
-                format!("\"id\" of {n} bytes is over the limit of {MAX_ID_BYTES} bytes"),
-            ));
-        }
-    }
+    let id = request_id(&obj)?;
     let cmd = match obj.get("cmd") {
         Some(Value::String(s)) => s.as_str(),
         Some(other) => return Err(err(&id, format!("\"cmd\": expected a string, got {other}"))),
@@ -136,29 +127,7 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
         }
     };
     let command = match cmd {
-        "find" => {
-            check_keys(&obj, &["object", "max_age_s", "timeout_s", "all"], cmd, &id)?;
-            let object = match obj.get("object") {
-                Some(v) => object_name(v, "object", &id)?,
-                None => {
-                    return Err(err(
-                        &id,
-                        "\"find\": missing \"object\", e.g. {\"cmd\":\"find\",\"object\":\"cup\"}",
-                    ));
-                }
-            };
-            let all = match obj.get("all") {
-                None | Some(Value::Null) => false,
-                Some(Value::Bool(b)) => *b,
-                Some(other) => return Err(err(&id, format!("\"all\": expected true or false, got {other}"))),
-            };
-            Command::Find {
-                object,
-                max_age_s: number(&obj, "max_age_s", DEFAULT_MAX_AGE_S, &id)?,
-                timeout_s: number(&obj, "timeout_s", DEFAULT_TIMEOUT_S, &id)?,
-                all,
-            }
-        }
+        "find" => find_command(&obj, &id)?,
         "scan" => {
             check_keys(&obj, &["timeout_s"], cmd, &id)?;
             Command::Scan {
@@ -180,28 +149,7 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
             check_keys(&obj, &[], cmd, &id)?;
             Command::Models
         }
-        "watch" => {
-            check_keys(&obj, &["objects", "object"], cmd, &id)?;
-            let mut objects = Vec::new();
-            if let Some(v) = obj.get("object") {
-                objects.push(object_name(v, "object", &id)?);
-            }
-            match obj.get("objects") {
-                None => {}
-                Some(Value::Array(a)) => {
-                    for v in a {
-                        objects.push(object_name(v, "objects", &id)?);
-                    }
-                }
-                Some(other) => return Err(err(&id, format!("\"objects\": expected a list of names, got {other}"))),
-            }
-            if objects.is_empty() {
-                return Err(err(&id, "\"watch\": give \"objects\": [names] or \"object\": name"));
-            }
-            objects.sort();
-            objects.dedup();
-            Command::Watch { objects }
-        }
+        "watch" => watch_command(&obj, &id)?,
         "unwatch" => {
             check_keys(&obj, &[], cmd, &id)?;
             Command::Unwatch
@@ -214,6 +162,70 @@ pub fn parse_request(line: &[u8]) -> Result<Request, RequestError> {
         }
     };
     Ok(Request { id, command })
+}
+
+/// The request's `id`, echoed in its replies: any JSON up to [`MAX_ID_BYTES`].
+fn request_id(obj: &Map<String, Value>) -> Result<Option<Value>, RequestError> {
+    let id = obj.get("id").cloned();
+    if let Some(v) = &id {
+        let n = v.to_string().len();
+        if n > MAX_ID_BYTES {
+            return Err(err(
+                &None,
+                format!("\"id\" of {n} bytes is over the limit of {MAX_ID_BYTES} bytes"),
+            ));
+        }
+    }
+    Ok(id)
+}
+
+/// `find`: the object, how old a sweep may be, how long to wait, and whether every instance.
+fn find_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command, RequestError> {
+    check_keys(obj, &["object", "max_age_s", "timeout_s", "all"], "find", id)?;
+    let object = match obj.get("object") {
+        Some(v) => object_name(v, "object", id)?,
+        None => {
+            return Err(err(
+                id,
+                "\"find\": missing \"object\", e.g. {\"cmd\":\"find\",\"object\":\"cup\"}",
+            ));
+        }
+    };
+    let all = match obj.get("all") {
+        None | Some(Value::Null) => false,
+        Some(Value::Bool(b)) => *b,
+        Some(other) => return Err(err(id, format!("\"all\": expected true or false, got {other}"))),
+    };
+    Ok(Command::Find {
+        object,
+        max_age_s: number(obj, "max_age_s", DEFAULT_MAX_AGE_S, id)?,
+        timeout_s: number(obj, "timeout_s", DEFAULT_TIMEOUT_S, id)?,
+        all,
+    })
+}
+
+/// `watch`: the objects, from `objects` (a list) and `object` (one name), each once.
+fn watch_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command, RequestError> {
+    check_keys(obj, &["objects", "object"], "watch", id)?;
+    let mut objects = Vec::new();
+    if let Some(v) = obj.get("object") {
+        objects.push(object_name(v, "object", id)?);
+    }
+    match obj.get("objects") {
+        None => {}
+        Some(Value::Array(a)) => {
+            for v in a {
+                objects.push(object_name(v, "objects", id)?);
+            }
+        }
+        Some(other) => return Err(err(id, format!("\"objects\": expected a list of names, got {other}"))),
+    }
+    if objects.is_empty() {
+        return Err(err(id, "\"watch\": give \"objects\": [names] or \"object\": name"));
+    }
+    objects.sort();
+    objects.dedup();
+    Ok(Command::Watch { objects })
 }
 
 impl RequestError {
