@@ -136,14 +136,7 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
             }
             "TYPE" => {
                 dup(raw.types.is_some())?;
-                let v = values
-                    .iter()
-                    .map(|s| match s.as_bytes() {
-                        [t @ (b'F' | b'I' | b'U')] => Ok(char::from(*t)),
-                        _ => Err(err(format!("TYPE {} is not F, I or U", quote(s)))),
-                    })
-                    .collect::<Result<_, _>>()?;
-                raw.types = Some((line_no, v));
+                raw.types = Some((line_no, field_types(&values).map_err(err)?));
             }
             "COUNT" => {
                 dup(raw.counts.is_some())?;
@@ -167,26 +160,10 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
             }
             "VIEWPOINT" => {
                 dup(viewpoint.is_some())?;
-                let nums: Vec<f64> = values.iter().filter_map(|v| v.parse::<f64>().ok()).collect();
-                match <[f64; 7]>::try_from(nums.as_slice()) {
-                    Ok(v) if values.len() == 7 && v.iter().all(|x| x.is_finite()) => viewpoint = Some(v),
-                    _ => {
-                        return Err(err("VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)".into()));
-                    }
-                }
+                viewpoint = Some(viewpoint_values(&values).map_err(err)?);
             }
             "DATA" => {
-                let data = match values.as_slice() {
-                    [v] if v.eq_ignore_ascii_case("ascii") => PcdData::Ascii,
-                    [v] if v.eq_ignore_ascii_case("binary") => PcdData::Binary,
-                    [v] if v.eq_ignore_ascii_case("binary_compressed") => PcdData::BinaryCompressed,
-                    _ => {
-                        return Err(err(format!(
-                            "DATA {} is not ascii, binary or binary_compressed",
-                            values.join(" ")
-                        )));
-                    }
-                };
+                let data = data_kind(&values).map_err(err)?;
                 let mut header = finish_header(raw, data, next, line_no)?;
                 header.viewpoint = viewpoint;
                 return Ok(header);
@@ -197,6 +174,39 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     Err(CloudError::Format(
         "PCD header: no DATA line before the end of the file".into(),
     ))
+}
+
+/// The TYPE line's letters: F (float), I (signed) or U (unsigned) each.
+fn field_types(values: &[&str]) -> Result<Vec<char>, String> {
+    values
+        .iter()
+        .map(|s| match s.as_bytes() {
+            [t @ (b'F' | b'I' | b'U')] => Ok(char::from(*t)),
+            _ => Err(format!("TYPE {} is not F, I or U", quote(s))),
+        })
+        .collect()
+}
+
+/// The VIEWPOINT line: 7 finite numbers, the translation and the rotation (w first).
+fn viewpoint_values(values: &[&str]) -> Result<[f64; 7], String> {
+    let nums: Vec<f64> = values.iter().filter_map(|v| v.parse::<f64>().ok()).collect();
+    match <[f64; 7]>::try_from(nums.as_slice()) {
+        Ok(v) if values.len() == 7 && v.iter().all(|x| x.is_finite()) => Ok(v),
+        _ => Err("VIEWPOINT needs 7 finite numbers (tx ty tz qw qx qy qz)".into()),
+    }
+}
+
+/// The DATA line's encoding.
+fn data_kind(values: &[&str]) -> Result<PcdData, String> {
+    match values {
+        [v] if v.eq_ignore_ascii_case("ascii") => Ok(PcdData::Ascii),
+        [v] if v.eq_ignore_ascii_case("binary") => Ok(PcdData::Binary),
+        [v] if v.eq_ignore_ascii_case("binary_compressed") => Ok(PcdData::BinaryCompressed),
+        _ => Err(format!(
+            "DATA {} is not ascii, binary or binary_compressed",
+            values.join(" ")
+        )),
+    }
 }
 
 fn finish_header(raw: RawHeader, data: PcdData, data_start: usize, data_line: usize) -> Result<Header, CloudError> {

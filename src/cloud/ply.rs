@@ -154,48 +154,16 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
                 let Some(element) = elements.last_mut() else {
                     return Err(err("property before any element".into()));
                 };
-                let kind = |t: &str| ply_kind(t).ok_or_else(|| err(format!("unknown type {}", quote(t))));
-                let (ty, name) = match rest {
-                    ["list", len, item, name] => {
-                        let len = kind(len)?;
-                        if matches!(len, ScalarKind::F32 | ScalarKind::F64) {
-                            return Err(err(format!("list `{name}`: length type must be an integer")));
-                        }
-                        (PropType::List { len, item: kind(item)? }, name)
-                    }
-                    [ty, name] => (PropType::Scalar(kind(ty)?), name),
-                    _ => return Err(err("property needs a type and a name".into())),
-                };
-                if !element.prop_names.insert(name.to_string()) {
-                    return Err(err(format!("property `{name}` appears twice")));
-                }
-                element.props.push(Prop {
-                    name: name.to_string(),
-                    ty,
-                });
+                add_property(element, rest).map_err(err)?;
             }
             ["end_header"] => {
                 let Some(encoding) = encoding else {
                     return Err(err("no format line before end_header".into()));
                 };
-                let Some(vertex) = elements.iter().find(|e| e.name == "vertex") else {
-                    return Err(err("no vertex element".into()));
-                };
-                for axis in ["x", "y", "z"] {
-                    let found = vertex.props.iter().find(|p| p.name == axis);
-                    if !matches!(
-                        found,
-                        Some(Prop {
-                            ty: PropType::Scalar(_),
-                            ..
-                        })
-                    ) {
-                        return Err(CloudError::header(
-                            vertex_line,
-                            format!("vertex element has no scalar `{axis}` property"),
-                        ));
-                    }
-                }
+                check_vertex(&elements, vertex_line).map_err(|e| match e {
+                    None => err("no vertex element".into()),
+                    Some(e) => e,
+                })?;
                 return Ok(Header {
                     encoding,
                     elements,
@@ -211,6 +179,52 @@ fn parse_header(buf: &[u8]) -> Result<Header, CloudError> {
     Err(CloudError::Format(
         "PLY header: no end_header line before the end of the file".into(),
     ))
+}
+
+/// Adds a `property` line's property (`rest`: its words after `property`) to `element`.
+fn add_property(element: &mut Element, rest: &[&str]) -> Result<(), String> {
+    let kind = |t: &str| ply_kind(t).ok_or_else(|| format!("unknown type {}", quote(t)));
+    let (ty, name) = match rest {
+        ["list", len, item, name] => {
+            let len = kind(len)?;
+            if matches!(len, ScalarKind::F32 | ScalarKind::F64) {
+                return Err(format!("list `{name}`: length type must be an integer"));
+            }
+            (PropType::List { len, item: kind(item)? }, name)
+        }
+        [ty, name] => (PropType::Scalar(kind(ty)?), name),
+        _ => return Err("property needs a type and a name".into()),
+    };
+    if !element.prop_names.insert(name.to_string()) {
+        return Err(format!("property `{name}` appears twice"));
+    }
+    element.props.push(Prop {
+        name: name.to_string(),
+        ty,
+    });
+    Ok(())
+}
+
+/// That there is a vertex element (`Err(None)` where there is none) with scalar x, y and z
+/// (an error naming the vertex element's line otherwise).
+fn check_vertex(elements: &[Element], vertex_line: usize) -> Result<(), Option<CloudError>> {
+    let vertex = elements.iter().find(|e| e.name == "vertex").ok_or(None)?;
+    for axis in ["x", "y", "z"] {
+        let found = vertex.props.iter().find(|p| p.name == axis);
+        if !matches!(
+            found,
+            Some(Prop {
+                ty: PropType::Scalar(_),
+                ..
+            })
+        ) {
+            return Err(Some(CloudError::header(
+                vertex_line,
+                format!("vertex element has no scalar `{axis}` property"),
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// Reads a PLY file (see the [`io`](super::io) module docs).

@@ -101,29 +101,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
                 if tokens.len() < 3 {
                     return Err(err(None, format!("{} columns, need at least x y z", tokens.len())));
                 }
-                if let Some((spec_line, specs)) = spec.take() {
-                    let declared = specs.iter().try_fold(3usize, |n, s| n.checked_add(s.count));
-                    if declared != Some(tokens.len()) {
-                        let declared = declared.map_or("too many".into(), |n| n.to_string());
-                        return Err(err(
-                            None,
-                            format!(
-                                "{} columns, but the {COLUMNS_TAG} line {spec_line} declares {declared}",
-                                tokens.len()
-                            ),
-                        ));
-                    }
-                    let typed = specs
-                        .into_iter()
-                        .map(|s| {
-                            let data = FieldData::with_capacity(s.kind, 0);
-                            (s, data)
-                        })
-                        .collect();
-                    extra = Extra::Typed(typed);
-                } else {
-                    extra = Extra::Untyped(vec![Vec::new(); tokens.len() - 3]);
-                }
+                extra = Extra::for_columns(tokens.len(), spec.take()).map_err(|msg| err(None, msg))?;
                 layout = Some((tokens.len(), line_no));
             }
             Some((n, first)) if n != tokens.len() => {
@@ -138,14 +116,48 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
             };
             coords[k].push(v);
         }
-        let mut rest = tokens.iter().skip(3);
-        match &mut extra {
+        extra
+            .push(&tokens[3..])
+            .map_err(|(field, msg)| err(Some(&field), msg))?;
+    }
+    let n = coords[0].len();
+    assemble(columns(coords, extra), n, 1)
+}
+
+impl Extra {
+    /// The extra columns of a cloud whose first point has `n` columns: as the `sqscan-columns`
+    /// line (and its line number) declares them, which must add up to `n`, or untyped.
+    fn for_columns(n: usize, spec: Option<(usize, Vec<Spec>)>) -> Result<Extra, String> {
+        let Some((spec_line, specs)) = spec else {
+            return Ok(Extra::Untyped(vec![Vec::new(); n - 3]));
+        };
+        let declared = specs.iter().try_fold(3usize, |k, s| k.checked_add(s.count));
+        if declared != Some(n) {
+            let declared = declared.map_or("too many".into(), |k| k.to_string());
+            return Err(format!(
+                "{n} columns, but the {COLUMNS_TAG} line {spec_line} declares {declared}"
+            ));
+        }
+        let typed = specs
+            .into_iter()
+            .map(|s| {
+                let data = FieldData::with_capacity(s.kind, 0);
+                (s, data)
+            })
+            .collect();
+        Ok(Extra::Typed(typed))
+    }
+
+    /// One point's extra tokens; the field and the message where one does not parse.
+    fn push(&mut self, tokens: &[&str]) -> Result<(), (String, String)> {
+        let mut rest = tokens.iter();
+        match self {
             Extra::Typed(cols) => {
                 for (s, data) in cols.iter_mut() {
                     for tok in rest.by_ref().take(s.count) {
                         if !data.push_token(tok) {
                             let msg = format!("cannot parse {} as {}", quote(tok), s.kind.name());
-                            return Err(err(Some(&s.name), msg));
+                            return Err((s.name.clone(), msg));
                         }
                     }
                 }
@@ -153,17 +165,20 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
             Extra::Untyped(cols) => {
                 for (c, (col, tok)) in cols.iter_mut().zip(rest).enumerate() {
                     let Some(v) = f64::parse_token(tok) else {
-                        let name = format!("c{}", c + 3);
-                        return Err(err(Some(&name), format!("cannot parse {} as f64", quote(tok))));
+                        return Err((format!("c{}", c + 3), format!("cannot parse {} as f64", quote(tok))));
                     };
                     col.push(v);
                 }
             }
         }
+        Ok(())
     }
+}
 
+/// The cloud's columns: x, y and z, then the extra ones (three untyped columns of integers in
+/// 0..=255 as red, green and blue).
+fn columns(coords: [Vec<f32>; 3], extra: Extra) -> Vec<Column> {
     let [x, y, z] = coords;
-    let n = x.len();
     let mut columns = vec![
         Column {
             name: "x".into(),
@@ -208,7 +223,7 @@ pub(crate) fn parse_text(buf: &[u8]) -> Result<PointCloud, CloudError> {
             }
         }
     }
-    assemble(columns, n, 1)
+    columns
 }
 
 /// Three extra columns of integers in 0..=255: `x y z r g b` colour.
