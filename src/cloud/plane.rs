@@ -283,43 +283,8 @@ fn scale_from(v: &Point3<f64>, rr: f64, p: &Point3<f64>) -> f64 {
 
 /// The dominant plane of `points` and the half-width of its band at the reference range.
 fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane, f64)> {
-    // Seeds spread evenly: a grid over the two principal directions of the whole cloud.
-    // The seeds' grid and the cloud's extent come from an even share of the points: a few
-    // dozen a cell choose a seed near its centre as well as all of them do.
-    let every = points.len().div_ceil(SEED_CANDIDATES).max(1);
-    let (whole, _) = fit_plane(points, (0..points.len()).step_by(every))?;
-    let (u, v) = orthonormal_basis(&whole.normal);
-    let (us, vs): (Vec<f64>, Vec<f64>) = points
-        .iter()
-        .step_by(every)
-        .map(|p| (u.dot(&p.coords), v.dot(&p.coords)))
-        .unzip();
-    let bounds = |c: &[f64]| {
-        c.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &a| {
-            (lo.min(a), hi.max(a))
-        })
-    };
-    let ((umin, umax), (vmin, vmax)) = (bounds(&us), bounds(&vs));
-    let side = (SEEDS as f64).sqrt().ceil() as usize;
-    let (du, dv) = (
-        (umax - umin).max(1e-9) / side as f64,
-        (vmax - vmin).max(1e-9) / side as f64,
-    );
-    // The point nearest each cell's centre represents the cell.
-    let mut nearest = vec![(f64::INFINITY, usize::MAX); side * side];
-    for (k, (&a, &b)) in us.iter().zip(&vs).enumerate() {
-        let (cu, cv) = (((a - umin) / du) as usize, ((b - vmin) / dv) as usize);
-        let (cu, cv) = (cu.min(side - 1), cv.min(side - 1));
-        let (ca, cb) = (umin + (cu as f64 + 0.5) * du, vmin + (cv as f64 + 0.5) * dv);
-        let d = (a - ca).powi(2) + (b - cb).powi(2);
-        let slot = &mut nearest[cv * side + cu];
-        if d < slot.0 {
-            *slot = (d, k * every);
-        }
-    }
-    let seeds: Vec<usize> = nearest.into_iter().filter(|s| s.1 != usize::MAX).map(|s| s.1).collect();
+    let (seeds, area) = seed_points(points)?;
     // Patch radius: enough for PATCH_POINTS neighbours at the cloud's mean density.
-    let area = ((umax - umin) * (vmax - vmin)).max(1e-9);
     let radius = (PATCH_POINTS as f64 * area / points.len() as f64 / std::f64::consts::PI).sqrt() * 1.5;
     let grid = Grid::new(points, radius);
     // Each seed's patch plane, with the patch's RMS distance to it (its noise).
@@ -390,6 +355,47 @@ fn find_plane(points: &[Point3<f64>], range_scale: &RangeScale) -> Option<(Plane
     // Start narrow: a least-squares fit over a wide band mixes in the bottoms of the objects
     // standing on the plane and tilts it (a cluttered table: a 1 degree tilt, a band of 8 cm).
     refine_plane(&refine_points, range_scale, best, threshold.clamp(0.003, cap), cap)
+}
+
+/// Seed points spread evenly over the cloud (indices into `points`): the point nearest the
+/// centre of each cell of a grid over the two principal directions of the whole cloud; and the
+/// area (m²) the grid spans.
+fn seed_points(points: &[Point3<f64>]) -> Option<(Vec<usize>, f64)> {
+    // The seeds' grid and the cloud's extent come from an even share of the points: a few
+    // dozen a cell choose a seed near its centre as well as all of them do.
+    let every = points.len().div_ceil(SEED_CANDIDATES).max(1);
+    let (whole, _) = fit_plane(points, (0..points.len()).step_by(every))?;
+    let (u, v) = orthonormal_basis(&whole.normal);
+    let (us, vs): (Vec<f64>, Vec<f64>) = points
+        .iter()
+        .step_by(every)
+        .map(|p| (u.dot(&p.coords), v.dot(&p.coords)))
+        .unzip();
+    let bounds = |c: &[f64]| {
+        c.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &a| {
+            (lo.min(a), hi.max(a))
+        })
+    };
+    let ((umin, umax), (vmin, vmax)) = (bounds(&us), bounds(&vs));
+    let side = (SEEDS as f64).sqrt().ceil() as usize;
+    let (du, dv) = (
+        (umax - umin).max(1e-9) / side as f64,
+        (vmax - vmin).max(1e-9) / side as f64,
+    );
+    // The point nearest each cell's centre represents the cell.
+    let mut nearest = vec![(f64::INFINITY, usize::MAX); side * side];
+    for (k, (&a, &b)) in us.iter().zip(&vs).enumerate() {
+        let (cu, cv) = (((a - umin) / du) as usize, ((b - vmin) / dv) as usize);
+        let (cu, cv) = (cu.min(side - 1), cv.min(side - 1));
+        let (ca, cb) = (umin + (cu as f64 + 0.5) * du, vmin + (cv as f64 + 0.5) * dv);
+        let d = (a - ca).powi(2) + (b - cb).powi(2);
+        let slot = &mut nearest[cv * side + cu];
+        if d < slot.0 {
+            *slot = (d, k * every);
+        }
+    }
+    let seeds: Vec<usize> = nearest.into_iter().filter(|s| s.1 != usize::MAX).map(|s| s.1).collect();
+    Some((seeds, ((umax - umin) * (vmax - vmin)).max(1e-9)))
 }
 
 /// Least squares on the points within `band` of the plane (distances in units of the noise at
