@@ -15,93 +15,9 @@ impl PointCloud {
         let Some(first) = sweeps.first() else {
             return Err("no sweeps given".into());
         };
-        for (k, c) in sweeps.iter().enumerate() {
-            if !c.is_organized() {
-                return Err(format!(
-                    "sweep {}: an unorganized cloud ({} points in one row); sweeps are combined pixel by pixel, so give organized clouds",
-                    k + 1,
-                    c.len()
-                ));
-            }
-            if (c.width, c.height) != (first.width, first.height) {
-                return Err(format!(
-                    "sweep {} is {}x{}, sweep 1 is {}x{}: the sweeps of one view are clouds of the same size",
-                    k + 1,
-                    c.width,
-                    c.height,
-                    first.width,
-                    first.height
-                ));
-            }
-            if let (Some(a), Some(b)) = (first.viewpoint_position(), c.viewpoint_position()) {
-                // 1 cm: the sensor did not move between the sweeps (beyond encoder jitter).
-                if (a - b).norm() > 0.01 {
-                    return Err(format!(
-                        "sweep {}: viewpoint {:.3},{:.3},{:.3} is {:.3} m from sweep 1's: not the same view",
-                        k + 1,
-                        b.x,
-                        b.y,
-                        b.z,
-                        (a - b).norm()
-                    ));
-                }
-            }
-        }
-        // Pixel i must be the same ray in every sweep. A pan-tilt unit sweeping back and forth
-        // stores every other sweep's rows in the opposite order (rows are in exposure order);
-        // such a sweep is turned round. One whose rays still differ by more than a row and a
-        // half (a sweep that started late, another tilt range) is refused.
-        let v = first.viewpoint_position().unwrap_or_else(nalgebra::Point3::origin);
-        let dir = |p: &[f32; 3]| -> Option<nalgebra::Vector3<f64>> {
-            if !is_finite_point(p) {
-                return None;
-            }
-            (nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])) - v.coords).try_normalize(1e-9)
-        };
+        same_view(sweeps)?;
+        let turned = turned_round(sweeps)?;
         let (w, h) = (first.width, first.height);
-        let spacing = {
-            let mut a: Vec<f64> = Vec::new();
-            for r in 0..h.saturating_sub(1) {
-                for c in (0..w.saturating_sub(1)).step_by(3) {
-                    for (i, j) in [(r * w + c, (r + 1) * w + c), (r * w + c, r * w + c + 1)] {
-                        if let (Some(d1), Some(d2)) = (dir(&first.points[i]), dir(&first.points[j])) {
-                            a.push(d1.angle(&d2));
-                        }
-                    }
-                }
-            }
-            median(&mut a).unwrap_or(f64::NAN)
-        };
-        let offset = |c: &PointCloud, flip: bool| -> Option<f64> {
-            let mut a: Vec<f64> = Vec::new();
-            for r in 0..h {
-                let rc = if flip { h - 1 - r } else { r };
-                for col in (0..w).step_by(3) {
-                    if let (Some(d1), Some(d2)) = (dir(&first.points[r * w + col]), dir(&c.points[rc * w + col])) {
-                        a.push(d1.angle(&d2));
-                    }
-                }
-            }
-            median(&mut a)
-        };
-        // Whether each sweep is read turned round (its rows from the last).
-        let mut turned = vec![false; sweeps.len()];
-        for (k, c) in sweeps.iter().enumerate().skip(1) {
-            let (Some(straight), Some(round)) = (offset(c, false), offset(c, true)) else {
-                // No pixel returned in both: nothing to tell the order by, nothing to mix up.
-                continue;
-            };
-            let best = straight.min(round);
-            if spacing.is_finite() && best > 1.5 * spacing {
-                return Err(format!(
-                    "sweep {}: its pixels are not sweep 1's rays (a median {:.2} mrad apart, the rows {:.2} mrad): another sweep range, or a sweep that started late",
-                    k + 1,
-                    best * 1e3,
-                    spacing * 1e3
-                ));
-            }
-            turned[k] = round < straight;
-        }
         let pixel = |k: usize, i: usize| -> [f32; 3] {
             if turned[k] {
                 sweeps[k].points[(h - 1 - i / w) * w + i % w]
@@ -140,6 +56,106 @@ impl PointCloud {
             viewpoint: first.viewpoint,
         })
     }
+}
+
+/// That the sweeps are organized clouds of one size taken from one place (1 cm).
+fn same_view(sweeps: &[PointCloud]) -> Result<(), String> {
+    let first = &sweeps[0];
+    for (k, c) in sweeps.iter().enumerate() {
+        if !c.is_organized() {
+            return Err(format!(
+                "sweep {}: an unorganized cloud ({} points in one row); sweeps are combined pixel by pixel, so give organized clouds",
+                k + 1,
+                c.len()
+            ));
+        }
+        if (c.width, c.height) != (first.width, first.height) {
+            return Err(format!(
+                "sweep {} is {}x{}, sweep 1 is {}x{}: the sweeps of one view are clouds of the same size",
+                k + 1,
+                c.width,
+                c.height,
+                first.width,
+                first.height
+            ));
+        }
+        if let (Some(a), Some(b)) = (first.viewpoint_position(), c.viewpoint_position()) {
+            // 1 cm: the sensor did not move between the sweeps (beyond encoder jitter).
+            if (a - b).norm() > 0.01 {
+                return Err(format!(
+                    "sweep {}: viewpoint {:.3},{:.3},{:.3} is {:.3} m from sweep 1's: not the same view",
+                    k + 1,
+                    b.x,
+                    b.y,
+                    b.z,
+                    (a - b).norm()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether each sweep is read turned round (its rows from the last) to have pixel `i` on the
+/// same ray as sweep 1's; an error where its rays differ from sweep 1's whichever way it is read.
+fn turned_round(sweeps: &[PointCloud]) -> Result<Vec<bool>, String> {
+    let first = &sweeps[0];
+    // Pixel i must be the same ray in every sweep. A pan-tilt unit sweeping back and forth
+    // stores every other sweep's rows in the opposite order (rows are in exposure order);
+    // such a sweep is turned round. One whose rays still differ by more than a row and a
+    // half (a sweep that started late, another tilt range) is refused.
+    let v = first.viewpoint_position().unwrap_or_else(nalgebra::Point3::origin);
+    let dir = |p: &[f32; 3]| -> Option<nalgebra::Vector3<f64>> {
+        if !is_finite_point(p) {
+            return None;
+        }
+        (nalgebra::Vector3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2])) - v.coords).try_normalize(1e-9)
+    };
+    let (w, h) = (first.width, first.height);
+    let spacing = {
+        let mut a: Vec<f64> = Vec::new();
+        for r in 0..h.saturating_sub(1) {
+            for c in (0..w.saturating_sub(1)).step_by(3) {
+                for (i, j) in [(r * w + c, (r + 1) * w + c), (r * w + c, r * w + c + 1)] {
+                    if let (Some(d1), Some(d2)) = (dir(&first.points[i]), dir(&first.points[j])) {
+                        a.push(d1.angle(&d2));
+                    }
+                }
+            }
+        }
+        median(&mut a).unwrap_or(f64::NAN)
+    };
+    let offset = |c: &PointCloud, flip: bool| -> Option<f64> {
+        let mut a: Vec<f64> = Vec::new();
+        for r in 0..h {
+            let rc = if flip { h - 1 - r } else { r };
+            for col in (0..w).step_by(3) {
+                if let (Some(d1), Some(d2)) = (dir(&first.points[r * w + col]), dir(&c.points[rc * w + col])) {
+                    a.push(d1.angle(&d2));
+                }
+            }
+        }
+        median(&mut a)
+    };
+    // Whether each sweep is read turned round (its rows from the last).
+    let mut turned = vec![false; sweeps.len()];
+    for (k, c) in sweeps.iter().enumerate().skip(1) {
+        let (Some(straight), Some(round)) = (offset(c, false), offset(c, true)) else {
+            // No pixel returned in both: nothing to tell the order by, nothing to mix up.
+            continue;
+        };
+        let best = straight.min(round);
+        if spacing.is_finite() && best > 1.5 * spacing {
+            return Err(format!(
+                "sweep {}: its pixels are not sweep 1's rays (a median {:.2} mrad apart, the rows {:.2} mrad): another sweep range, or a sweep that started late",
+                k + 1,
+                best * 1e3,
+                spacing * 1e3
+            ));
+        }
+        turned[k] = round < straight;
+    }
+    Ok(turned)
 }
 
 #[cfg(test)]
