@@ -83,62 +83,20 @@ pub async fn acquire_live<P: PanTilt, R: ProfileSource>(
     let started = std::time::Instant::now();
 
     // 4. The move, reading profiles meanwhile.
-    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
     let mut profiles: Vec<ReceivedProfile> = Vec::new();
-    let track_time = secs(settings.nominal_duration_s()).saturating_add(settings.timeout);
-    let moved = {
-        let mut sweep = Box::pin(ptu.move_and_track(sweep_goal, Some(&tx), track_time));
-        loop {
-            tokio::select! {
-                r = &mut sweep => break Ok(r),
-                Some(s) = rx.recv() => {
-                    live(&s);
-                    samples.push(s);
-                }
-                r = sensor.next_profile(settings.timeout) => match r {
-                    Ok(p) => profiles.push(p),
-                    Err(e) => break Err(e),
-                },
-            }
-        }
-    };
-    drop(tx);
-    while let Ok(s) = rx.try_recv() {
-        live(&s);
-        samples.push(s);
-    }
-    let last = match moved {
-        Ok(Ok(last)) => last,
-        Ok(Err(e)) => {
-            let _ = sensor.stop().await;
-            return Err(SweepError::Ptu(e));
-        }
-        Err(e) => {
-            let _ = ptu.halt().await;
-            return Err(SweepError::Sensor(e));
-        }
-    };
+    let last = sweep_reading(
+        ptu,
+        sensor,
+        sweep_goal,
+        settings,
+        &mut samples,
+        &mut profiles,
+        &mut live,
+    )
+    .await?;
 
     // 5. Acquisition off; what is still on the line was exposed during the move.
-    let stopped = sensor.stop().await;
-    if let Err(e) = stopped {
-        return Err(SweepError::Sensor(e));
-    }
-    // Bounded even if the sensor ignored STOP.
-    let drain_until = std::time::Instant::now()
-        .checked_add(settings.timeout)
-        .unwrap_or_else(std::time::Instant::now);
-    // A frame still on its way arrives within about one profile period of the last: wait three
-    // observed periods (bounded by `grace`) rather than always the whole grace, which would add
-    // to every sweep's latency.
-    let quiet = drain_quiet(&profiles, settings.grace);
-    while std::time::Instant::now() < drain_until {
-        match sensor.next_profile(quiet).await {
-            Ok(p) => profiles.push(p),
-            Err(sqscan_drivers::Error::Timeout { .. }) => break,
-            Err(e) => return Err(SweepError::Sensor(e)),
-        }
-    }
+    drain_after_stop(sensor, settings, &mut profiles).await?;
 
     // A sensor that sent nothing at all failed, whatever the PTU did.
     if profiles.is_empty() {
@@ -164,6 +122,83 @@ pub async fn acquire_live<P: PanTilt, R: ProfileSource>(
     let sweep = assemble(&samples, &profiles, calib, settings.sensor_latency_s)?;
     tracing::debug!(report = ?sweep.report, "sweep assembled");
     sweep.require_profiles(settings.min_profiles)
+}
+
+/// The sweep's move to `goal`, reading profiles into `profiles` and position samples into
+/// `samples` (each handed to `live`) meanwhile; the move's last sample. Where the move fails the
+/// sensor is stopped, where the sensor fails the unit is halted.
+async fn sweep_reading<P: PanTilt, R: ProfileSource>(
+    ptu: &mut P,
+    sensor: &mut R,
+    goal: Goal,
+    settings: &SweepSettings,
+    samples: &mut Vec<PositionSample>,
+    profiles: &mut Vec<ReceivedProfile>,
+    live: &mut (impl FnMut(&PositionSample) + Send),
+) -> Result<PositionSample, SweepError> {
+    let (tx, mut rx) = tokio::sync::mpsc::unbounded_channel();
+    let track_time = secs(settings.nominal_duration_s()).saturating_add(settings.timeout);
+    let moved = {
+        let mut sweep = Box::pin(ptu.move_and_track(goal, Some(&tx), track_time));
+        loop {
+            tokio::select! {
+                r = &mut sweep => break Ok(r),
+                Some(s) = rx.recv() => {
+                    live(&s);
+                    samples.push(s);
+                }
+                r = sensor.next_profile(settings.timeout) => match r {
+                    Ok(p) => profiles.push(p),
+                    Err(e) => break Err(e),
+                },
+            }
+        }
+    };
+    drop(tx);
+    while let Ok(s) = rx.try_recv() {
+        live(&s);
+        samples.push(s);
+    }
+    match moved {
+        Ok(Ok(last)) => Ok(last),
+        Ok(Err(e)) => {
+            let _ = sensor.stop().await;
+            Err(SweepError::Ptu(e))
+        }
+        Err(e) => {
+            let _ = ptu.halt().await;
+            Err(SweepError::Sensor(e))
+        }
+    }
+}
+
+/// Stops the acquisition and reads what is still on the line (exposed during the move) into
+/// `profiles`, until the line has been quiet for three profile periods or `settings.timeout`.
+async fn drain_after_stop<R: ProfileSource>(
+    sensor: &mut R,
+    settings: &SweepSettings,
+    profiles: &mut Vec<ReceivedProfile>,
+) -> Result<(), SweepError> {
+    let stopped = sensor.stop().await;
+    if let Err(e) = stopped {
+        return Err(SweepError::Sensor(e));
+    }
+    // Bounded even if the sensor ignored STOP.
+    let drain_until = std::time::Instant::now()
+        .checked_add(settings.timeout)
+        .unwrap_or_else(std::time::Instant::now);
+    // A frame still on its way arrives within about one profile period of the last: wait three
+    // observed periods (bounded by `grace`) rather than always the whole grace, which would add
+    // to every sweep's latency.
+    let quiet = drain_quiet(profiles, settings.grace);
+    while std::time::Instant::now() < drain_until {
+        match sensor.next_profile(quiet).await {
+            Ok(p) => profiles.push(p),
+            Err(sqscan_drivers::Error::Timeout { .. }) => break,
+            Err(e) => return Err(SweepError::Sensor(e)),
+        }
+    }
+    Ok(())
 }
 
 fn secs(s: f64) -> Duration {
