@@ -3,6 +3,9 @@
 //! (`tests/py/dds_sub.py`). DDS discovers by multicast, so the test runs inside a private network
 //! namespace with only loopback (it says SKIPPED where none can be had). Without that Python it
 //! says it skipped, unless `SQSCAN_REQUIRE_PYTHON_TOOLS` is set (as `scripts/test.sh` sets it).
+//!
+//! Over 600 lines: every test shares the namespace, the Cyclone subscriber and the daemon
+//! harness at the top, and the hostile-peer tests need all three.
 #![cfg(feature = "ros2")]
 
 use std::net::UdpSocket;

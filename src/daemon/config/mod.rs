@@ -1,6 +1,10 @@
 //! The daemon's configuration file (`/etc/sqscan/sqscand.toml` by default), documented field by
 //! field in `docs/DAEMON.md`; `systemd/sqscand.toml` is a complete example.
 //!
+//! Over 600 lines: the `Config` every task reads and the validation of its sections, one helper
+//! a section, beside the defaults they fall back on; the sensor's and the ROS 2 node's tables
+//! are in modules of their own.
+//!
 //! One job, validation, whatever the table: each error must name its field, so every setting
 //! is checked here as it is read (the sensor's table, the longest, in `sensor`; the ROS 2 node's in
 //! `ros2`).
