@@ -84,44 +84,33 @@ impl PlaneCheck {
             .is_none_or(|p| !self.reaches_through(placed, p, self.tolerance + slack))
     }
 
-    /// The pose, or where it reaches through the plane by at most `lift` (m) beyond what
-    /// [`PlaneCheck::allows`], the same pose moved along the plane's normal onto the deepest
-    /// place allowed; `None` where even that is not allowed (an open container lying on its
-    /// side, or a pose deeper through the plane).
-    pub fn allowed_or_lifted(
-        &self,
-        space: &SearchSpace<'_>,
-        placed: &PlacedSuperquadric,
-        lift: f64,
-    ) -> Option<PlacedSuperquadric> {
-        let Some(plane) = space.plane.as_ref() else {
-            return Some(*placed);
-        };
-        let z = placed.pose.rotation * Vector3::z();
-        if self.open && z.dot(&plane.normal).abs() < MAX_REST_TILT.cos() {
-            return None;
-        }
-        if !self.reaches_through(placed, plane, self.tolerance) {
-            return Some(*placed);
-        }
+    /// The pose moved along the plane's normal onto the deepest place the check allows, and how
+    /// far (m) it was moved; `None` where it does not reach through past the tolerance.
+    pub fn lifted(&self, placed: &PlacedSuperquadric, plane: &Plane) -> Option<(PlacedSuperquadric, f64)> {
         let excess = self.penetration(placed, plane) - self.tolerance;
-        if excess > lift {
+        if excess <= 0.0 {
             return None;
         }
         let mut out = *placed;
         // A micrometre more, so that rounding cannot leave it a hair too deep for the check.
         out.pose.translation.vector += plane.normal * (excess + 1e-6);
-        Some(out)
+        Some((out, excess))
+    }
+
+    /// Whether the part stands as it may on the plane: an open container on its base or its rim
+    /// (any closed part stands any way).
+    pub fn stands(&self, placed: &PlacedSuperquadric, plane: &Plane) -> bool {
+        let z = placed.pose.rotation * Vector3::z();
+        !self.open || z.dot(&plane.normal).abs() >= MAX_REST_TILT.cos()
     }
 
     /// Whether the pose is possible for an object resting on or above the plane: it does not
     /// reach through it, and an open container stands on its base or its rim.
     pub fn allows(&self, space: &SearchSpace<'_>, placed: &PlacedSuperquadric) -> bool {
-        space.plane.as_ref().is_none_or(|p| {
-            let z = placed.pose.rotation * Vector3::z();
-            (!self.open || z.dot(&p.normal).abs() >= MAX_REST_TILT.cos())
-                && !self.reaches_through(placed, p, self.tolerance)
-        })
+        space
+            .plane
+            .as_ref()
+            .is_none_or(|p| self.stands(placed, p) && !self.reaches_through(placed, p, self.tolerance))
     }
 }
 

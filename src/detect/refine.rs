@@ -396,13 +396,9 @@ pub fn finish_deferred(
 /// upside down, sinks its rim into the table.
 fn lift_onto_plane(space: &SearchSpace<'_>, check: &PlaneCheck, h: &mut Hypothesis) {
     let Some(plane) = space.plane else { return };
-    let excess = check.penetration(&h.placed, &plane) - check.tolerance;
-    if excess <= 0.0 {
+    let Some((placed, _)) = check.lifted(&h.placed, &plane) else {
         return;
-    }
-    let mut placed = h.placed;
-    // A micrometre more, so that rounding cannot leave it a hair too deep for the check.
-    placed.pose.translation.vector += plane.normal * (excess + 1e-6);
+    };
     let centre = Point3::from(placed.pose.translation.vector);
     let band = refine_band(&placed.shape, space.noise.at(&centre));
     let inliers = thin(inliers_in(space.mid, space.mid_grid, &placed, band), REFINE_POINTS);

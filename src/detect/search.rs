@@ -387,11 +387,17 @@ fn trial(
         // the fit is right for what was seen, and set on the plane (by no more than the plane's
         // own tolerance again) it is where the object is. A fit that misses its own patch by
         // more, or reaches deeper, is another shape's (a cup sunk into a bowl), and is dropped.
+        let plane = space.plane.as_ref()?;
         let centre = Point3::from(f.placed.pose.translation.vector);
-        if rms_distance(&f.placed, sample, band) > LIFT_NOISE * space.noise.at(&centre) {
+        if !check.stands(&f.placed, plane)
+            || rms_distance(&f.placed, sample, band) > LIFT_NOISE * space.noise.at(&centre)
+        {
             return None;
         }
-        let lifted = check.allowed_or_lifted(space, &f.placed, check.tolerance)?;
+        let (lifted, excess) = check.lifted(&f.placed, plane)?;
+        if excess > check.tolerance {
+            return None;
+        }
         f.placed = lifted;
         f.m = measure_of_fit(&lifted, sample);
     }
