@@ -74,5 +74,6 @@ cargo clippy --workspace --all-targets --all-features --locked -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --document-private-items --all-features --locked
 
 # The GigE Vision and ROS 2 (DDS) tests run inside a private network namespace with only loopback
-# (unshare -n, root): they say SKIPPED where none can be had.
+# (unshare -n, root): plain `cargo test` says SKIPPED where none can be had; here they fail.
+export SQSCAN_REQUIRE_NETNS=1
 cargo test --workspace --locked --all-features
