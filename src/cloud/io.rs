@@ -52,7 +52,7 @@ use std::fs;
 use std::io::{self, Write};
 use std::path::Path;
 
-use super::codec::lines;
+use super::codec::{MCAP_MAGIC, lines};
 use super::{CloudError, PcdData, PlyFormat, PointCloud};
 
 /// The file formats [`read_cloud`] tells apart.
@@ -63,9 +63,6 @@ enum Format {
     Mcap,
     Text,
 }
-
-/// The first bytes of every MCAP file.
-pub(super) const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
 
 fn format_of(path: &Path, content: Option<&[u8]>) -> Format {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);

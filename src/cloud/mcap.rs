@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 
 use super::{CloudError, PointCloud};
-use crate::ros::{self, schema};
+use crate::ros::schema;
 
 /// The topic sqscand records its clouds on.
 const POINTS_TOPIC: &str = "/sqscan/points";
@@ -176,7 +176,7 @@ fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(),
 /// One pass over an MCAP file's records: what [`records`] keeps.
 fn scan(bytes: &[u8]) -> Result<Found<'_>, CloudError> {
     let data = bytes
-        .strip_prefix(super::io::MCAP_MAGIC)
+        .strip_prefix(super::codec::MCAP_MAGIC)
         .ok_or_else(|| bad("no MCAP magic at the start".into()))?;
     let mut found = Found::default();
     records(data, &mut found, 0).map_err(bad)?;
@@ -198,7 +198,7 @@ pub fn parse_mcap(bytes: &[u8]) -> Result<PointCloud, CloudError> {
     let Some((topic, message)) = found.cloud else {
         return Err(bad(format!("no {} message in CDR", schema::POINT_CLOUD2)));
     };
-    let mut cloud = ros::read_point_cloud2(message).map_err(|e| bad(format!("{topic}: {e}")))?;
+    let mut cloud = super::read_point_cloud2(message).map_err(|e| bad(format!("{topic}: {e}")))?;
     super::check_point_count(cloud.points.len()).map_err(|msg| bad(format!("{topic}: {msg}")))?;
     cloud.viewpoint = found.viewpoint;
     Ok(cloud)
@@ -214,7 +214,7 @@ mod tests {
         let mut cloud = PointCloud::from_points((0..40).map(|i| [i as f32, 0.5, f32::NAN]).collect());
         cloud.width = 8;
         cloud.height = 5;
-        let msg = ros::point_cloud2(
+        let msg = crate::cloud::point_cloud2(
             &cloud,
             &Header {
                 stamp: Time::default(),

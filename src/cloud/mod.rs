@@ -9,6 +9,7 @@
 //! here.
 
 mod codec;
+mod error;
 pub mod grid;
 pub mod io;
 pub mod lzf;
@@ -18,12 +19,15 @@ mod median;
 mod pcd;
 pub mod plane;
 mod ply;
+mod pointcloud2;
 mod text;
 
-pub use codec::{CloudError, PcdData, PlyFormat};
+pub use codec::{PcdData, PlyFormat};
+pub use error::CloudError;
 pub use io::{read_cloud, write_cloud};
 pub use pcd::{read_pcd, write_pcd};
 pub use ply::{read_ply, write_ply};
+pub use pointcloud2::{point_cloud2, point_cloud2_data, read_point_cloud2};
 pub use text::{read_text, write_text};
 
 /// The most points a cloud file may hold unless `SQSCAN_MAX_POINTS` says otherwise: 4 Mi, more

@@ -1,6 +1,6 @@
 //! `cloud`: a sweep's points handed out after a reply's line, as a binary PCD. Clouds are large
 //! (a 600 000-point sweep is about 10 MB), so how many are in memory at once is bounded: one of a
-//! connection and [`CLOUD_SLOTS`] in all, each held from its encoding until the client's writer
+//! connection and [`CLOUD_SLOTS`](super::state::CLOUD_SLOTS) in all, each held from its encoding until the client's writer
 //! has written it. The slots are shared fairly: a connection waits for one only once its client
 //! has read everything sent to it before (a client that does not read takes none), and a
 //! transfer that stalls while others wait loses its slot within seconds (the server's writer).
@@ -13,11 +13,6 @@ use tokio::sync::Semaphore;
 use super::reply::{CloudHeader, ErrorCode, Reply};
 use super::state::Shared;
 use super::waiting::wait_for_sweep;
-
-/// `cloud` payloads in memory at once, over all clients: each is held from its encoding until
-/// the client's writer has written it (or given up on a client that does not read, after
-/// the writer's timeout, `WRITE_TIMEOUT` of `outbox.rs`), so clients that ask for clouds and never read cannot pile them up.
-pub const CLOUD_SLOTS: usize = 4;
 
 /// How often a `cloud` request looks whether its client has read what was sent to it.
 const READ_POLL: Duration = Duration::from_millis(20);
@@ -47,7 +42,7 @@ pub(super) struct Payload {
 
 /// `cloud`: the newest sweep no older than `max_age_s` (or the next one, as `find` takes it),
 /// as a binary PCD file after the header line. The sweep is found first; then a slot of the
-/// connection's and one of the daemon's ([`CLOUD_SLOTS`]) are taken, held by the encoding and
+/// connection's and one of the daemon's ([`CLOUD_SLOTS`](super::state::CLOUD_SLOTS)) are taken, held by the encoding and
 /// then by the queued message until it is written.
 pub(super) async fn cloud(
     shared: &Arc<Shared>,
@@ -75,7 +70,8 @@ pub(super) async fn cloud(
     let Ok(Some(slots)) = tokio::time::timeout_at(deadline.into(), slots).await else {
         let msg = format!(
             "cloud: no room before the timeout: this connection's earlier replies are unread, or its \
-             earlier cloud, or the daemon's {CLOUD_SLOTS}, are still on their way to clients"
+             earlier cloud, or the daemon's {}, are still on their way to clients",
+            super::state::CLOUD_SLOTS
         );
         return (Reply::error(None, ErrorCode::Busy, msg), None);
     };

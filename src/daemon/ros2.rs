@@ -71,7 +71,7 @@ impl Encoded {
 
     /// A `PointCloud2`: its `data` is the `uint8[]` before the last byte (`is_dense`).
     pub fn point_cloud2(cdr: Vec<u8>) -> Encoded {
-        let blob = ros::point_cloud2_data(&cdr);
+        let blob = crate::cloud::point_cloud2_data(&cdr);
         Encoded { cdr, blob }
     }
 
@@ -414,7 +414,7 @@ mod tests {
         }
         cloud.width = 7;
         cloud.height = 1;
-        let cdr = ros::point_cloud2(
+        let cdr = crate::cloud::point_cloud2(
             &cloud,
             &Header {
                 stamp: Time { sec: 5, nanosec: 6 },

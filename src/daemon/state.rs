@@ -308,6 +308,12 @@ pub struct Loaded {
     pub generation: u64,
 }
 
+/// `cloud` payloads in memory at once, over all clients: each is held from its encoding until
+/// the client's writer has written it (or given up on a client that does not read, after the
+/// writer's timeout, `WRITE_TIMEOUT` of `outbox.rs`), so clients that ask for clouds and never
+/// read cannot pile them up.
+pub const CLOUD_SLOTS: usize = 4;
+
 /// Everything the tasks share.
 pub struct Shared {
     /// The configuration and the models in use: swapped whole by a reload (SIGHUP), so a task
@@ -328,7 +334,7 @@ pub struct Shared {
     /// Objects watched by clients, with how many watch each.
     pub watched: Mutex<BTreeMap<String, usize>>,
     pub detect_slots: Semaphore,
-    /// `cloud` payloads in memory at once (`cloud::CLOUD_SLOTS`).
+    /// `cloud` payloads in memory at once ([`CLOUD_SLOTS`]).
     pub cloud_slots: Arc<Semaphore>,
     /// `cloud` requests waiting for one of those slots: while there are any, a transfer that
     /// makes no progress loses its slot sooner (`outbox::STALL_WHILE_WANTED`).
@@ -377,7 +383,7 @@ impl Shared {
             stats: Stats::default(),
             watched: Mutex::new(BTreeMap::new()),
             detect_slots: Semaphore::new(workers),
-            cloud_slots: Arc::new(Semaphore::new(super::cloud::CLOUD_SLOTS)),
+            cloud_slots: Arc::new(Semaphore::new(CLOUD_SLOTS)),
             cloud_waiting: Default::default(),
             started: Instant::now(),
             shutdown: watch::channel(false).0,

@@ -231,7 +231,7 @@ pub fn cloud(entry: &SweepEntry, frame: &str) -> (Time, Vec<u8>) {
     let stamp = Time::from_unix_s(last_profile_unix_s(entry));
     (
         stamp,
-        ros::point_cloud2(&entry.sweep.cloud, &Header { stamp, frame_id: frame }),
+        crate::cloud::point_cloud2(&entry.sweep.cloud, &Header { stamp, frame_id: frame }),
     )
 }
 

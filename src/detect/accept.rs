@@ -4,10 +4,11 @@
 //! the noise and, for a compound, its connection errors. The candidates that pass, and may be
 //! reported, are then checked against the free space the sensor saw through.
 
-use super::prepare::{Prepared, RangeNoise};
+use super::prepare::Prepared;
 use super::report::{Detection, PartResult};
+use super::space::RangeNoise;
 use super::visibility;
-use super::{Acceptance, Params, box_volume};
+use super::{Acceptance, Params};
 use crate::model::Model;
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
@@ -276,7 +277,12 @@ pub fn check_free_space(prep: &Prepared, d: &mut Detection, params: &Params) {
 pub fn object_pose(model: &Model, parts: &[PartResult]) -> Isometry3<f64> {
     let Some(a) = (0..parts.len())
         .filter(|&k| parts[k].placed.is_some())
-        .max_by(|&x, &y| box_volume(&model.parts[x].shape).total_cmp(&box_volume(&model.parts[y].shape)))
+        .max_by(|&x, &y| {
+            model.parts[x]
+                .shape
+                .box_volume()
+                .total_cmp(&model.parts[y].shape.box_volume())
+        })
     else {
         return Isometry3::identity();
     };

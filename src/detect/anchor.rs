@@ -6,9 +6,10 @@
 use super::prepare::Prepared;
 use super::refine::{self, Coarse, Refine, Refined};
 use super::report::{Detection, PartResult, PoseText, VotesText};
-use super::search::{Hypothesis, search_part};
+use super::search::search_part;
+use super::space::Hypothesis;
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
-use super::{Params, accept, box_volume, select};
+use super::{Params, accept, select};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;
 use crate::numeric::stream_seed;
@@ -29,7 +30,12 @@ impl AnchorPart {
     /// per object-sized patch of `objects`.
     pub fn choose(model: &Model, params: &Params, objects: &[Point3<f64>]) -> AnchorPart {
         let part = (0..model.parts.len())
-            .max_by(|&a, &b| box_volume(&model.parts[a].shape).total_cmp(&box_volume(&model.parts[b].shape)))
+            .max_by(|&a, &b| {
+                model.parts[a]
+                    .shape
+                    .box_volume()
+                    .total_cmp(&model.parts[b].shape.box_volume())
+            })
             .expect("a model has parts");
         let hypotheses = params
             .hypotheses

@@ -11,11 +11,13 @@ use super::anchor::Anchors;
 use super::fit::Fit;
 use super::prepare::Prepared;
 use super::refine;
+use super::report::ms;
 use super::report::{ConnectionText, Detection, PartResult, PoseText, Timing, VotesText};
-use super::search::{self, SearchSettings};
+use super::search;
 use super::shell::{shell_seeds, spun_placements};
+use super::space::{self, SearchSettings};
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
-use super::{Params, box_volume, fit, ms, rigid};
+use super::{Params, fit, rigid};
 use crate::geometry::PlacedSuperquadric;
 use crate::model::{Connection, Model, axis_angle};
 use crate::numeric::stream_seed;
@@ -57,7 +59,7 @@ impl fmt::Display for Combination {
 
 /// The best anchor candidates that could be the part at all (a part seen on less than a third
 /// of its visible side is too uncertain to build on) and are distinct hypotheses as the search
-/// tells them apart (`search::same_pose`), at most `Params::compound_candidates`. Two poses of
+/// tells them apart (`space::same_pose`), at most `Params::compound_candidates`. Two poses of
 /// one part a few centimetres apart along its axis both continue: the other parts, placed by
 /// their connections, land centimetres apart too, and the rigid refinement from the worse one
 /// does not always find its way to the better (a mallet's head 2.3 cm off, ranked first by one
@@ -73,7 +75,7 @@ pub fn pick(prep: &Prepared, model: &Model, anchors: &mut Anchors, params: &Para
         for &k in group {
             let distinct = picked
                 .iter()
-                .all(|&j| !search::same_pose(&anchors.hypotheses[j].placed, &anchors.hypotheses[k].placed));
+                .all(|&j| !space::same_pose(&anchors.hypotheses[j].placed, &anchors.hypotheses[k].placed));
             if distinct && anchors.scores[k].coverage >= MIN_ANCHOR_COVERAGE {
                 picked.push(k);
             }
@@ -248,7 +250,7 @@ pub fn combinations(
 
 /// The index in `pool` of the placement `fit` repeats (the same pose), added when new.
 fn pooled(pool: &mut Vec<Fit>, fit: Fit) -> usize {
-    match pool.iter().position(|p| search::same_pose(&p.placed, &fit.placed)) {
+    match pool.iter().position(|p| space::same_pose(&p.placed, &fit.placed)) {
         Some(j) => j,
         None => {
             pool.push(fit);
@@ -447,10 +449,10 @@ fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) 
         .parts
         .iter()
         .map(|p| p.shape)
-        .min_by(|a, b| box_volume(a).total_cmp(&box_volume(b)))
+        .min_by(|a, b| a.box_volume().total_cmp(&b.box_volume()))
         .expect("parts");
-    let coarse = 0.3 * search::sample_radius(&smallest);
-    let fine = search::refine_band(&smallest, noise);
+    let coarse = 0.3 * space::sample_radius(&smallest);
+    let fine = space::refine_band(&smallest, noise);
     let (pose, _) = rigid::refine_object(&space, model, &start, coarse, fine, params.fit_iterations);
     let placed = model.placed_parts(&pose);
     let parts: Vec<PartResult> = model
@@ -459,7 +461,7 @@ fn refine(prep: &Prepared, model: &Model, combo: &Combination, params: &Params) 
         .zip(placed)
         .zip(&prep.samples)
         .map(|((p, q), samples)| {
-            let inliers = search::local_inliers(&space, &q, search::refine_band(&p.shape, noise));
+            let inliers = space::local_inliers(&space, &q, space::refine_band(&p.shape, noise));
             let m = fit::measure_of_fit(&q, &inliers);
             PartResult {
                 name: p.name.clone(),

@@ -42,6 +42,7 @@ mod sample_cache;
 mod search;
 mod select;
 mod shell;
+mod space;
 mod support;
 mod verify;
 mod visibility;
@@ -49,9 +50,9 @@ mod visibility;
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
 pub use prepare::Scene;
+use report::ms;
 pub use report::{Detection, PartResult, Report, Timing};
 
-use crate::geometry::Superquadric;
 use crate::model::Model;
 use anchor::AnchorPart;
 use std::time::Instant;
@@ -64,18 +65,6 @@ const SEARCH_ROUNDS: u64 = 2;
 
 /// Fewer points than this off the plane hold nothing to fit.
 const MIN_SCENE_POINTS: usize = 10;
-
-fn ms(t: Instant) -> f64 {
-    t.elapsed().as_secs_f64() * 1e3
-}
-
-/// The product of the half-sizes a1·a2·a3 (an eighth of the volume of the box the untapered
-/// shape fits in), the scale by which the detector orders parts: the largest anchors the search,
-/// the smallest sets the rigid refinement's bands. It is not the superquadric's volume, which
-/// also depends on the exponents.
-fn box_volume(s: &Superquadric) -> f64 {
-    s.a[0] * s.a[1] * s.a[2]
-}
 
 /// Detect `model` in `cloud` (finite and non-finite points; non-finite are skipped).
 pub fn detect(cloud: &[[f32; 3]], model: &Model, params: &Params) -> Report {

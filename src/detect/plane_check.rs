@@ -2,7 +2,7 @@
 //! container stands on its base or its rim.
 
 use super::sample_cache::{LocalSamples, local_samples};
-use super::search::SearchSpace;
+use super::space::SearchSpace;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Point3, Vector3};

@@ -4,12 +4,11 @@
 
 use super::Params;
 use super::input;
-use super::search::{PlaneCheck, SearchSettings, SearchSpace, morton_order};
+use super::plane_check::PlaneCheck;
+use super::space::{MIN_NOISE, RangeNoise, SearchSettings, SearchSpace, morton_order};
 use super::verify::{SurfaceSamples, median_spacing};
 use crate::cloud::grid::{Grid, voxel_subsample};
-use crate::cloud::plane::{
-    Plane, RangeScale, find_dominant_plane, remove_dominant_plane, sample_stride, split_at_plane,
-};
+use crate::cloud::plane::{Plane, find_dominant_plane, remove_dominant_plane, sample_stride, split_at_plane};
 use crate::model::Model;
 use nalgebra::Point3;
 use std::fmt;
@@ -33,40 +32,6 @@ pub struct Scene {
     /// Depth noise (one sigma) from the plane's inlier band.
     pub noise: RangeNoise,
 }
-
-/// The depth noise (m, one sigma) of a triangulating sensor (a laser profiler, a structured-light
-/// camera), as the support plane showed it: it grows with the square of the range, so the noise
-/// at a point is the plane's at the median range scaled as the plane's distances were
-/// ([`RangeScale`]). Without a viewpoint, or without a plane, it is one figure for the whole
-/// scene.
-#[derive(Debug, Clone, Copy)]
-pub struct RangeNoise {
-    at_reference: f64,
-    scale: RangeScale,
-}
-
-impl RangeNoise {
-    pub fn uniform(sigma: f64) -> RangeNoise {
-        RangeNoise {
-            at_reference: sigma,
-            scale: RangeScale::uniform(),
-        }
-    }
-
-    /// The noise at `p`.
-    pub fn at(&self, p: &Point3<f64>) -> f64 {
-        (self.at_reference * self.scale.at(p)).max(MIN_NOISE)
-    }
-
-    /// The noise at the median range.
-    pub fn reference(&self) -> f64 {
-        self.at_reference
-    }
-}
-
-/// The least noise assumed (m): below it, the sensor's quantisation and the models'
-/// approximation dominate.
-const MIN_NOISE: f64 = 0.0005;
 
 /// What plane removal found, for the log.
 pub struct RemovalSummary {
@@ -184,7 +149,7 @@ pub struct Prepared {
     pub sub: Vec<Point3<f64>>,
     /// Grid over `sub`, cells the size of the model's smallest part.
     pub sub_grid: Grid,
-    /// Indices into `sub` in Morton order (`search::morton_order`).
+    /// Indices into `sub` in Morton order (`space::morton_order`).
     pub sub_morton: Vec<u32>,
     /// `sub` subsampled again to three times its voxel, where the trials count their consensus.
     pub coarse: Vec<Point3<f64>>,
@@ -357,6 +322,7 @@ pub(super) fn simulated(scene: &str, sim_seed: u64, name: &str) -> (Model, Param
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cloud::plane::RangeScale;
 
     /// The scene reports every finite input point, thinned or not, and keeps about one in the
     /// stride.

@@ -8,9 +8,11 @@
 use super::base;
 use super::fit::{Fit, Freedom, fit_pose_with, measure_of_fit};
 use super::plane_check::PlaneCheck;
-use super::search::{Hypothesis, MIN_SAMPLE, SearchSettings, SearchSpace, inliers_in, same_pose, sample_radius, thin};
+use super::space::{
+    Hypothesis, MIN_SAMPLE, SearchSettings, SearchSpace, inliers_in, refine_band, same_pose, sample_radius, thin,
+};
 use crate::cloud::plane::Plane;
-use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
@@ -26,15 +28,6 @@ pub(super) const REFINE_POINTS: usize = 600;
 /// rounds wait until it is judged) fit at most this many: they only bring it to its points,
 /// and its M is still measured over `REFINE_POINTS`.
 pub(super) const RANKED_POINTS: usize = 300;
-
-/// The inlier band for refinement: three noise sigmas, at least a tenth of the smallest size
-/// (so a rough RANSAC pose still gathers its object's points), at most half of it.
-pub fn refine_band(shape: &Superquadric, noise: f64) -> f64 {
-    (3.0 * noise)
-        .max(0.1 * shape.min_size())
-        .min(0.5 * shape.min_size())
-        .max(0.002)
-}
 
 /// A pose after the coarse rounds of a refinement ([`refine_coarse`]), and what the fine rounds
 /// ([`refine_fine`]) need. A refinement fits a pose on the points near it (`mid`) until M stops

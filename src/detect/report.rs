@@ -143,6 +143,11 @@ impl fmt::Display for Detection {
     }
 }
 
+/// Milliseconds since `t`, as the timings give them.
+pub(super) fn ms(t: std::time::Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

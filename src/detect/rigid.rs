@@ -7,7 +7,7 @@
 //! cannot, and a half-hidden handle no longer drags its own fit off.
 
 use super::fit::{LANES, Rows, measure_of_fit, normal_sums, squared_residuals, symmetric};
-use super::search::SearchSpace;
+use super::space::SearchSpace;
 use crate::geometry::{PlacedKernel, PlacedSuperquadric, ResidualGrad, lanes_of};
 use crate::model::Model;
 use crate::numeric::lanes::{Lanes, widened};

@@ -20,14 +20,10 @@
 //! possible against the support plane.
 
 use super::fit::{Fit, fit_pose_tol, measure_of_fit};
-pub use super::plane_check::{PlaneCheck, approximation_tolerance};
-use super::prepare::RangeNoise;
-pub use super::refine::refine_band;
+use super::plane_check::PlaneCheck;
 use super::refine::{Refine, Refined, refine_fits};
-use crate::cloud::grid::Grid;
-use crate::cloud::plane::Plane;
+use super::space::{MIN_SAMPLE, SearchSettings, SearchSpace, consensus, refine_band, same_pose, sample_radius};
 use crate::geometry::{NearBatch, PlacedKernel, PlacedSuperquadric, Superquadric};
-use crate::numeric::lanes::widened;
 use crate::numeric::stream_seed;
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -41,58 +37,6 @@ const SCREEN_ITERATIONS: usize = 4;
 /// lies on the fit as the sensor's noise allows (its RMS spreads by about an eighth of a sigma),
 /// with room for the model approximating the object.
 const LIFT_NOISE: f64 = 1.5;
-/// A trial needs at least this many points around its seed to say anything about the pose.
-pub(super) const MIN_SAMPLE: usize = 8;
-
-/// Every k-th point so that at most `n` remain (the points come in grid order, so a stride
-/// keeps them spread over the surface).
-pub(super) fn thin(points: Vec<Point3<f64>>, n: usize) -> Vec<Point3<f64>> {
-    if points.len() <= n {
-        return points;
-    }
-    let step = points.len().div_ceil(n);
-    points.into_iter().step_by(step).collect()
-}
-
-/// Where the detector searches: the full-resolution points and two subsampled copies, with grids.
-pub struct SearchSpace<'a> {
-    pub points: &'a [Point3<f64>],
-    pub grid: &'a Grid,
-    pub sub: &'a [Point3<f64>],
-    pub sub_grid: &'a Grid,
-    /// Indices into `sub` in Morton order ([`morton_order`]): where the search's regions come
-    /// from.
-    pub sub_morton: &'a [u32],
-    /// A coarser subsample, where the trials count their consensus.
-    pub coarse: &'a [Point3<f64>],
-    pub coarse_grid: &'a Grid,
-    /// A denser subsample, where the refinement's final rounds gather their points.
-    pub mid: &'a [Point3<f64>],
-    pub mid_grid: &'a Grid,
-    pub viewpoint: Option<Point3<f64>>,
-    /// Depth noise (one sigma) at each place: sets the inlier bands.
-    pub noise: RangeNoise,
-    /// The support plane (normal towards the objects), when one was found: nothing the sensor
-    /// saw on it can reach through it.
-    pub plane: Option<Plane>,
-}
-
-/// Search settings of one part.
-#[derive(Debug, Clone, Copy)]
-pub struct SearchSettings {
-    pub trials: usize,
-    pub sample_points: usize,
-    pub fit_iterations: usize,
-}
-
-/// One refined hypothesis.
-#[derive(Debug, Clone, Copy)]
-pub struct Hypothesis {
-    pub placed: PlacedSuperquadric,
-    /// The paper's M after refinement.
-    pub m: f64,
-}
-
 /// Initial poses for a patch: z along each central-moment axis (both signs when the taper makes
 /// the sign observable, both spins of the x axis when the cross-section is not round), the
 /// centre one half-size behind the patch along its normal (on both sides when no viewpoint says
@@ -272,44 +216,6 @@ pub fn fit_from_starts(
     Some(fit_pose_tol(&screened.placed, sample, rest, five, 1e-3))
 }
 
-/// Points of `space.points` near the surface of `placed` (within the inlier band) and within the
-/// part's reach.
-pub fn local_inliers(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Vec<Point3<f64>> {
-    inliers_in(space.points, space.grid, placed, band)
-}
-
-widened! {
-pub(super) fn inliers_in(
-    points: &[Point3<f64>],
-    grid: &Grid,
-    placed: &PlacedSuperquadric,
-    band: f64,
-) -> Vec<Point3<f64>> {
-    let centre = Point3::from(placed.pose.translation.vector);
-    let kernel = PlacedKernel::new(placed);
-    let mut out = Vec::new();
-    let mut batch = NearBatch::new(&kernel, band, |i, _, rg| {
-        if PlacedSuperquadric::distance_from(rg).abs() < band {
-            out.push(points[i]);
-        }
-    });
-    let reach = kernel.frame_reach(band);
-    grid.for_each_within_box(points, &centre, placed.shape.bounding_radius() + band, &reach, |i| {
-        batch.push(i, &points[i])
-    });
-    batch.finish();
-    out
-}
-}
-
-/// Radius of the neighbourhood a trial samples around its seed. The paper takes min(a1, a2, a3);
-/// for flat shapes (a bowl's a3 is a third of its width) that patch is too small to constrain six
-/// pose parameters, so the geometric mean of the sizes is used: the radius of the sphere of the
-/// same volume class, the same as min(a) for a round shape.
-pub fn sample_radius(shape: &Superquadric) -> f64 {
-    (shape.a[0] * shape.a[1] * shape.a[2]).cbrt()
-}
-
 /// The samples of one hypothesis' `settings.trials` RANSAC trials, seeded from `seeds` (indices
 /// into `space.sub`): each a random subset of the points within the sample radius of a random
 /// seed point. A seed with too few points around it gives no sample.
@@ -431,30 +337,6 @@ fn rms_distance(placed: &PlacedSuperquadric, points: &[Point3<f64>], reach: f64)
     ((sum + (points.len() - near) as f64 * reach * reach) / points.len() as f64).sqrt()
 }
 
-widened! {
-/// Points of the coarse subsample within `band` of the placed surface.
-pub(super) fn consensus(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> usize {
-    let centre = Point3::from(placed.pose.translation.vector);
-    let kernel = PlacedKernel::new(placed);
-    let mut n = 0;
-    let mut batch = NearBatch::new(&kernel, band, |_, _, rg| {
-        if PlacedSuperquadric::distance_from(rg).abs() < band {
-            n += 1;
-        }
-    });
-    let reach = kernel.frame_reach(band);
-    space.coarse_grid.for_each_within_box(
-        space.coarse,
-        &centre,
-        placed.shape.bounding_radius() + band,
-        &reach,
-        |i| batch.push(i, &space.coarse[i]),
-    );
-    batch.finish();
-    n
-}
-}
-
 /// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.
 /// Trials that land where a `known` hypothesis (of an earlier round) already is are not refined
 /// again: a further round pays only for the places the earlier ones did not reach.
@@ -556,34 +438,6 @@ fn spatial_regions(morton: &[u32], seeds: &[usize], m: usize) -> Vec<Vec<usize>>
         .collect()
 }
 
-/// The indices of `points` sorted by the Morton code of their 1 cm voxels (ties by index): runs
-/// of it are compact regions of space.
-pub fn morton_order(points: &[Point3<f64>]) -> Vec<u32> {
-    let voxel = 0.01;
-    let spread = |v: u64| {
-        // Interleave the low 21 bits with two zero bits between each.
-        let mut x = v & 0x1f_ffff;
-        x = (x | x << 32) & 0x1f_0000_0000_ffff;
-        x = (x | x << 16) & 0x1f_0000_ff00_00ff;
-        x = (x | x << 8) & 0x100f_00f0_0f00_f00f;
-        x = (x | x << 4) & 0x10c3_0c30_c30c_30c3;
-        x = (x | x << 2) & 0x1249_2492_4924_9249;
-        x
-    };
-    let key = |p: &Point3<f64>| {
-        // The float-to-integer cast saturates; the add must too (a wild point 3e38 m away).
-        let c = [0, 1, 2].map(|k| {
-            ((p[k] / voxel).floor() as i64)
-                .saturating_add(1 << 20)
-                .clamp(0, (1 << 21) - 1) as u64
-        });
-        spread(c[0]) | spread(c[1]) << 1 | spread(c[2]) << 2
-    };
-    let mut order: Vec<(u64, u32)> = points.iter().enumerate().map(|(i, p)| (key(p), i as u32)).collect();
-    order.sort_unstable();
-    order.into_iter().map(|(_, i)| i).collect()
-}
-
 /// Drop fits that repeat a better one or a `known` pose (the same place within half the sample
 /// radius and the same axis within 30 degrees): many hypotheses land on the same object,
 /// refinement brings such near copies to the same pose, and refining and verifying each copy
@@ -602,23 +456,10 @@ pub fn distinct(mut fits: Vec<(usize, Fit)>, known: &[PlacedSuperquadric]) -> Ve
     out
 }
 
-/// Whether two placements of one shape are the same hypothesis: the same place within half the
-/// sample radius and the same axis within 30 degrees.
-pub fn same_pose(a: &PlacedSuperquadric, b: &PlacedSuperquadric) -> bool {
-    let shape = &b.shape;
-    let za = a.pose.rotation * Vector3::z();
-    let zb = b.pose.rotation * Vector3::z();
-    (a.pose.translation.vector - b.pose.translation.vector).norm() < 0.5 * sample_radius(shape)
-        && axis_angle_deg(&za, &zb, shape.is_tapered()) < 30.0
-}
-
-fn axis_angle_deg(a: &Vector3<f64>, b: &Vector3<f64>, signed: bool) -> f64 {
-    crate::model::axis_angle(a, b, signed).to_degrees()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::detect::space::morton_order;
 
     #[test]
     fn regions_are_compact_runs_of_the_morton_order() {

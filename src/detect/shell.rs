@@ -4,7 +4,8 @@
 //! trials seed. Used by [`super::compound::combinations`].
 
 use super::fit::Fit;
-use super::search;
+use super::plane_check::PlaneCheck;
+use super::space::{MIN_SAMPLE, SearchSpace, consensus, refine_band};
 use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use crate::model::{Connection, Model};
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
@@ -13,14 +14,14 @@ use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 /// (its connection's distance, give or take the part's reach), that are not on the parent's own
 /// surface: where the part's RANSAC trials seed.
 pub(super) fn shell_seeds(
-    space: &search::SearchSpace<'_>,
+    space: &SearchSpace<'_>,
     conn: &Connection,
     shape: &crate::geometry::Superquadric,
     parent: &PlacedSuperquadric,
 ) -> Vec<usize> {
     let pc = Point3::from(parent.pose.translation.vector);
     let reach = shape.bounding_radius();
-    let band = search::refine_band(&parent.shape, space.noise.at(&pc));
+    let band = refine_band(&parent.shape, space.noise.at(&pc));
     let kernel = PlacedKernel::new(parent);
     let mut seeds = Vec::new();
     space
@@ -49,17 +50,17 @@ const SPIN_KEPT: usize = 3;
 /// best local maxima of the support (subsampled points within the band of the part's surface)
 /// come back as fits, to be refined.
 pub(super) fn spun_placements(
-    space: &search::SearchSpace<'_>,
+    space: &SearchSpace<'_>,
     model: &Model,
     parent: usize,
     part: usize,
     parent_placed: &PlacedSuperquadric,
-    check: &search::PlaneCheck,
+    check: &PlaneCheck,
 ) -> Vec<(usize, Fit)> {
     let rel = model.parts[parent].pose_in_object.inverse() * model.parts[part].pose_in_object;
     let shape = model.parts[part].shape;
     let centre = Point3::from(parent_placed.pose.translation.vector);
-    let band = search::refine_band(&shape, space.noise.at(&centre));
+    let band = refine_band(&shape, space.noise.at(&centre));
     let turned_over = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI);
     let flips: &[f64] = if model.parts[parent].shape.is_tapered() || same_when_turned_over(&rel, &shape, &turned_over) {
         &[0.0]
@@ -88,7 +89,7 @@ pub(super) fn spun_placements(
             .iter()
             .map(|q| {
                 if check.allows(space, q) {
-                    search::consensus(space, q, band)
+                    consensus(space, q, band)
                 } else {
                     0
                 }
@@ -97,7 +98,7 @@ pub(super) fn spun_placements(
         for k in 0..steps {
             let (prev, next) = (support[(k + steps - 1) % steps], support[(k + 1) % steps]);
             // A plateau's first step stands for it.
-            if support[k] >= search::MIN_SAMPLE && support[k] > prev && support[k] >= next {
+            if support[k] >= MIN_SAMPLE && support[k] > prev && support[k] >= next {
                 out.push((
                     support[k],
                     Fit {

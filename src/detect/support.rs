@@ -1,7 +1,7 @@
 //! What a part rests on, where that is not the support plane (the shell test of
 //! [`super::verify`] leaves it out).
 
-use super::search::SearchSpace;
+use super::space::SearchSpace;
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 

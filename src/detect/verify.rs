@@ -19,8 +19,9 @@
 //! - the RMS Euclidean (radial) distance of the surface points, against the sensor noise.
 
 use super::base::BaseCap;
+use super::plane_check::approximation_tolerance;
 use super::sample_cache;
-use super::search::SearchSpace;
+use super::space::{SearchSpace, sample_radius};
 use super::support::Support;
 use crate::cloud::grid::Grid;
 use crate::geometry::{NearBatch, PlacedSuperquadric};
@@ -220,7 +221,7 @@ pub fn score(
         + beyond_the_ends(
             space,
             placed,
-            band + super::search::approximation_tolerance(shape),
+            band + approximation_tolerance(shape),
             up_sign,
         );
     let continued_points = continued(&near_surface, &beyond, band);
@@ -363,11 +364,11 @@ impl Around {
         // points per surface point against the limit of 0.08.) A closed part keeps the shell
         // right outside the band.
         let tolerance = if samples.open {
-            band + super::search::approximation_tolerance(shape)
+            band + approximation_tolerance(shape)
         } else {
             band
         };
-        let shell = tolerance + 0.3 * super::search::sample_radius(shape);
+        let shell = tolerance + 0.3 * sample_radius(shape);
         let wide = shell.max(tolerance + CONTINUATION);
         // A container standing on its rim shows neither its inside nor its opening: its points
         // are scored as those of a closed part.
@@ -401,7 +402,7 @@ impl Around {
             kernel,
             reach,
             search: radius.max(shape.bounding_radius() + wide),
-            support: Support::new(space, placed, band + super::search::approximation_tolerance(shape)),
+            support: Support::new(space, placed, band + approximation_tolerance(shape)),
         }
     }
 }

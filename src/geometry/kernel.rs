@@ -9,6 +9,7 @@
 //! [`Superquadric::residual_grad`] itself goes through a kernel, so there is one implementation
 //! of the plain form and the two cannot drift apart.
 
+use super::powers::int_exponent;
 use super::superquadric::{ResidualGrad, Superquadric};
 use crate::numeric::lanes::{Lanes, Mask};
 use nalgebra::{Point3, Vector3};
@@ -60,6 +61,14 @@ pub struct Kernel {
 /// Points farther than this many sizes along an axis leave the plain form (their integer powers
 /// could overflow) for the log domain.
 const PLAIN_REACH: f64 = 1e4;
+
+impl Superquadric {
+    /// The residual and its gradient with respect to the local point coordinates. (Through a
+    /// [`Kernel`]: to evaluate many points of one shape, make one and keep it.)
+    pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
+        Kernel::new(self).residual_grad(p)
+    }
+}
 
 impl Kernel {
     pub fn new(shape: &Superquadric) -> Kernel {
@@ -314,7 +323,7 @@ impl Kernel {
     }
 }
 
-/// [`ipow`] of each lane (`n` is the same for all, so the choice is made once).
+/// [`ipow`](super::powers::ipow) of each lane (`n` is the same for all, so the choice is made once).
 #[inline(always)]
 pub(super) fn ipow_lanes<const L: usize>(x: Lanes<L>, n: i32) -> Lanes<L> {
     match n {
@@ -371,57 +380,4 @@ pub(super) fn ipow_lanes<const L: usize>(x: Lanes<L>, n: i32) -> Lanes<L> {
 #[inline(always)]
 pub fn lanes_of<const L: usize>(points: &[Point3<f64>]) -> [Lanes<L>; 3] {
     std::array::from_fn(|k| Lanes(std::array::from_fn(|i| points[i][k])))
-}
-
-/// `x^n` for the small integer powers of the plain form, unrolled: `powi` is a call into a
-/// generic loop (compiler-builtins' `__powidf2`), which cost as much as the rest of a residual.
-#[inline(always)]
-pub(crate) fn ipow(x: f64, n: i32) -> f64 {
-    match n {
-        0 => 1.0,
-        1 => x,
-        2 => x * x,
-        3 => x * x * x,
-        4 => {
-            let x2 = x * x;
-            x2 * x2
-        }
-        5 => {
-            let x2 = x * x;
-            x2 * x2 * x
-        }
-        6 => {
-            let x3 = x * x * x;
-            x3 * x3
-        }
-        8 => {
-            let x2 = x * x;
-            let x4 = x2 * x2;
-            x4 * x4
-        }
-        10 => {
-            let x2 = x * x;
-            let x4 = x2 * x2;
-            x4 * x4 * x2
-        }
-        20 => {
-            let x2 = x * x;
-            let x4 = x2 * x2;
-            let x10 = x4 * x4 * x2;
-            x10 * x10
-        }
-        _ => x.powi(n),
-    }
-}
-
-/// An exponent that is an integer (to rounding), as a power for [`ipow`].
-#[inline]
-pub(crate) fn int_exponent(v: f64) -> Option<i32> {
-    // Rounds by truncation of v + 0.5 (v is checked to lie in [0, 64]): `f64::round` is a libm
-    // call on baseline x86-64.
-    if !(-0.5..=64.5).contains(&v) {
-        return None;
-    }
-    let r = (v + 0.5) as i32;
-    ((v - r as f64).abs() < 1e-9 && r >= 0).then_some(r)
 }

@@ -7,6 +7,7 @@
 mod kernel;
 mod moments;
 mod placed;
+mod powers;
 pub(crate) mod ray;
 mod sampling;
 mod superquadric;

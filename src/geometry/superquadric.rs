@@ -11,7 +11,7 @@
 //! and accurate everywhere (it is the `max * (1 + (min/max)^(1/t))^t` power sum of METHOD_NOTES
 //! written with logarithms), and `ln 0 = -inf` handles points on the coordinate planes exactly.
 
-use super::kernel::{Kernel, int_exponent, ipow};
+use super::powers::{int_exponent, ipow};
 use nalgebra::{Isometry3, Point3, Vector3};
 use std::fmt;
 
@@ -257,10 +257,12 @@ impl Superquadric {
         self.f_pow_e1(p) - 1.0
     }
 
-    /// The residual and its gradient with respect to the local point coordinates. (Through a
-    /// [`Kernel`]: to evaluate many points of one shape, make one and keep it.)
-    pub fn residual_grad(&self, p: &Vector3<f64>) -> ResidualGrad {
-        Kernel::new(self).residual_grad(p)
+    /// The product of the half-sizes a1·a2·a3 (an eighth of the volume of the box the untapered
+    /// shape fits in): the scale by which the detector orders the parts of a model (the largest
+    /// anchors the search, the smallest sets the rigid refinement's bands). It is not the
+    /// superquadric's volume, which also depends on the exponents.
+    pub fn box_volume(&self) -> f64 {
+        self.a[0] * self.a[1] * self.a[2]
     }
 
     /// The residual of an *untapered* local point in the log domain.
@@ -342,7 +344,7 @@ impl Superquadric {
         if lf < 0.0 { -d } else { d }
     }
 
-    /// [`Kernel::untapered_surface_along`] in the log domain.
+    /// [`Kernel::untapered_surface_along`](super::Kernel::untapered_surface_along) in the log domain.
     pub(crate) fn untapered_surface_along_log(&self, d: &Vector3<f64>) -> Vector3<f64> {
         let lf = self.ln_f_parts(d).lf;
         d * (-0.5 * self.e1 * lf).exp()

@@ -1,8 +1,9 @@
 //! Compound models: two or three parts, each fitted to what the parts before it leave unexplained.
 
+use super::params::{LearnError, LearnParams, MIN_POINTS, Recovered};
 use super::segment::{Segmentation, clusters, others_near};
 use super::stages::fit_superquadric;
-use super::{LearnError, LearnParams, Learned, MIN_POINTS, Recovered, learn_segmented};
+use super::{Learned, learn_segmented};
 use nalgebra::Point3;
 
 /// Further parts (recover-and-select, simplified): the object points the parts found so far do

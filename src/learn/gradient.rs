@@ -12,7 +12,7 @@
 //! misses where the distance is flat along the ray and the few hundred residuals after the
 //! points (support, size, seen surface) keep forward differences.
 
-use super::Cost;
+use super::params::Cost;
 use super::residual::{FREE_WEIGHT, Problem, RAY_WINDOW, RayRead};
 use super::seen::SeenUnit;
 use super::state::{Mat, NP, STEPS, State, Vect, sk_param};

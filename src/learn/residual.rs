@@ -1,8 +1,8 @@
 //! The residuals the fit minimises: the visible points (along their rays or to the nearest
 //! surface), free space, the support plane, the seen surface, and the score that compares fits.
 
-use super::Cost;
 use super::family::volume;
+use super::params::Cost;
 use super::seen::{SEEN_SAMPLES, Seen, SeenSample, SeenUnit, seen_local, surface_samples};
 use super::state::State;
 use crate::cloud::plane::Plane;

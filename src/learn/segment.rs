@@ -1,7 +1,7 @@
 //! Segmentation: the object's points apart from the plane it stands on and from the rest of the
 //! scene (voxel flood fill, strays, subsampling).
 
-use super::LearnParams;
+use super::params::LearnParams;
 use crate::cloud::grid::voxel_subsample;
 use crate::cloud::plane::{Plane, remove_dominant_plane};
 use nalgebra::{Point3, Vector3};

@@ -1,7 +1,8 @@
 //! Learning from simulated single-object scans, scored against the simulator's truth: what the
 //! tests and the error table of BENCHMARKS.md (`sqscan learn --simulate MODEL`) run.
 
-use super::{LearnError, LearnParams, Learned, learn};
+use super::params::{LearnError, LearnParams};
+use super::{Learned, learn};
 use crate::cloud::PointCloud;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;

@@ -2,6 +2,7 @@
 //! mirrored twins, along the rays), D (the smallest equally good shape), E (along the rays again).
 
 use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
+use super::params::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
 use super::seen::{
@@ -10,7 +11,6 @@ use super::seen::{
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
 use super::starts::{moments, starts};
 use super::state::State;
-use super::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use super::{prism, profile};
 use crate::cloud::plane::Plane;
 use crate::numeric::{huber, median};

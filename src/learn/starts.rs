@@ -2,8 +2,8 @@
 //! direction, sizes and centres from the points' extents, several exponent pairs and tapers,
 //! each also as a body of revolution.
 
+use super::params::{LearnParams, ShapeFamily};
 use super::state::{SIZE_MAX, State};
-use super::{LearnParams, ShapeFamily};
 use nalgebra::{Point3, Rotation3, UnitQuaternion, Vector3};
 
 /// The centroid and the covariance's eigenvectors (columns, by decreasing variance).

@@ -4,7 +4,8 @@ use std::path::Path;
 
 use serde::Deserialize;
 
-use super::{count_within, limits, one_of};
+use super::checks::{count_within, one_of};
+use super::limits;
 use crate::spec::SpecError;
 
 #[derive(Debug, Clone, Deserialize, Default)]

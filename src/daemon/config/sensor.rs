@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use serde::Deserialize;
 use sqscan_drivers::gige::FeatureValue;
 
-use super::one_of;
+use super::checks::one_of;
 use crate::spec::SpecError;
 
 #[derive(Debug, Clone, Deserialize)]

@@ -7,6 +7,8 @@
 //! command sets it, after installing them). Regenerate `dist/` after changing a command line
 //! with `SQSCAN_BLESS=1 cargo test --test package`.
 
+mod architecture;
+
 use std::collections::BTreeMap;
 use std::io::Write;
 use std::path::{Path, PathBuf};
