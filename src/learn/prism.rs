@@ -91,6 +91,76 @@ fn quantile(v: &[f64], f: f64) -> f64 {
 /// Measure the object as a prism standing on `plane`, seen from `viewpoint`; the reason it is
 /// not one otherwise.
 pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<f64>) -> Result<Prism, String> {
+    let (points, h, level) = standing_with_top_in_view(points, plane, viewpoint)?;
+    let (u, w) = orthonormal_basis(&plane.normal);
+    let flat = |p: &Point3<f64>| Vector2::new(p.coords.dot(&u), p.coords.dot(&w));
+    // The top's points, in the plane's basis, with their heights.
+    let (top_xy, top_z): (Vec<Vector2<f64>>, Vec<f64>) = points
+        .iter()
+        .zip(&h)
+        .filter(|(_, z)| (**z - level).abs() < TOP_BAND)
+        .map(|(p, z)| (flat(p), *z))
+        .unzip();
+    if top_xy.len() < 50 || top_xy.len() * 10 < points.len() {
+        return Err(format!(
+            "{} of {} points on a level top: not a closed top in view",
+            top_xy.len(),
+            points.len()
+        ));
+    }
+    let rect = smallest_rectangle(&top_xy);
+    if rect.half[0].min(rect.half[1]) < 0.005 {
+        return Err("the top is a sliver".into());
+    }
+    let fill = outline_fill(&top_xy, &rect);
+    let round = fill < ROUND_BELOW;
+    // The 1-99 % extents cut a share of the outline's edge that its shape fixes: 1 % of the
+    // width at each side of a uniformly sampled rectangle, 5.6 % of the radius of an ellipse
+    // (where the cap beyond holds 1 % of its area).
+    let cut = if round { 0.944 } else { 0.98 };
+    let half = [rect.half[0] / cut, rect.half[1] / cut];
+    let local = |q: &Vector2<f64>| rect.local(q);
+    check_flat_top(&top_xy, &top_z, &local, half)?;
+    let walls: Vec<Vector2<f64>> = points
+        .iter()
+        .zip(&h)
+        .filter(|(_, z)| **z < level - TOP_BAND)
+        .map(|(p, _)| local(&flat(p)))
+        .collect();
+    check_walls_under_top(&walls, half, round)?;
+    let (mut centre, mut half, mut top_radius) = (rect.centre, half, None);
+    if round {
+        let wall: Vec<Vector2<f64>> = points
+            .iter()
+            .zip(&h)
+            .filter(|(_, z)| **z > WALL_BAND.0 * level && **z < WALL_BAND.1 * level)
+            .map(|(p, _)| flat(p))
+            .collect();
+        if let Some((c, r)) = round_cross_section(&wall, half) {
+            top_radius = Some(0.5 * (half[0] + half[1]));
+            centre = c;
+            half = [r, r];
+        }
+    }
+    Ok(Prism {
+        centre,
+        half,
+        axis: rect.axis,
+        height: level,
+        round,
+        fill,
+        top_points: top_xy.len(),
+        top_radius,
+    })
+}
+
+/// The object's finite points, their heights over the plane and the height of its top, where it
+/// stands on the plane, is tall enough to have a top and the sensor looks down on that top.
+fn standing_with_top_in_view(
+    points: &[Point3<f64>],
+    plane: &Plane,
+    viewpoint: &Point3<f64>,
+) -> Result<(Vec<Point3<f64>>, Vec<f64>, f64), String> {
     let points: Vec<Point3<f64>> = points
         .iter()
         .filter(|p| p.coords.iter().all(|c| c.is_finite()))
@@ -123,25 +193,27 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
     }
     let near_top: Vec<f64> = h.iter().copied().filter(|&z| z > top - 2.0 * TOP_BAND).collect();
     let level = quantile(&near_top, 0.5);
-    let (u, w) = orthonormal_basis(&plane.normal);
-    let flat = |p: &Point3<f64>| Vector2::new(p.coords.dot(&u), p.coords.dot(&w));
-    // The top's points, in the plane's basis, with their heights.
-    let (top_xy, top_z): (Vec<Vector2<f64>>, Vec<f64>) = points
-        .iter()
-        .zip(&h)
-        .filter(|(_, z)| (**z - level).abs() < TOP_BAND)
-        .map(|(p, z)| (flat(p), *z))
-        .unzip();
-    if top_xy.len() < 50 || top_xy.len() * 10 < points.len() {
-        return Err(format!(
-            "{} of {} points on a level top: not a closed top in view",
-            top_xy.len(),
-            points.len()
-        ));
+    Ok((points, h, level))
+}
+
+/// The smallest rectangle (by whole degrees) that holds the 1-99 % extents of the top's points.
+struct Rectangle {
+    area: f64,
+    centre: Vector2<f64>,
+    half: [f64; 2],
+    /// The direction of the first half-size.
+    axis: Vector2<f64>,
+}
+
+impl Rectangle {
+    /// A point of the plane's basis in the rectangle's frame.
+    fn local(&self, q: &Vector2<f64>) -> Vector2<f64> {
+        let across = Vector2::new(-self.axis.y, self.axis.x);
+        Vector2::new((q - self.centre).dot(&self.axis), (q - self.centre).dot(&across))
     }
-    // The smallest rectangle holding the top's 1-99 % extents, by whole degrees.
-    // (area, angle, centre, half sizes, first axis)
-    type Rectangle = (f64, f64, Vector2<f64>, [f64; 2], Vector2<f64>);
+}
+
+fn smallest_rectangle(top_xy: &[Vector2<f64>]) -> Rectangle {
     let mut best: Option<Rectangle> = None;
     for deg in 0..90 {
         let t = (deg as f64).to_radians();
@@ -155,23 +227,25 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
             quantile(&y, 0.99),
         );
         let area = (x1 - x0) * (y1 - y0);
-        if best.as_ref().is_none_or(|b| area < b.0) {
-            let centre = d1 * (0.5 * (x0 + x1)) + d2 * (0.5 * (y0 + y1));
-            best = Some((area, t, centre, [0.5 * (x1 - x0), 0.5 * (y1 - y0)], d1));
+        if best.as_ref().is_none_or(|b| area < b.area) {
+            best = Some(Rectangle {
+                area,
+                centre: d1 * (0.5 * (x0 + x1)) + d2 * (0.5 * (y0 + y1)),
+                half: [0.5 * (x1 - x0), 0.5 * (y1 - y0)],
+                axis: d1,
+            });
         }
     }
-    let (area, _, qcentre, qhalf, axis) = best.expect("ninety angles tried");
-    if qhalf[0].min(qhalf[1]) < 0.005 {
-        return Err("the top is a sliver".into());
-    }
-    let across = Vector2::new(-axis.y, axis.x);
-    let in_frame = |c: Vector2<f64>| move |q: &Vector2<f64>| Vector2::new((q - c).dot(&axis), (q - c).dot(&across));
-    // The outline's fill of the rectangle, on the top points within it (a stray point outside
-    // would stretch the hull).
+    best.expect("ninety angles tried")
+}
+
+/// How much of the rectangle the top's outline fills, on the top points within it (a stray
+/// point outside would stretch the hull).
+fn outline_fill(top_xy: &[Vector2<f64>], rect: &Rectangle) -> f64 {
     let inside: Vec<(f64, f64)> = top_xy
         .iter()
-        .map(in_frame(qcentre))
-        .filter(|l| l.x.abs() <= qhalf[0] && l.y.abs() <= qhalf[1])
+        .map(|q| rect.local(q))
+        .filter(|l| l.x.abs() <= rect.half[0] && l.y.abs() <= rect.half[1])
         .map(|l| (l.x, l.y))
         .collect();
     let hull = hull2d(inside);
@@ -183,21 +257,21 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
             })
             .sum::<f64>()
             .abs();
-    let fill = hull_area / area;
-    let round = fill < ROUND_BELOW;
-    // The 1-99 % extents cut a share of the outline's edge that its shape fixes: 1 % of the
-    // width at each side of a uniformly sampled rectangle, 5.6 % of the radius of an ellipse
-    // (where the cap beyond holds 1 % of its area).
-    let cut = if round { 0.944 } else { 0.98 };
-    let half = [qhalf[0] / cut, qhalf[1] / cut];
-    let centre = qcentre;
-    let local = in_frame(centre);
-    // A flat top is as high at its edges as in its middle; a dome (a ball, a mouse) or a lying
-    // cylinder is not, and its outline at the top is no cross-section. Each pair of edges on its
-    // own: along a lying shaft the top is level, across it it falls away.
+    hull_area / rect.area
+}
+
+/// A flat top is as high at its edges as in its middle; a dome (a ball, a mouse) or a lying
+/// cylinder is not, and its outline at the top is no cross-section. Each pair of edges on its
+/// own: along a lying shaft the top is level, across it it falls away.
+fn check_flat_top(
+    top_xy: &[Vector2<f64>],
+    top_z: &[f64],
+    local: &impl Fn(&Vector2<f64>) -> Vector2<f64>,
+    half: [f64; 2],
+) -> Result<(), String> {
     let top_local: Vec<(Vector2<f64>, f64)> = top_xy
         .iter()
-        .zip(&top_z)
+        .zip(top_z)
         .map(|(q, z)| {
             let l = local(q);
             (Vector2::new(l.x / half[0], l.y / half[1]), *z)
@@ -235,15 +309,14 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
             ));
         }
     }
-    // The walls below the top lie under its outline (grown by the margin), or the object is no
-    // prism: a bowl or pot on its rim is wider below, a lying can's top is a line along it.
+    Ok(())
+}
+
+/// The walls below the top (`walls`, in the top's frame) lie under its outline (grown by the
+/// margin), or the object is no prism: a bowl or pot on its rim is wider below, a lying can's
+/// top is a line along it.
+fn check_walls_under_top(walls: &[Vector2<f64>], half: [f64; 2], round: bool) -> Result<(), String> {
     let grown = [half[0] + WALL_MARGIN, half[1] + WALL_MARGIN];
-    let walls: Vec<Vector2<f64>> = points
-        .iter()
-        .zip(&h)
-        .filter(|(_, z)| **z < level - TOP_BAND)
-        .map(|(p, _)| local(&flat(p)))
-        .collect();
     let within = walls
         .iter()
         .filter(|l| {
@@ -261,42 +334,30 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
             walls.len()
         ));
     }
-    // A round object's wall gives its cross-section better than its top: the top's outline
-    // loses its edge to the sensor (a structured-light sensor's edge pixels, the lid's rounded
-    // rim falling below the top's band), so that the mOSD tins and cans came out 4-8 mm narrower
-    // than their walls, and were missed where the detector measured the wall just outside them.
-    let mut top_radius = None;
-    let (mut centre, mut half) = (centre, half);
-    if round {
-        let wall: Vec<Vector2<f64>> = points
-            .iter()
-            .zip(&h)
-            .filter(|(_, z)| **z > WALL_BAND.0 * level && **z < WALL_BAND.1 * level)
-            .map(|(p, _)| flat(p))
-            .collect();
-        match wall_circle(&wall) {
-            Ok((c, r)) if (0.8..1.25).contains(&(r / (0.5 * (half[0] + half[1])))) => {
-                top_radius = Some(0.5 * (half[0] + half[1]));
-                centre = c;
-                half = [r, r];
-            }
-            Ok((_, r)) => tracing::debug!(
+    Ok(())
+}
+
+/// A round object's wall gives its cross-section better than its top: the top's outline loses
+/// its edge to the sensor (a structured-light sensor's edge pixels, the lid's rounded rim
+/// falling below the top's band), so that the mOSD tins and cans came out 4-8 mm narrower than
+/// their walls, and were missed where the detector measured the wall just outside them. The
+/// wall's circle (centre in the plane's basis, radius) where it agrees with the top's outline
+/// (`half`) to within a quarter.
+fn round_cross_section(wall: &[Vector2<f64>], half: [f64; 2]) -> Option<(Vector2<f64>, f64)> {
+    match wall_circle(wall) {
+        Ok((c, r)) if (0.8..1.25).contains(&(r / (0.5 * (half[0] + half[1])))) => Some((c, r)),
+        Ok((_, r)) => {
+            tracing::debug!(
                 "the wall's circle ({:.1} mm across) is too far from the top's outline to take",
                 2e3 * r
-            ),
-            Err(why) => tracing::debug!("the cross-section from the top's outline: {why}"),
+            );
+            None
+        }
+        Err(why) => {
+            tracing::debug!("the cross-section from the top's outline: {why}");
+            None
         }
     }
-    Ok(Prism {
-        centre,
-        half,
-        axis,
-        height: level,
-        round,
-        fill,
-        top_points: top_xy.len(),
-        top_radius,
-    })
 }
 
 /// The prism as a fit state: the cross-section's axes along its outline, z along the plane's

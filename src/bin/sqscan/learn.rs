@@ -116,24 +116,7 @@ pub struct LearnArgs {
 }
 
 pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
-    let mut params = LearnParams {
-        mirror: !a.no_mirror,
-        silhouette: a.silhouette,
-        cost: match a.cost {
-            CostArg::Radial => Cost::Radial,
-            CostArg::Solina => Cost::Solina,
-            CostArg::Normal => Cost::Normal,
-        },
-        along_rays: !a.no_rays,
-        up: a.up.map(|p| p.coords),
-        max_range: a.max_range,
-        shape: match a.shape {
-            ShapeArg::Auto => ShapeFamily::Auto,
-            ShapeArg::General => ShapeFamily::General,
-            ShapeArg::Revolution => ShapeFamily::Revolution,
-        },
-        ..LearnParams::default()
-    };
+    let mut params = learn_params(&a);
     if let Some(m) = &a.simulate {
         let rpy = a.rpy.map(|p| [p.x, p.y, p.z]);
         return simulate(m, rpy, a.seed, a.sweeps as usize, &params, models_dir);
@@ -144,124 +127,11 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     if name.is_empty() || name.chars().any(|c| c.is_whitespace()) {
         bail!("--name {name:?}: give one word");
     }
-    let out = match &a.out {
-        Some(o) => o.clone(),
-        // The package's directory belongs to dpkg: an upgrade would remove a model written there.
-        None if models_dir.starts_with("/usr") => bail!(
-            "the models directory {} belongs to the package: give --out FILE, or --models-dir DIR \
-             (e.g. /etc/sqscan/models, which the daemon then reads instead)",
-            models_dir.display()
-        ),
-        None => models_dir.join(format!("{name}.toml")),
-    };
-    if out.exists() && !a.force {
-        bail!("{} exists; give --force to replace it", out.display());
-    }
-    let cloud_path = &a.cloud[0];
-    let (cloud, input) = if let [one] = a.cloud.as_slice() {
-        (cloud::read_cloud(one)?, one.display().to_string())
-    } else {
-        let sweeps = a
-            .cloud
-            .iter()
-            .map(|p| cloud::read_cloud(p).with_context(|| format!("sweep {}", p.display())))
-            .collect::<Result<Vec<_>>>()?;
-        let names: Vec<String> = a.cloud.iter().map(|p| p.display().to_string()).collect();
-        (
-            cloud::PointCloud::median_of_sweeps(&sweeps).map_err(|e| anyhow::anyhow!("--cloud: {e}"))?,
-            format!("the per-pixel median of {} sweeps: {}", a.cloud.len(), names.join(", ")),
-        )
-    };
-    let file_viewpoint = cloud.viewpoint_position();
-    params.viewpoint = a.viewpoint.or(file_viewpoint).or(Some(Point3::origin()));
-    let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
-    let mut labels: Vec<u32> = Vec::new();
-    let label_field = match cloud.field("label").map(|f| &f.data) {
-        Some(FieldData::U32(l)) => Some(l),
-        _ => None,
-    };
-    for (i, p) in cloud.points.iter().enumerate() {
-        if p.iter().all(|v| v.is_finite()) {
-            let q = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
-            if let Some(r) = a.max_range
-                && (q - params.viewpoint.unwrap()).norm() > r
-            {
-                continue;
-            }
-            points.push(q);
-            if let Some(l) = label_field {
-                labels.push(l[i]);
-            }
-        }
-    }
-    let mut selection = format!("{} finite points", points.len());
-    let learned = if let Some(n) = a.label {
-        if label_field.is_none() {
-            bail!("--label: {} has no uint label field", cloud_path.display());
-        }
-        let object: Vec<usize> = (0..points.len())
-            .filter(|&i| labels[i] >= 20 && labels[i] / 10 == n)
-            .collect();
-        let table: Vec<Point3<f64>> = (0..points.len())
-            .filter(|&i| (1..=9).contains(&labels[i]))
-            .map(|i| points[i])
-            .collect();
-        let plane = remove_dominant_plane(&table, false, params.viewpoint).plane;
-        selection = format!(
-            "the {} points labelled object {n} (label / 10 == {n}); plane from the {} points labelled 1-9",
-            object.len(),
-            table.len()
-        );
-        learn::learn_parts(&points, Segmentation { plane, object }, &params, a.parts as usize)?
-    } else if let Some(at) = &a.at {
-        let segmentation = learn::segment_at(&points, &params, at)
-            .map_err(|e| anyhow::anyhow!("--at {},{},{}: {e}", at.x, at.y, at.z))?;
-        selection = format!(
-            "the {} points of the object nearest to ({}, {}, {}) off the supporting plane",
-            segmentation.object.len(),
-            at.x,
-            at.y,
-            at.z
-        );
-        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
-    } else if let Some((min, max)) = &a.within {
-        let segmentation = learn::segment_box(&points, &params, min, max);
-        if segmentation.object.len() < 10 {
-            bail!(
-                "--box: {} points off the supporting plane inside it; give a box around the object",
-                segmentation.object.len()
-            );
-        }
-        selection = format!(
-            "the {} points off the supporting plane in the box ({}, {}, {}) - ({}, {}, {})",
-            segmentation.object.len(),
-            min.x,
-            min.y,
-            min.z,
-            max.x,
-            max.y,
-            max.z
-        );
-        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
-    } else if a.segmented {
-        params.segment = false;
-        selection = format!("all {} finite points (segmented input)", points.len());
-        let plane = learn::support_below(&points, params.up.as_ref());
-        if let Some(pl) = &plane {
-            selection.push_str(&format!(
-                ", standing on the plane across --up at {:.4} m (its lowest 1 %)",
-                -pl.d
-            ));
-        }
-        let segmentation = Segmentation {
-            plane,
-            object: (0..points.len()).collect(),
-        };
-        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
-    } else {
-        let segmentation = learn::segment(&points, &params);
-        learn::learn_parts(&points, segmentation, &params, a.parts as usize)?
-    };
+    let out = output_path(&a, name, models_dir)?;
+    let (cloud, input) = read_view(&a.cloud)?;
+    params.viewpoint = a.viewpoint.or(cloud.viewpoint_position()).or(Some(Point3::origin()));
+    let view = View::of(&cloud, a.max_range, params.viewpoint.unwrap());
+    let (learned, selection) = select_and_learn(&a, &view, &mut params)?;
     if learned.parts.len() < a.parts as usize {
         eprintln!(
             "sqscan learn: only {} part(s): nothing else left that the first explains badly",
@@ -282,6 +152,188 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         w.write_all(text.as_bytes())?;
         Ok(())
     })?;
+    println!("{}", summary(&model, &out, &learned, &view.points));
+    Ok(())
+}
+
+/// The learner's options from the command line.
+fn learn_params(a: &LearnArgs) -> LearnParams {
+    LearnParams {
+        mirror: !a.no_mirror,
+        silhouette: a.silhouette,
+        cost: match a.cost {
+            CostArg::Radial => Cost::Radial,
+            CostArg::Solina => Cost::Solina,
+            CostArg::Normal => Cost::Normal,
+        },
+        along_rays: !a.no_rays,
+        up: a.up.map(|p| p.coords),
+        max_range: a.max_range,
+        shape: match a.shape {
+            ShapeArg::Auto => ShapeFamily::Auto,
+            ShapeArg::General => ShapeFamily::General,
+            ShapeArg::Revolution => ShapeFamily::Revolution,
+        },
+        ..LearnParams::default()
+    }
+}
+
+/// Where the model goes: `--out`, or the models directory unless that belongs to the package;
+/// an existing file only with `--force`.
+fn output_path(a: &LearnArgs, name: &str, models_dir: &Path) -> Result<PathBuf> {
+    let out = match &a.out {
+        Some(o) => o.clone(),
+        // The package's directory belongs to dpkg: an upgrade would remove a model written there.
+        None if models_dir.starts_with("/usr") => bail!(
+            "the models directory {} belongs to the package: give --out FILE, or --models-dir DIR \
+             (e.g. /etc/sqscan/models, which the daemon then reads instead)",
+            models_dir.display()
+        ),
+        None => models_dir.join(format!("{name}.toml")),
+    };
+    if out.exists() && !a.force {
+        bail!("{} exists; give --force to replace it", out.display());
+    }
+    Ok(out)
+}
+
+/// The view to learn from (one cloud, or the per-pixel median of several sweeps of it) and how
+/// the model file names it.
+fn read_view(paths: &[PathBuf]) -> Result<(cloud::PointCloud, String)> {
+    if let [one] = paths {
+        return Ok((cloud::read_cloud(one)?, one.display().to_string()));
+    }
+    let sweeps = paths
+        .iter()
+        .map(|p| cloud::read_cloud(p).with_context(|| format!("sweep {}", p.display())))
+        .collect::<Result<Vec<_>>>()?;
+    let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+    Ok((
+        cloud::PointCloud::median_of_sweeps(&sweeps).map_err(|e| anyhow::anyhow!("--cloud: {e}"))?,
+        format!("the per-pixel median of {} sweeps: {}", paths.len(), names.join(", ")),
+    ))
+}
+
+/// The view's finite points within range, with their labels where the cloud has them.
+struct View {
+    points: Vec<Point3<f64>>,
+    /// One a point, where the cloud has a `label` field of uint.
+    labels: Option<Vec<u32>>,
+}
+
+impl View {
+    fn of(cloud: &cloud::PointCloud, max_range: Option<f64>, viewpoint: Point3<f64>) -> View {
+        let label_field = match cloud.field("label").map(|f| &f.data) {
+            Some(FieldData::U32(l)) => Some(l),
+            _ => None,
+        };
+        let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
+        let mut labels: Vec<u32> = Vec::new();
+        for (i, p) in cloud.points.iter().enumerate() {
+            if p.iter().all(|v| v.is_finite()) {
+                let q = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                if let Some(r) = max_range
+                    && (q - viewpoint).norm() > r
+                {
+                    continue;
+                }
+                points.push(q);
+                if let Some(l) = label_field {
+                    labels.push(l[i]);
+                }
+            }
+        }
+        View {
+            points,
+            labels: label_field.map(|_| labels),
+        }
+    }
+}
+
+/// The object's points as the command line selects them (`--label`, `--at`, `--box`,
+/// `--segmented`, or the largest cluster on the plane), learned; and how the model file names
+/// the selection.
+fn select_and_learn(a: &LearnArgs, view: &View, params: &mut LearnParams) -> Result<(learn::Learned, String)> {
+    let points = &view.points;
+    let parts = a.parts as usize;
+    if let Some(n) = a.label {
+        let Some(labels) = &view.labels else {
+            bail!("--label: {} has no uint label field", a.cloud[0].display());
+        };
+        let object: Vec<usize> = (0..points.len())
+            .filter(|&i| labels[i] >= 20 && labels[i] / 10 == n)
+            .collect();
+        let table: Vec<Point3<f64>> = (0..points.len())
+            .filter(|&i| (1..=9).contains(&labels[i]))
+            .map(|i| points[i])
+            .collect();
+        let plane = remove_dominant_plane(&table, false, params.viewpoint).plane;
+        let selection = format!(
+            "the {} points labelled object {n} (label / 10 == {n}); plane from the {} points labelled 1-9",
+            object.len(),
+            table.len()
+        );
+        return Ok((
+            learn::learn_parts(points, Segmentation { plane, object }, params, parts)?,
+            selection,
+        ));
+    }
+    if let Some(at) = &a.at {
+        let segmentation = learn::segment_at(points, params, at)
+            .map_err(|e| anyhow::anyhow!("--at {},{},{}: {e}", at.x, at.y, at.z))?;
+        let selection = format!(
+            "the {} points of the object nearest to ({}, {}, {}) off the supporting plane",
+            segmentation.object.len(),
+            at.x,
+            at.y,
+            at.z
+        );
+        return Ok((learn::learn_parts(points, segmentation, params, parts)?, selection));
+    }
+    if let Some((min, max)) = &a.within {
+        let segmentation = learn::segment_box(points, params, min, max);
+        if segmentation.object.len() < 10 {
+            bail!(
+                "--box: {} points off the supporting plane inside it; give a box around the object",
+                segmentation.object.len()
+            );
+        }
+        let selection = format!(
+            "the {} points off the supporting plane in the box ({}, {}, {}) - ({}, {}, {})",
+            segmentation.object.len(),
+            min.x,
+            min.y,
+            min.z,
+            max.x,
+            max.y,
+            max.z
+        );
+        return Ok((learn::learn_parts(points, segmentation, params, parts)?, selection));
+    }
+    if a.segmented {
+        params.segment = false;
+        let mut selection = format!("all {} finite points (segmented input)", points.len());
+        let plane = learn::support_below(points, params.up.as_ref());
+        if let Some(pl) = &plane {
+            selection.push_str(&format!(
+                ", standing on the plane across --up at {:.4} m (its lowest 1 %)",
+                -pl.d
+            ));
+        }
+        let segmentation = Segmentation {
+            plane,
+            object: (0..points.len()).collect(),
+        };
+        return Ok((learn::learn_parts(points, segmentation, params, parts)?, selection));
+    }
+    let segmentation = learn::segment(points, params);
+    let selection = format!("{} finite points", points.len());
+    Ok((learn::learn_parts(points, segmentation, params, parts)?, selection))
+}
+
+/// What `sqscan learn` prints: the model written, the plane, and each part's shape, pose and
+/// fit, with what the data shows of each size.
+fn summary(model: &Model, out: &Path, learned: &learn::Learned, points: &[Point3<f64>]) -> serde_json::Value {
     let object: Vec<Point3<f64>> = learned.segmentation.object.iter().map(|&i| points[i]).collect();
     let parts: Vec<serde_json::Value> = learned
         .parts
@@ -299,18 +351,14 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
             })
         })
         .collect();
-    println!(
-        "{}",
-        json!({
-            "model": model.name,
-            "out": out.display().to_string(),
-            "object_points": learned.object_points,
-            "plane": learned.segmentation.plane.map(|p| p.coefficients()),
-            "model_pose": sqscan::pose::PoseJson::from(&learn::model_pose(&learned)),
-            "parts": parts,
-        })
-    );
-    Ok(())
+    json!({
+        "model": model.name,
+        "out": out.display().to_string(),
+        "object_points": learned.object_points,
+        "plane": learned.segmentation.plane.map(|p| p.coefficients()),
+        "model_pose": sqscan::pose::PoseJson::from(&learn::model_pose(learned)),
+        "parts": parts,
+    })
 }
 
 /// "x0,y0,z0,x1,y1,z1": two opposite corners of a box, as (min, max).
