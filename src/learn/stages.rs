@@ -23,6 +23,14 @@ const PROFILE_DELTA: f64 = 0.003;
 /// The Huber threshold never falls below this (m): the noise floor of the sensors learned from.
 const MIN_DELTA: f64 = 0.001;
 
+/// A start after a stage: its name, where it converged, and its score on the stage's problem.
+#[derive(Debug, Clone)]
+pub(super) struct Scored {
+    pub(super) name: String,
+    pub(super) state: State,
+    pub(super) score: f64,
+}
+
 /// Recover one superquadric from the points of a single view. `plane`: the surface the object
 /// stands on (normal towards the object), `up`: the up direction when there is no plane.
 pub fn fit_superquadric(
@@ -55,81 +63,15 @@ pub fn fit_superquadric(
         rays: None,
         fix_taper: false,
     };
-    // Stage A1: every start on the visible points (and the support plane).
-    let results: Vec<(String, State)> = starts
-        .into_par_iter()
-        .map(|(name, s0)| (name, robust_fit(&problem_visible, s0, 4, 25, MIN_DELTA).0))
-        .collect();
-    // An open container (the sensor is above its top but sees nothing on it) is seen into: rays
-    // through its opening are not free space. Its top is judged on the best fit standing upright:
-    // the visible points alone (a bowl's inner and outer wall) may be fitted better by a shape
-    // lying on its side, whose top says nothing of the object's. (From the general starts: a
-    // body of revolution about a wrong axis fitted to the visible points alone can be a disc as
-    // wide as the view, which would take the free space with it.)
-    // Each result scored once on the visible points: for this choice and for the distinct ones
-    // stage A2 refits.
-    let results: Vec<(String, State, f64)> = results
-        .into_par_iter()
-        .map(|(n, s)| {
-            let sc = score(&problem_visible, &s);
-            (n, s, sc)
-        })
-        .collect();
-    let upright = results
-        .iter()
-        .filter(|r| !r.1.rev || params.shape == ShapeFamily::Revolution)
-        .filter(|r| up.is_some_and(|u| (r.1.rot * Vector3::z()).dot(&u).abs() > 0.9))
-        .min_by(|a, b| a.2.total_cmp(&b.2))
-        .map(|r| r.1);
-    let open_top = match (params.viewpoint, up, upright, plane) {
-        (Some(v), _, _, Some(pl)) => open_top_of_points(&points, pl, &v).unwrap_or(false),
-        (Some(v), Some(u), Some(s), None) => unseen_top(&s.placed(), &points, &v, &u),
-        _ => false,
-    };
-    if let Some(s) = upright {
-        let c = s.placed().pose.translation.vector;
-        tracing::debug!(
-            "open top: {open_top} (judged on the upright fit {} at ({:.3}, {:.3}, {:.3}))",
-            s.shape(),
-            c.x,
-            c.y,
-            c.z
-        );
-    } else {
-        tracing::debug!("open top: {open_top} (no upright fit)");
+    // Stage A1: every start on the visible points (and the support plane), each scored once on
+    // them: for the open top's judgement and for the distinct ones stage A2 refits.
+    let results = refit_scored(starts, Some(&problem_visible), (4, 25), MIN_DELTA, &problem_visible);
+    let upright = best_upright(&results, up.as_ref(), params);
+    let open_top = judge_open_top(&points, plane, up.as_ref(), upright.as_ref(), params);
+    if let Some(r) = measured(&points, plane, open_top, up.as_ref(), params) {
+        return Ok(r);
     }
-    // An open container standing upright is a vessel, a body of revolution: its outer wall's
-    // profile gives its shape directly, where the closed shape fitted to both of its walls
-    // comes out too small (see `profile.rs`).
-    let round_allowed = params.shape != ShapeFamily::General;
-    if let (true, true, Some(pl), Some(v)) = (open_top, round_allowed, plane, params.viewpoint)
-        && let Some(measured) = profile::measure(&points, pl, &v)
-        && let Some((shape, rms)) = profile::fit(&measured)
-    {
-        tracing::debug!("outer wall profile fit: rms {:.2} mm, {shape}", rms * 1e3);
-        let s = profile::state(&measured, &shape, pl);
-        let name = "outer wall profile".to_string();
-        return Ok(recovered(&points, s, PROFILE_DELTA, name, true, up.as_ref(), params));
-    }
-    // A closed object standing on the plane with its top in view is measured: the fit below
-    // fills the hidden back coarsely (see `prism.rs`).
-    if let (false, true, Some(pl), Some(v)) = (open_top, params.measure_top, plane, params.viewpoint) {
-        match prism::measure(&points, pl, &v) {
-            Ok(p) if p.round || params.shape != ShapeFamily::Revolution => {
-                tracing::debug!("measured from the top: {p}");
-                let s = prism::state(&p, pl);
-                let name = "top outline".to_string();
-                // Closed by what the top showed: the walls' points seen at a grazing angle past
-                // the outline's edge face away from the sensor, which would read as an inside.
-                let mut r = recovered(&points, s, PROFILE_DELTA, name, false, up.as_ref(), params);
-                r.open = false;
-                return Ok(r);
-            }
-            Ok(p) => tracing::debug!("the top is not round, a body of revolution was asked for: fitted ({p})"),
-            Err(why) => tracing::debug!("not measured from the top: {why}"),
-        }
-    }
-    // The free space, for the stages from here on (the profile above needs none).
+    // The free space, for the stages from here on (the measurements above need none).
     let free = free_space(&points, free_points, &centroid, plane, params);
     let free: Vec<Point3<f64>> = match (open_top, upright) {
         (true, Some(s)) => drop_rays_through_top(&free, &s.placed()),
@@ -152,7 +94,7 @@ pub fn fit_superquadric(
     // visible points settle): the best of each is refitted.
     let results = distinct(results, usize::MAX);
     tracing::debug!("{} distinct starts after stage A1", results.len());
-    let results = stage_a2(results.into_iter().map(|(n, s, _)| (n, s)).collect(), &problem_free);
+    let results = refit_with_thinned_free_space(results, &problem_free);
     let ctx = Context {
         points: &points,
         up,
@@ -164,7 +106,7 @@ pub fn fit_superquadric(
     // Stages B and C for each family (general, revolution), then the choice between them.
     let finals: Vec<FamilyResult> = [false, true]
         .into_par_iter()
-        .filter_map(|family| stages_b_c(&ctx, &results, family))
+        .filter_map(|family| fit_family(&ctx, &results, family))
         .collect();
     let FamilyResult {
         name,
@@ -174,20 +116,124 @@ pub fn fit_superquadric(
         mirror_at,
         ..
     } = choose_family(finals);
-    // Stage D: the smallest shape as good as that one, on the points of stage C (with their
-    // mirrored twins: the hidden half of a can is the twin of its front, not free to shrink).
+    let best = smallest_along_rays(&ctx, &fitted, best, mirror_at);
+    Ok(recovered(&points, best, delta, name, open_top, up.as_ref(), params))
+}
+
+/// The best of the stage A1 fits standing upright (z along `up`), of the general family unless
+/// a body of revolution was asked for: an open container's top is judged on it. The visible
+/// points alone (a bowl's inner and outer wall) may be fitted better by a shape lying on its
+/// side, whose top says nothing of the object's; and a body of revolution about a wrong axis
+/// fitted to them can be a disc as wide as the view, which would take the free space with it.
+fn best_upright(results: &[Scored], up: Option<&Vector3<f64>>, params: &LearnParams) -> Option<State> {
+    results
+        .iter()
+        .filter(|r| !r.state.rev || params.shape == ShapeFamily::Revolution)
+        .filter(|r| up.is_some_and(|u| (r.state.rot * Vector3::z()).dot(u).abs() > 0.9))
+        .min_by(|a, b| a.score.total_cmp(&b.score))
+        .map(|r| r.state)
+}
+
+/// Whether the object is an open container: the sensor is above its top but sees nothing on
+/// it, so it is seen into, and rays through its opening are not free space.
+fn judge_open_top(
+    points: &[Point3<f64>],
+    plane: Option<&Plane>,
+    up: Option<&Vector3<f64>>,
+    upright: Option<&State>,
+    params: &LearnParams,
+) -> bool {
+    let open_top = match (params.viewpoint, up, upright, plane) {
+        (Some(v), _, _, Some(pl)) => open_top_of_points(points, pl, &v).unwrap_or(false),
+        (Some(v), Some(u), Some(s), None) => unseen_top(&s.placed(), points, &v, u),
+        _ => false,
+    };
+    if let Some(s) = upright {
+        let c = s.placed().pose.translation.vector;
+        tracing::debug!(
+            "open top: {open_top} (judged on the upright fit {} at ({:.3}, {:.3}, {:.3}))",
+            s.shape(),
+            c.x,
+            c.y,
+            c.z
+        );
+    } else {
+        tracing::debug!("open top: {open_top} (no upright fit)");
+    }
+    open_top
+}
+
+/// The shape measured instead of fitted, where the view allows: an open container standing
+/// upright from its outer wall's profile (a vessel, a body of revolution; the closed shape
+/// fitted to both of its walls comes out too small, see `profile.rs`), a closed object
+/// standing on the plane with its top in view from its top's outline (the fit fills the hidden
+/// back coarsely, see `prism.rs`).
+fn measured(
+    points: &[Point3<f64>],
+    plane: Option<&Plane>,
+    open_top: bool,
+    up: Option<&Vector3<f64>>,
+    params: &LearnParams,
+) -> Option<Recovered> {
+    let (Some(pl), Some(v)) = (plane, params.viewpoint) else {
+        return None;
+    };
+    let round_allowed = params.shape != ShapeFamily::General;
+    if open_top
+        && round_allowed
+        && let Some(measured) = profile::measure(points, pl, &v)
+        && let Some((shape, rms)) = profile::fit(&measured)
+    {
+        tracing::debug!("outer wall profile fit: rms {:.2} mm, {shape}", rms * 1e3);
+        let s = profile::state(&measured, &shape, pl);
+        let name = "outer wall profile".to_string();
+        return Some(recovered(points, s, PROFILE_DELTA, name, true, up, params));
+    }
+    if open_top || !params.measure_top {
+        return None;
+    }
+    match prism::measure(points, pl, &v) {
+        Ok(p) if p.round || params.shape != ShapeFamily::Revolution => {
+            tracing::debug!("measured from the top: {p}");
+            let s = prism::state(&p, pl);
+            let name = "top outline".to_string();
+            // Closed by what the top showed: the walls' points seen at a grazing angle past
+            // the outline's edge face away from the sensor, which would read as an inside.
+            let mut r = recovered(points, s, PROFILE_DELTA, name, false, up, params);
+            r.open = false;
+            Some(r)
+        }
+        Ok(p) => {
+            tracing::debug!("the top is not round, a body of revolution was asked for: fitted ({p})");
+            None
+        }
+        Err(why) => {
+            tracing::debug!("not measured from the top: {why}");
+            None
+        }
+    }
+}
+
+/// Stage D: the smallest shape as good as the chosen one, on the points of stage C (`fitted`,
+/// with their mirrored twins: the hidden half of a can is the twin of its front, not free to
+/// shrink). Stage E: that shape refitted along the rays again, its taper held. Stage D's
+/// distance to the nearest surface rounds the edges again (a lying shaft's e1 0.21 for 0.1);
+/// D's size term along the rays would shrink an open bowl's rim away from the points on its
+/// inside, whose rays cannot read it. The taper and the size of a bowl's hidden lower half
+/// trade against each other freely along the rays (a = 51 mm, k 0.65 for 60 mm, 0.3 from one
+/// sweep, seed 7): D chose between them, E keeps that.
+fn smallest_along_rays(
+    ctx: &Context,
+    fitted: &[Point3<f64>],
+    best: State,
+    mirror_at: Option<(Vector3<f64>, Vector3<f64>)>,
+) -> State {
     let problem_fitted = Problem {
-        points: &fitted,
-        ..problem_free
+        points: fitted,
+        ..*ctx.problem_free
     };
     let best = smallest_equally_good(&problem_fitted, best, MIN_DELTA);
-    // Stage E: the shrunk shape refitted along the rays again, its taper held. Stage D's
-    // distance to the nearest surface rounds the edges again (a lying shaft's e1 0.21 for 0.1);
-    // D's size term along the rays would shrink an open bowl's rim away from the points on its
-    // inside, whose rays cannot read it. The taper and the size of a bowl's hidden lower half
-    // trade against each other freely along the rays (a = 51 mm, k 0.65 for 60 mm, 0.3 from
-    // one sweep, seed 7): D chose between them, E keeps that.
-    let best = match ctx.rays(mirror_at) {
+    match ctx.rays(mirror_at) {
         Some(r) => {
             let problem = Problem {
                 rays: Some(r),
@@ -199,8 +245,7 @@ pub fn fit_superquadric(
             s
         }
         None => best,
-    };
-    Ok(recovered(&points, best, delta, name, open_top, up.as_ref(), params))
+    }
 }
 
 /// The points to fit: strays removed, the largest cluster with what lies next to it seen from
@@ -267,11 +312,15 @@ fn free_space(
 
 /// The best of each group of results that converged to the same fit ([`same_fit`], within a
 /// family), best first, at most `limit`.
-fn distinct(mut scored: Vec<(String, State, f64)>, limit: usize) -> Vec<(String, State, f64)> {
-    scored.sort_by(|a, b| a.2.total_cmp(&b.2));
-    let mut kept: Vec<(String, State, f64)> = Vec::new();
+fn distinct(mut scored: Vec<Scored>, limit: usize) -> Vec<Scored> {
+    scored.sort_by(|a, b| a.score.total_cmp(&b.score));
+    let mut kept: Vec<Scored> = Vec::new();
     for r in scored {
-        if kept.len() < limit && !kept.iter().any(|k| k.1.rev == r.1.rev && same_fit(&k.1, &r.1)) {
+        if kept.len() < limit
+            && !kept
+                .iter()
+                .any(|k| k.state.rev == r.state.rev && same_fit(&k.state, &r.state))
+        {
             kept.push(r);
         }
     }
@@ -281,7 +330,7 @@ fn distinct(mut scored: Vec<(String, State, f64)>, limit: usize) -> Vec<(String,
 /// Stage A2: every start again with a thinned free space (at most 1500 samples), which is
 /// what keeps a start from keeping a skirt or a back where the sensor saw through. Scored on
 /// all of the free space.
-fn stage_a2(results: Vec<(String, State)>, problem_free: &Problem) -> Vec<(String, State, f64)> {
+fn refit_with_thinned_free_space(results: Vec<Scored>, problem_free: &Problem) -> Vec<Scored> {
     let free = problem_free.free;
     let coarse: Vec<Point3<f64>> = free.iter().step_by(free.len().div_ceil(1500).max(1)).copied().collect();
     let problem_coarse = Problem {
@@ -289,14 +338,20 @@ fn stage_a2(results: Vec<(String, State)>, problem_free: &Problem) -> Vec<(Strin
         ..*problem_free
     };
     let results = refit_scored(
-        results,
+        results.into_iter().map(|r| (r.name, r.state)).collect(),
         (!coarse.is_empty()).then_some(&problem_coarse),
         (2, 20),
         MIN_DELTA,
         problem_free,
     );
-    for (n, s, sc) in &results {
-        tracing::debug!("start {n}: score {sc:.6} {} t {:?}", s.shape(), s.t.as_slice());
+    for r in &results {
+        tracing::debug!(
+            "start {}: score {:.6} {} t {:?}",
+            r.name,
+            r.score,
+            r.state.shape(),
+            r.state.t.as_slice()
+        );
     }
     results
 }
@@ -334,35 +389,37 @@ impl Context<'_> {
 
 /// Stages B and C for one family (`rev`: bodies of revolution, else general shapes); `None`
 /// when no start of the family is left.
-fn stages_b_c(ctx: &Context, results: &[(String, State, f64)], rev: bool) -> Option<FamilyResult> {
+fn fit_family(ctx: &Context, results: &[Scored], rev: bool) -> Option<FamilyResult> {
     let (points, params, problem_free) = (ctx.points, ctx.params, ctx.problem_free);
     // Stage B: the best three starts again with all of the free space.
     // Three distinct ones: starts that converged to the same shape count once.
-    let three = distinct(results.iter().filter(|r| r.1.rev == rev).cloned().collect(), 3);
+    let three = distinct(results.iter().filter(|r| r.state.rev == rev).cloned().collect(), 3);
     let free = problem_free.free;
     let results = refit_scored(
-        three.into_iter().map(|(n, s, _)| (n, s)).collect(),
+        three.into_iter().map(|r| (r.name, r.state)).collect(),
         (!free.is_empty()).then_some(problem_free),
         (3, 40),
         MIN_DELTA,
         problem_free,
     );
-    for (n, s, sc) in &results {
+    for r in &results {
         tracing::debug!(
-            "stage B {n} ({} free samples): score {sc:.6} {} t {:?}",
+            "stage B {} ({} free samples): score {:.6} {} t {:?}",
+            r.name,
             free.len(),
-            s.shape(),
-            s.t.as_slice()
+            r.score,
+            r.state.shape(),
+            r.state.t.as_slice()
         );
     }
     // Of the results as good as the best (within SMALLEST_TOLERANCE), the smallest: one view
     // cannot tell a ball from an egg pointing at the sensor, and the mirror of stage C
     // would fix the egg's centre, pushed back, for good.
-    let top = results.iter().map(|r| r.2).min_by(f64::total_cmp)?;
-    let (name, best, _) = results
+    let top = results.iter().map(|r| r.score).min_by(f64::total_cmp)?;
+    let Scored { name, state: best, .. } = results
         .into_iter()
-        .filter(|r| r.2 <= top * (1.0 + SMALLEST_TOLERANCE))
-        .min_by(|a, b| volume(&a.1.shape()).total_cmp(&volume(&b.1.shape())))
+        .filter(|r| r.score <= top * (1.0 + SMALLEST_TOLERANCE))
+        .min_by(|a, b| volume(&a.state.shape()).total_cmp(&volume(&b.state.shape())))
         .expect("the best is within its own tolerance");
     // Stage C: the visible points plus their twins turned 180 degrees about the vertical
     // axis through the stage-B centre (fixed), which fixes the hidden back half.
@@ -517,16 +574,16 @@ pub(super) fn refit_scored(
     (rounds, iterations): (usize, usize),
     min_delta: f64,
     scored: &Problem,
-) -> Vec<(String, State, f64)> {
+) -> Vec<Scored> {
     starts
         .into_par_iter()
         .map(|(name, s0)| {
-            let s = match fit {
+            let state = match fit {
                 Some(p) => robust_fit(p, s0, rounds, iterations, min_delta).0,
                 None => s0,
             };
-            let sc = score(scored, &s);
-            (name, s, sc)
+            let score = score(scored, &state);
+            Scored { name, state, score }
         })
         .collect()
 }
