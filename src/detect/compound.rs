@@ -32,6 +32,7 @@ const MIN_ANCHOR_COVERAGE: f64 = 0.35;
 const LOGGED_COMBINATIONS: usize = 12;
 
 /// One placement (or none) of every part, grown from one anchor candidate.
+#[derive(Clone)]
 pub struct Combination {
     /// Which anchor candidate (an index into `Anchors::hypotheses`) it grew from.
     pub anchor: usize,
@@ -97,29 +98,7 @@ pub fn combinations(
     params: &Params,
     round: u64,
 ) -> Vec<Combination> {
-    let space = prep.space();
     let anchor = anchors.part;
-    // Visit parts breadth-first from the anchor along the connections.
-    let mut visit: Vec<(usize, usize, usize)> = Vec::new(); // (part, parent part, connection)
-    let mut seen = vec![false; model.parts.len()];
-    seen[anchor] = true;
-    let mut frontier = vec![anchor];
-    while let Some(p) = frontier.pop() {
-        for (ci, c) in model.connections.iter().enumerate() {
-            let other = if c.parts[0] == p {
-                c.parts[1]
-            } else if c.parts[1] == p {
-                c.parts[0]
-            } else {
-                continue;
-            };
-            if !seen[other] {
-                seen[other] = true;
-                visit.push((other, p, ci));
-                frontier.push(other);
-            }
-        }
-    }
     // The shell around a candidate is small: half the trials find the part there as surely as
     // all of them find it in the whole scene.
     let settings = SearchSettings {
@@ -135,46 +114,98 @@ pub fn combinations(
             ..Default::default()
         },
     };
-    // Partial combinations: a placement (or none) per part, and whether its scores are complete.
-    let mut partial: Vec<(usize, Vec<PartResult>, Vec<bool>)> = picked
+    // Partial combinations: a placement (or none) per part, whether its scores are complete,
+    // and no connection errors until every part has been looked for.
+    let mut partial: Vec<Combination> = picked
         .iter()
         .map(|&k| {
-            let mut v: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
-            v[anchor] = anchors.part_result(model, k);
-            (k, v, vec![true; model.parts.len()])
+            let mut parts: Vec<PartResult> = model.parts.iter().map(|p| empty(&p.name)).collect();
+            parts[anchor] = anchors.part_result(model, k);
+            Combination {
+                anchor: k,
+                parts,
+                measured: vec![true; model.parts.len()],
+                errors: Vec::new(),
+            }
         })
         .collect();
-    for (step, &(part, parent, ci)) in visit.iter().enumerate() {
-        let conn = &model.connections[ci];
-        let shape = model.parts[part].shape;
-        // The trials of each partial combination, side by side (each on its own stream).
-        let trials: Vec<Option<Vec<Fit>>> = partial
-            .par_iter()
-            .enumerate()
-            .map(|(pi, (_, combo, _))| {
-                let parent_placed = combo[parent].placed?;
-                // Where the model puts the part against this placement of its parent, and beside
-                // that a few RANSAC regions of the shell: they find the part when the parent's fit
-                // is off by more than the part's own width (a head's centre slid along its axis
-                // moves a shaft off its points), or the model's connection is approximate.
-                let mut fits = spun_placements(&space, model, parent, part, &parent_placed, &prep.checks[part]);
-                let m = params.local_hypotheses;
-                if m > 0 {
-                    let seeds = shell_seeds(&space, conn, &shape, &parent_placed);
-                    let stream = stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64);
-                    fits.extend(search::region_fits(
-                        &space,
-                        &shape,
-                        &seeds,
-                        m,
-                        &settings,
-                        &prep.checks[part],
-                        stream,
-                    ));
-                }
-                Some(search::distinct(fits, &[]))
-            })
+    for (step, visit) in visit_order(model, anchor).into_iter().enumerate() {
+        let place = PlacePart {
+            prep,
+            model,
+            params,
+            settings: &settings,
+            visit,
+            stream: |pi: usize| stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64),
+        };
+        partial = place.extend(partial);
+    }
+    for c in &mut partial {
+        c.errors = model
+            .connections
+            .iter()
+            .map(|conn| connection_error(model, conn, &c.parts))
             .collect();
+    }
+    partial
+}
+
+/// A part to place, found from its parent part through one of its connections.
+#[derive(Debug, Clone, Copy)]
+struct Visit {
+    part: usize,
+    parent: usize,
+    connection: usize,
+}
+
+/// The parts other than the anchor, breadth-first from it along the connections.
+fn visit_order(model: &Model, anchor: usize) -> Vec<Visit> {
+    let mut visit = Vec::new();
+    let mut seen = vec![false; model.parts.len()];
+    seen[anchor] = true;
+    let mut frontier = vec![anchor];
+    while let Some(p) = frontier.pop() {
+        for (ci, c) in model.connections.iter().enumerate() {
+            let other = if c.parts[0] == p {
+                c.parts[1]
+            } else if c.parts[1] == p {
+                c.parts[0]
+            } else {
+                continue;
+            };
+            if !seen[other] {
+                seen[other] = true;
+                visit.push(Visit {
+                    part: other,
+                    parent: p,
+                    connection: ci,
+                });
+                frontier.push(other);
+            }
+        }
+    }
+    visit
+}
+
+/// One step of growing the combinations: one part looked for against each partial
+/// combination's placement of its parent.
+struct PlacePart<'a, S: Fn(usize) -> u64 + Sync> {
+    prep: &'a Prepared,
+    model: &'a Model,
+    params: &'a Params,
+    settings: &'a SearchSettings,
+    visit: Visit,
+    /// The random stream of the trials around each partial combination.
+    stream: S,
+}
+
+impl<S: Fn(usize) -> u64 + Sync> PlacePart<'_, S> {
+    /// Every partial combination once for each distinct placement of the part found against
+    /// it, or once as it is where none is.
+    fn extend(&self, partial: Vec<Combination>) -> Vec<Combination> {
+        let (model, space) = (self.model, self.prep.space());
+        let part = self.visit.part;
+        let trials = self.trials(&partial);
         // The anchor candidates' shells overlap, and their trials find the same placements of
         // this part over and over: each placement is refined and scored once, for all of them.
         // The coarse rounds bring it to its points and M is measured in the final band; the
@@ -195,18 +226,18 @@ pub fn combinations(
         } = refine::refine_fits(
             &space,
             &pool,
-            &settings,
+            self.settings,
             model.parts[part].open,
-            &prep.checks[part],
+            &self.prep.checks[part],
             &[],
             refine::Refine::Ranked,
         );
         let scores: Vec<Scores> = hyps
             .par_iter()
-            .map(|h| votes(&space, &h.placed, h.m, params.gamma, &prep.samples[part]))
+            .map(|h| votes(&space, &h.placed, h.m, self.params.gamma, &self.prep.samples[part]))
             .collect();
         let mut next = Vec::new();
-        for ((origin, combo, measured), members) in partial.iter().zip(members) {
+        for (combo, members) in partial.iter().zip(members) {
             let mut found: Vec<usize> = Vec::new();
             for k in members.unwrap_or_default().into_iter().filter_map(|j| stands_for[j]) {
                 if !found.contains(&k) {
@@ -214,38 +245,60 @@ pub fn combinations(
                 }
             }
             if found.is_empty() {
-                next.push((*origin, combo.clone(), measured.clone()));
+                next.push(combo.clone());
             }
             for k in found {
                 let mut c = combo.clone();
-                c[part] = PartResult {
+                c.parts[part] = PartResult {
                     name: model.parts[part].name.clone(),
                     placed: Some(hyps[k].placed),
                     scores: scores[k],
                 };
-                let mut m = measured.clone();
-                m[part] = false;
-                next.push((*origin, c, m));
+                c.measured[part] = false;
+                next.push(c);
             }
         }
-        partial = next;
+        next
     }
-    partial
-        .into_iter()
-        .map(|(anchor, parts, measured)| {
-            let errors = model
-                .connections
-                .iter()
-                .map(|c| connection_error(model, c, &parts))
-                .collect();
-            Combination {
-                anchor,
-                parts,
-                measured,
-                errors,
-            }
-        })
-        .collect()
+
+    /// The trials of each partial combination, side by side (each on its own stream): `None`
+    /// where it has no placement of the parent.
+    fn trials(&self, partial: &[Combination]) -> Vec<Option<Vec<Fit>>> {
+        let (model, space) = (self.model, self.prep.space());
+        let Visit {
+            part,
+            parent,
+            connection,
+        } = self.visit;
+        let conn = &model.connections[connection];
+        let shape = model.parts[part].shape;
+        partial
+            .par_iter()
+            .enumerate()
+            .map(|(pi, combo)| {
+                let parent_placed = combo.parts[parent].placed?;
+                // Where the model puts the part against this placement of its parent, and beside
+                // that a few RANSAC regions of the shell: they find the part when the parent's fit
+                // is off by more than the part's own width (a head's centre slid along its axis
+                // moves a shaft off its points), or the model's connection is approximate.
+                let mut fits = spun_placements(&space, model, parent, part, &parent_placed, &self.prep.checks[part]);
+                let m = self.params.local_hypotheses;
+                if m > 0 {
+                    let seeds = shell_seeds(&space, conn, &shape, &parent_placed);
+                    fits.extend(search::region_fits(
+                        &space,
+                        &shape,
+                        &seeds,
+                        m,
+                        self.settings,
+                        &self.prep.checks[part],
+                        (self.stream)(pi),
+                    ));
+                }
+                Some(search::distinct(fits, &[]))
+            })
+            .collect()
+    }
 }
 
 /// The index in `pool` of the placement `fit` repeats (the same pose), added when new.

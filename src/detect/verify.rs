@@ -122,138 +122,187 @@ pub fn score(
     gamma: f64,
     samples: &SurfaceSamples,
 ) -> Scores {
-    let Around {
-        centre,
-        radius,
-        band,
-        tolerance,
-        shell,
-        wide,
-        up_sign,
-        opening_up,
-        kernel,
-        reach,
-        search,
-        support,
-    } = Around::new(space, placed, gamma, samples);
-    let shape = &placed.shape;
-    let (mut s, mut i) = (0usize, 0usize);
-    let mut near_surface: Vec<Point3<f64>> = Vec::new();
-    let mut beyond: Vec<Point3<f64>> = Vec::new();
-    // Their surface distances, for the faces test.
-    let mut near_distance: Vec<f64> = Vec::new();
-    let mut ss = 0.0;
-    let mut inside_points = 0usize;
-    let mut lid = 0usize;
-    let mut outside_near: Vec<Point3<f64>> = Vec::new();
-    let on_rim = samples.open && up_sign.is_some_and(|s| s < 0.0);
-    let mut base = BaseCap::new(shape, band);
-    let mut tolerated: Vec<Point3<f64>> = Vec::new();
-    let mut inner_wall: Vec<Point3<f64>> = Vec::new();
-    let mut batch = NearBatch::within(&kernel, reach, |k, q, rg| {
-            let p = &space.points[k];
-            let within_paper_radius = (p - centre).norm() <= radius;
-            let g = rg.residual + 1.0;
-            if within_paper_radius {
-                if g < 1.0 - gamma {
-                    i += 1;
-                } else if g < 1.0 + gamma {
-                    s += 1;
-                }
-            }
-            let d = PlacedSuperquadric::distance_from(rg);
-            // The raised middle of a vessel's base lies inside the model's end, which is flat.
-            let in_base = on_rim && base.add(q);
-            if opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
-                // On the lid of an open container, where there is nothing to see: a closed lookalike
-                // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
-                lid += 1;
-            } else if d.abs() < band {
-                near_surface.push(*p);
-                near_distance.push(d);
-                ss += d * d;
-            } else if d < 0.0 {
-                // Inside an open container is its inner wall, seen through the opening.
-                if !opening_up {
-                    // A vessel on its rim shows only its outside, which its model follows to
-                    // within the approximation tolerance (the plane check allows as much): the
-                    // upturned mOSD white bowl's wall lay 3-6 mm inside the model's near its base.
-                    let followed = on_rim && d > -tolerance;
-                    if !in_base && !followed {
-                        inside_points += 1;
-                    }
-                } else if d > -tolerance {
-                    inner_wall.push(*p);
-                }
-            } else if d < tolerance {
-                tolerated.push(*p);
-            } else if d < shell && !support.holds(space, p) {
-                outside_near.push(*p);
-                beyond.push(*p);
-            } else if d < wide && !support.holds(space, p) {
-                beyond.push(*p);
-            }
-        });
+    let around = Around::new(space, placed, gamma, samples);
+    let on_rim = samples.open && around.up_sign.is_some_and(|s| s < 0.0);
+    let mut tally = Tally::new(&placed.shape, around.band);
+    let mut batch = NearBatch::within(&around.kernel, around.reach, |k, q, rg| {
+        tally.add(space, &around, &placed.shape, gamma, on_rim, &space.points[k], q, rg)
+    });
     space.grid.for_each_within_box(
         space.points,
-        &centre,
-        search,
-        &kernel.frame_box(&reach),
+        &around.centre,
+        around.search,
+        &around.kernel.frame_box(&around.reach),
         |k| batch.push(k, &space.points[k]),
     );
     batch.finish();
-    // Of the points just outside, those that continue the explained surface (a neighbour on it
-    // within reach): the data goes on past the model's edge, as when a smaller model sits on a
-    // larger object of the same shape. Points of another object across a gap do not count.
-    let reach = (2.5 * samples.data_spacing).max(band);
-    let shell_points = if outside_near.is_empty() || near_surface.is_empty() {
-        0
-    } else {
-        // The explained surface, widened by the tolerance.
-        let explained: Vec<Point3<f64>> = near_surface.iter().chain(&tolerated).copied().collect();
-        let g = Grid::new(&explained, reach);
-        outside_near
-            .iter()
-            .filter(|p| g.any_within(&explained, p, reach))
-            .count()
-    };
-    let shell_points = shell_points
-        + beyond_the_ends(
-            space,
-            placed,
-            band + approximation_tolerance(shape),
-            up_sign,
-        );
-    let continued_points = continued(&near_surface, &beyond, band);
-    let faces = flat_faces(placed, &near_surface, &near_distance);
-    let surface_points = near_surface.len();
-    let rms = if surface_points > 0 {
-        (ss / surface_points as f64).sqrt()
-    } else {
-        f64::INFINITY
-    };
-    let coverage = if opening_up {
-        let wall: Vec<Point3<f64>> = near_surface.iter().chain(&inner_wall).copied().collect();
-        coverage(placed, &wall, space.viewpoint, samples, true)
-    } else {
-        coverage(placed, &near_surface, space.viewpoint, samples, false)
-    };
-    // For an open part the paper's I (points that should not be there) are the lid points.
-    let (i, inside_points) = if opening_up { (lid, lid) } else { (i, inside_points) };
-    Scores {
-        m,
-        s,
-        i,
-        coverage,
-        rms,
-        surface_points,
-        inside_points,
-        shell_points,
-        continued_points,
-        faces,
-        base_recess: on_rim.then(|| base.recess()),
-    }
+    tally.scores(space, placed, m, samples, &around, on_rim)
 }
+}
+
+/// The points around a hypothesis, sorted by where they lie against its surface.
+struct Tally {
+    /// The paper's S and I: points within its radius near the surface and inside.
+    s: usize,
+    i: usize,
+    /// Points within the band of the surface, with their distances (for the faces test) and
+    /// the sum of their squares.
+    near_surface: Vec<Point3<f64>>,
+    near_distance: Vec<f64>,
+    ss: f64,
+    /// Points inside a closed part, where there should be none.
+    inside_points: usize,
+    /// Points on the lid of an open container.
+    lid: usize,
+    /// Just outside, within the shell; and anything outside up to the wide reach.
+    outside_near: Vec<Point3<f64>>,
+    beyond: Vec<Point3<f64>>,
+    base: BaseCap,
+    /// Outside the band but within the tolerance: the object's own.
+    tolerated: Vec<Point3<f64>>,
+    /// An open container's inner wall, seen through its opening.
+    inner_wall: Vec<Point3<f64>>,
+}
+
+impl Tally {
+    fn new(shape: &crate::geometry::Superquadric, band: f64) -> Tally {
+        Tally {
+            s: 0,
+            i: 0,
+            near_surface: Vec::new(),
+            near_distance: Vec::new(),
+            ss: 0.0,
+            inside_points: 0,
+            lid: 0,
+            outside_near: Vec::new(),
+            beyond: Vec::new(),
+            base: BaseCap::new(shape, band),
+            tolerated: Vec::new(),
+            inner_wall: Vec::new(),
+        }
+    }
+
+    /// One point `p` (`q` in the part's frame, `rg` its residual and gradient there).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn add(
+        &mut self,
+        space: &SearchSpace<'_>,
+        around: &Around,
+        shape: &crate::geometry::Superquadric,
+        gamma: f64,
+        on_rim: bool,
+        p: &Point3<f64>,
+        q: &Vector3<f64>,
+        rg: &crate::geometry::ResidualGrad,
+    ) {
+        let within_paper_radius = (p - around.centre).norm() <= around.radius;
+        let g = rg.residual + 1.0;
+        if within_paper_radius {
+            if g < 1.0 - gamma {
+                self.i += 1;
+            } else if g < 1.0 + gamma {
+                self.s += 1;
+            }
+        }
+        let (band, tolerance) = (around.band, around.tolerance);
+        let d = PlacedSuperquadric::distance_from(rg);
+        // The raised middle of a vessel's base lies inside the model's end, which is flat.
+        let in_base = on_rim && self.base.add(q);
+        if around.opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
+            // On the lid of an open container, where there is nothing to see: a closed lookalike
+            // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
+            self.lid += 1;
+        } else if d.abs() < band {
+            self.near_surface.push(*p);
+            self.near_distance.push(d);
+            self.ss += d * d;
+        } else if d < 0.0 {
+            // Inside an open container is its inner wall, seen through the opening.
+            if !around.opening_up {
+                // A vessel on its rim shows only its outside, which its model follows to
+                // within the approximation tolerance (the plane check allows as much): the
+                // upturned mOSD white bowl's wall lay 3-6 mm inside the model's near its base.
+                let followed = on_rim && d > -tolerance;
+                if !in_base && !followed {
+                    self.inside_points += 1;
+                }
+            } else if d > -tolerance {
+                self.inner_wall.push(*p);
+            }
+        } else if d < tolerance {
+            self.tolerated.push(*p);
+        } else if d < around.shell && !around.support.holds(space, p) {
+            self.outside_near.push(*p);
+            self.beyond.push(*p);
+        } else if d < around.wide && !around.support.holds(space, p) {
+            self.beyond.push(*p);
+        }
+    }
+
+    /// The scores of what was tallied.
+    fn scores(
+        mut self,
+        space: &SearchSpace<'_>,
+        placed: &PlacedSuperquadric,
+        m: f64,
+        samples: &SurfaceSamples,
+        around: &Around,
+        on_rim: bool,
+    ) -> Scores {
+        let (band, shape) = (around.band, &placed.shape);
+        // Of the points just outside, those that continue the explained surface (a neighbour on
+        // it within reach): the data goes on past the model's edge, as when a smaller model sits
+        // on a larger object of the same shape. Points of another object across a gap do not
+        // count.
+        let reach = (2.5 * samples.data_spacing).max(band);
+        let shell_points = if self.outside_near.is_empty() || self.near_surface.is_empty() {
+            0
+        } else {
+            // The explained surface, widened by the tolerance.
+            let explained: Vec<Point3<f64>> = self.near_surface.iter().chain(&self.tolerated).copied().collect();
+            let g = Grid::new(&explained, reach);
+            self.outside_near
+                .iter()
+                .filter(|p| g.any_within(&explained, p, reach))
+                .count()
+        };
+        let shell_points =
+            shell_points + beyond_the_ends(space, placed, band + approximation_tolerance(shape), around.up_sign);
+        let continued_points = continued(&self.near_surface, &self.beyond, band);
+        let faces = flat_faces(placed, &self.near_surface, &self.near_distance);
+        let surface_points = self.near_surface.len();
+        let rms = if surface_points > 0 {
+            (self.ss / surface_points as f64).sqrt()
+        } else {
+            f64::INFINITY
+        };
+        let coverage = if around.opening_up {
+            let wall: Vec<Point3<f64>> = self.near_surface.iter().chain(&self.inner_wall).copied().collect();
+            coverage(placed, &wall, space.viewpoint, samples, true)
+        } else {
+            coverage(placed, &self.near_surface, space.viewpoint, samples, false)
+        };
+        // For an open part the paper's I (points that should not be there) are the lid points.
+        let (i, inside_points) = if around.opening_up {
+            (self.lid, self.lid)
+        } else {
+            (self.i, self.inside_points)
+        };
+        Scores {
+            m,
+            s: self.s,
+            i,
+            coverage,
+            rms,
+            surface_points,
+            inside_points,
+            shell_points,
+            continued_points,
+            faces,
+            base_recess: on_rim.then(|| self.base.recess()),
+        }
+    }
 }
 
 /// How far past the model's surface (beyond the tolerance) [`continued`] looks (m): the size
