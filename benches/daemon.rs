@@ -101,9 +101,16 @@ speed_rad_s = 0.12
     let config = Config::from_toml_str(&config, &dir.join("sqscand.toml")).unwrap();
     let daemon = rt.block_on(Daemon::start(config, None)).unwrap();
 
-    // Latency: a watcher sees every sweep's cup detection; latency_ms runs from the sweep's last
-    // profile to the detection's end.
-    let mut c = Client::connect(&socket);
+    latency(&socket, sweeps);
+    throughput(&socket, seconds);
+    rt.block_on(daemon.stop());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Latency: a watcher sees every sweep's cup detection; latency_ms runs from the sweep's last
+/// profile to the detection's end.
+fn latency(socket: &Path, sweeps: usize) {
+    let mut c = Client::connect(socket);
     let r = c.ask(&json!({"cmd":"watch","objects":["cup"]}));
     assert_eq!(r["class"], "watch", "{r}");
     let mut latency = Vec::new();
@@ -127,15 +134,17 @@ speed_rad_s = 0.12
         percentile(&mut latency, 1.0),
         percentile(&mut run, 0.5)
     );
+}
 
-    // Throughput: 200 clients asking "find cup" (or bowl) back to back for `seconds`.
+/// Throughput: 200 clients asking "find cup" (or bowl) back to back for `seconds`.
+fn throughput(socket: &Path, seconds: f64) {
     let answers = Arc::new(AtomicU64::new(0));
     let deadline = Instant::now() + Duration::from_secs_f64(seconds);
     let mut times: Vec<f64> = Vec::new();
     let t0 = Instant::now();
     let handles: Vec<_> = (0..200)
         .map(|i| {
-            let (socket, answers) = (socket.clone(), answers.clone());
+            let (socket, answers) = (socket.to_path_buf(), answers.clone());
             std::thread::spawn(move || {
                 let mut c = Client::connect(&socket);
                 let object = ["cup", "bowl"][i % 2];
@@ -163,6 +172,4 @@ speed_rad_s = 0.12
         percentile(&mut times.clone(), 0.5),
         percentile(&mut times, 0.95)
     );
-    rt.block_on(daemon.stop());
-    let _ = std::fs::remove_dir_all(&dir);
 }

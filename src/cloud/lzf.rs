@@ -158,44 +158,13 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
             ip += 1;
             len += 2;
             let back = ((ctrl & 0x1f) << 8 | usize::from(lo)) + 1;
-            let Some(from) = op.checked_sub(back) else {
+            if back > op {
                 return err(start, "back-reference before the start of the output");
-            };
+            }
             if op + len > expected_len {
                 return err(start, "output longer than the declared size");
             }
-            // Every copy below writes within `op..op + len + 15` and reads before what it writes:
-            // `op + len <= expected_len` was checked and `out` has MAX_LIT bytes to spare, so
-            // the copies are made through a pointer, without a bounds check per block or byte.
-            debug_assert!(op + len + 16 <= out.len());
-            let base = out.as_mut_ptr();
-            if back >= 16 {
-                // Each block lies wholly before the one it is copied to.
-                let mut k = 0;
-                while k < len {
-                    // SAFETY: both blocks lie within `out` (see above) and are `back >= 16`
-                    // bytes apart, so they do not overlap.
-                    unsafe { std::ptr::copy_nonoverlapping(base.add(from + k), base.add(op + k), 16) };
-                    k += 16;
-                }
-            } else {
-                // The source overlaps the bytes being produced: a run repeating the last `back`
-                // bytes. Its first `period` bytes (the smallest multiple of `back` of at least a
-                // block) byte by byte, as the format defines it; from there the run repeats what
-                // lies `period` bytes back, a whole block before.
-                let period = back * 16usize.div_ceil(back);
-                let head = len.min(period);
-                for k in 0..head {
-                    // SAFETY: `from + k < op + k < op + len`, within `out`.
-                    unsafe { *base.add(op + k) = *base.add(from + k) };
-                }
-                let mut k = head;
-                while k < len {
-                    // SAFETY: within `out` (see above); `period >= 16` bytes apart.
-                    unsafe { std::ptr::copy_nonoverlapping(base.add(op + k - period), base.add(op + k), 16) };
-                    k += 16;
-                }
-            }
+            copy_back(&mut out, op, back, len);
             op += len;
         }
     }
@@ -207,6 +176,46 @@ pub fn decompress(input: &[u8], expected_len: usize) -> Result<Vec<u8>, CloudErr
     }
     out.truncate(expected_len);
     Ok(out)
+}
+
+/// LZF's back-reference: the `len` bytes from `back` bytes behind `op` copied to `op` in `out`,
+/// as if byte by byte (so an overlapping run repeats its last `back` bytes), 16 bytes at a time:
+/// up to 15 bytes past `op + len` are written over, which the next instruction overwrites.
+#[inline(always)]
+fn copy_back(out: &mut [u8], op: usize, back: usize, len: usize) {
+    // Every copy below writes within `op..op + len + 15` and reads before what it writes: the
+    // caller checked `op + len <= expected_len`, and `out` has MAX_LIT bytes to spare, so the
+    // copies are made through a pointer, without a bounds check per block or byte.
+    assert!((1..=op).contains(&back) && op + len + 16 <= out.len());
+    let from = op - back;
+    let base = out.as_mut_ptr();
+    if back >= 16 {
+        // Each block lies wholly before the one it is copied to.
+        let mut k = 0;
+        while k < len {
+            // SAFETY: both blocks lie within `out` (asserted above) and are `back >= 16` bytes
+            // apart, so they do not overlap.
+            unsafe { std::ptr::copy_nonoverlapping(base.add(from + k), base.add(op + k), 16) };
+            k += 16;
+        }
+    } else {
+        // The source overlaps the bytes being produced: a run repeating the last `back` bytes.
+        // Its first `period` bytes (the smallest multiple of `back` of at least a block) byte by
+        // byte, as the format defines it; from there the run repeats what lies `period` bytes
+        // back, a whole block before.
+        let period = back * 16usize.div_ceil(back);
+        let head = len.min(period);
+        for k in 0..head {
+            // SAFETY: `from + k < op + k < op + len`, within `out`.
+            unsafe { *base.add(op + k) = *base.add(from + k) };
+        }
+        let mut k = head;
+        while k < len {
+            // SAFETY: within `out` (asserted above); `period >= 16` bytes apart.
+            unsafe { std::ptr::copy_nonoverlapping(base.add(op + k - period), base.add(op + k), 16) };
+            k += 16;
+        }
+    }
 }
 
 #[cfg(test)]

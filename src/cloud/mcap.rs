@@ -70,6 +70,56 @@ struct Found<'a> {
     cloud: Option<(&'a str, &'a [u8])>,
 }
 
+impl<'a> Found<'a> {
+    /// A message record: kept where it is the best PointCloud2 so far.
+    fn message(&mut self, content: &'a [u8]) -> Result<(), String> {
+        let mut r = Bytes {
+            b: content,
+            what: "message",
+        };
+        let channel = r.u16()?;
+        r.take(4 + 8 + 8)?;
+        let Some(&(topic, schema_id, encoding)) = self.channels.get(&channel) else {
+            return Err(format!(
+                "a message on channel {channel}, which no channel record defined"
+            ));
+        };
+        let is_cloud = self
+            .schemas
+            .get(&schema_id)
+            .is_some_and(|s| s.0 == schema::POINT_CLOUD2);
+        let better = self
+            .cloud
+            .is_none_or(|(t, _)| t != POINTS_TOPIC && topic == POINTS_TOPIC);
+        if is_cloud && encoding == "cdr" && better {
+            self.cloud = Some((topic, r.b));
+        }
+        Ok(())
+    }
+
+    /// A metadata record: sqscand's `sqscan.sweep` gives the viewpoint, the sweep's id and time.
+    fn metadata(&mut self, content: &'a [u8]) -> Result<(), String> {
+        let mut r = Bytes {
+            b: content,
+            what: "metadata",
+        };
+        if r.string()? == "sqscan.sweep" {
+            let fields = r.map()?;
+            let field = |key: &str| fields.iter().find(|(k, _)| *k == key).map(|(_, v)| *v);
+            if let Some(v) = field("viewpoint") {
+                self.viewpoint =
+                    serde_json::from_str(v).map_err(|e| format!("metadata sqscan.sweep: viewpoint {v:?}: {e}"))?;
+            }
+            let id = field("id").and_then(|v| v.parse::<u64>().ok());
+            let time = field("time")
+                .and_then(|v| v.parse::<f64>().ok())
+                .filter(|t| t.is_finite());
+            self.sweep = id.zip(time);
+        }
+        Ok(())
+    }
+}
+
 /// The records of `b` (a file's data section, or an uncompressed chunk's records), in order,
 /// until the data section ends.
 fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(), String> {
@@ -109,29 +159,7 @@ fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(),
                 let (topic, encoding) = (r.string()?, r.string()?);
                 found.channels.insert(id, (topic, schema_id, encoding));
             }
-            0x05 => {
-                let mut r = Bytes {
-                    b: content,
-                    what: "message",
-                };
-                let channel = r.u16()?;
-                r.take(4 + 8 + 8)?;
-                let Some(&(topic, schema_id, encoding)) = found.channels.get(&channel) else {
-                    return Err(format!(
-                        "a message on channel {channel}, which no channel record defined"
-                    ));
-                };
-                let is_cloud = found
-                    .schemas
-                    .get(&schema_id)
-                    .is_some_and(|s| s.0 == schema::POINT_CLOUD2);
-                let better = found
-                    .cloud
-                    .is_none_or(|(t, _)| t != POINTS_TOPIC && topic == POINTS_TOPIC);
-                if is_cloud && encoding == "cdr" && better {
-                    found.cloud = Some((topic, r.b));
-                }
-            }
+            0x05 => found.message(content)?,
             0x06 if depth == 0 => {
                 let mut r = Bytes {
                     b: content,
@@ -148,25 +176,7 @@ fn records<'a>(mut b: &'a [u8], found: &mut Found<'a>, depth: u32) -> Result<(),
                 }
                 records(inner, found, 1)?;
             }
-            0x0c => {
-                let mut r = Bytes {
-                    b: content,
-                    what: "metadata",
-                };
-                if r.string()? == "sqscan.sweep" {
-                    let fields = r.map()?;
-                    let field = |key: &str| fields.iter().find(|(k, _)| *k == key).map(|(_, v)| *v);
-                    if let Some(v) = field("viewpoint") {
-                        found.viewpoint = serde_json::from_str(v)
-                            .map_err(|e| format!("metadata sqscan.sweep: viewpoint {v:?}: {e}"))?;
-                    }
-                    let id = field("id").and_then(|v| v.parse::<u64>().ok());
-                    let time = field("time")
-                        .and_then(|v| v.parse::<f64>().ok())
-                        .filter(|t| t.is_finite());
-                    found.sweep = id.zip(time);
-                }
-            }
+            0x0c => found.metadata(content)?,
             _ => {}
         }
     }

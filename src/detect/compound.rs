@@ -5,6 +5,10 @@
 //! that found it. The combinations are ranked by the connection errors A and D (paper eq. 6, 7)
 //! together with every part's M, S and I, and the best combination of each anchor candidate is
 //! refined as one rigid object.
+//!
+//! Over 600 lines on purpose: growing the combinations, ranking them and measuring
+//! the winners share the combination's layout and the connection errors; split, each would
+//! reach into the other's.
 
 use super::accept::{self, object_pose};
 use super::anchor::Anchors;

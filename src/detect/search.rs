@@ -4,10 +4,6 @@
 //! every hypothesis is refined on the points near it (subsampled to a twelfth of the smallest
 //! size) until M stops improving.
 //!
-//! Over 600 lines, a sixth of them tests: a trial's starts, its fit, its consensus and the
-//! regions the trials are drawn from are tuned together; the space they search is shared with
-//! the stages after them.
-//!
 //! Beyond the paper, every start is placed where the superquadric would touch the sampled patch
 //! (its centre one half-size behind the patch, away from the viewpoint) instead of at the patch
 //! centroid, so a fit needs a few iterations instead of twenty; starts that would reach deep

@@ -202,43 +202,58 @@ pub(super) fn normal_equations(
         .into_iter()
         .fold((Mat::zeros(), Vect::zeros()), |(h, g), (hc, gc)| (h + hc, g + gc));
     // The rest by forward differences, on the rest alone.
-    let tail = &r0[n..];
-    if !tail.is_empty() {
-        // The pose's columns (7..13) move the samples of the shape at `s` without re-sampling.
-        // The sizes' and tapers' columns reuse its exponents' share of the seen samples.
-        let unit = problem.seen.map(|_| SeenUnit::new(placed.shape.e1, placed.shape.e2));
-        let local = problem.tail_local(&placed.shape, unit.as_ref());
-        let columns: Vec<Option<Vec<f64>>> = shifted
-            .par_iter()
-            .enumerate()
-            .map(|(k, c)| {
-                c.as_ref().map(|(moved, _, _)| {
-                    let mut out = Vec::with_capacity(tail.len());
-                    if k < 7 {
-                        problem.tail_of(&problem.tail_local(&moved.shape, unit.as_ref()), moved, &mut out);
-                    } else {
-                        problem.tail_of(&local, moved, &mut out);
-                    }
-                    out
-                })
+    let tail_weights = weights.get(n..).unwrap_or_default();
+    add_tail_by_differences(problem, &placed, &shifted, &r0[n..], tail_weights, &mut h, &mut g);
+    Some((h, g))
+}
+
+/// `J^T W J` and `J^T W r` of the residuals after the points' and the free space's (`tail`,
+/// weighted by `weights`), by forward differences along the shifted states.
+fn add_tail_by_differences(
+    problem: &Problem,
+    placed: &PlacedSuperquadric,
+    shifted: &Shifted,
+    tail: &[f64],
+    weights: &[f64],
+    h: &mut Mat,
+    g: &mut Vect,
+) {
+    if tail.is_empty() {
+        return;
+    }
+    // The pose's columns (7..13) move the samples of the shape at `s` without re-sampling.
+    // The sizes' and tapers' columns reuse its exponents' share of the seen samples.
+    let unit = problem.seen.map(|_| SeenUnit::new(placed.shape.e1, placed.shape.e2));
+    let local = problem.tail_local(&placed.shape, unit.as_ref());
+    let columns: Vec<Option<Vec<f64>>> = shifted
+        .par_iter()
+        .enumerate()
+        .map(|(k, c)| {
+            c.as_ref().map(|(moved, _, _)| {
+                let mut out = Vec::with_capacity(tail.len());
+                if k < 7 {
+                    problem.tail_of(&problem.tail_local(&moved.shape, unit.as_ref()), moved, &mut out);
+                } else {
+                    problem.tail_of(&local, moved, &mut out);
+                }
+                out
             })
-            .collect();
-        for (t, r) in tail.iter().enumerate() {
-            let w = weights[n + t];
-            if w == 0.0 || !r.is_finite() {
-                continue;
-            }
-            let j = Vect::from_fn(|k, _| match (&columns[k], &shifted[k]) {
-                (Some(col), Some((_, _, step))) => (col[t] - r) / step,
-                _ => 0.0,
-            });
-            if j.iter().all(|v| v.is_finite()) {
-                h.ger(w, &j, &j, 1.0);
-                g += j * (w * r);
-            }
+        })
+        .collect();
+    for (t, r) in tail.iter().enumerate() {
+        let w = weights[t];
+        if w == 0.0 || !r.is_finite() {
+            continue;
+        }
+        let j = Vect::from_fn(|k, _| match (&columns[k], &shifted[k]) {
+            (Some(col), Some((_, _, step))) => (col[t] - r) / step,
+            _ => 0.0,
+        });
+        if j.iter().all(|v| v.is_finite()) {
+            h.ger(w, &j, &j, 1.0);
+            *g += j * (w * r);
         }
     }
-    Some((h, g))
 }
 
 /// The gradient of point `i`'s residual `r`, given what its ray read.

@@ -91,7 +91,7 @@ fn quantile(v: &[f64], f: f64) -> f64 {
 /// Measure the object as a prism standing on `plane`, seen from `viewpoint`; the reason it is
 /// not one otherwise.
 pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<f64>) -> Result<Prism, String> {
-    let (points, h, level) = standing_with_top_in_view(points, plane, viewpoint)?;
+    let Standing { points, h, level } = standing_with_top_in_view(points, plane, viewpoint)?;
     let (u, w) = orthonormal_basis(&plane.normal);
     let flat = |p: &Point3<f64>| Vector2::new(p.coords.dot(&u), p.coords.dot(&w));
     // The top's points, in the plane's basis, with their heights.
@@ -154,13 +154,23 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
     })
 }
 
-/// The object's finite points, their heights over the plane and the height of its top, where it
-/// stands on the plane, is tall enough to have a top and the sensor looks down on that top.
+/// An object standing on the plane with its top in view.
+struct Standing {
+    /// Its finite points.
+    points: Vec<Point3<f64>>,
+    /// Their heights over the plane (m).
+    h: Vec<f64>,
+    /// The height of its top (m).
+    level: f64,
+}
+
+/// The object where it stands on the plane, is tall enough to have a top and the sensor looks
+/// down on that top; else why not.
 fn standing_with_top_in_view(
     points: &[Point3<f64>],
     plane: &Plane,
     viewpoint: &Point3<f64>,
-) -> Result<(Vec<Point3<f64>>, Vec<f64>, f64), String> {
+) -> Result<Standing, String> {
     let points: Vec<Point3<f64>> = points
         .iter()
         .filter(|p| p.coords.iter().all(|c| c.is_finite()))
@@ -193,7 +203,7 @@ fn standing_with_top_in_view(
     }
     let near_top: Vec<f64> = h.iter().copied().filter(|&z| z > top - 2.0 * TOP_BAND).collect();
     let level = quantile(&near_top, 0.5);
-    Ok((points, h, level))
+    Ok(Standing { points, h, level })
 }
 
 /// The smallest rectangle (by whole degrees) that holds the 1-99 % extents of the top's points.

@@ -363,8 +363,74 @@ pub fn assemble(
         position_samples: track.len(),
         ..SweepReport::default()
     };
+    let in_order = in_sequence(profiles, &mut report);
+    let usable = well_formed(in_order, calib, &mut report);
+    // Clock offset: the least-delayed frame. Every received profile informs it (a late or
+    // duplicate frame only has a larger delay, which cannot lower the minimum).
+    let offset = profiles
+        .iter()
+        .map(|p| secs_since(origin, p.received) - sensor_s(p))
+        .fold(f64::INFINITY, f64::min);
+    // Exposure times and joint angles.
+    let mut rows: Vec<Row> = Vec::with_capacity(usable.len());
+    for p in usable {
+        let t = sensor_s(p) + offset - sensor_latency_s;
+        match interpolate(&track, t) {
+            Some((pan, tilt)) => rows.push(Row { p, t, pan, tilt }),
+            None => report.dropped_extrapolated += 1,
+        }
+    }
+    let Projected {
+        range_m,
+        points,
+        intensity,
+    } = project(&rows, calib);
+    let (columns, n) = (calib.columns, rows.len());
+    let t0 = rows.first().map_or(0.0, |r| r.t);
+    let stamp_s: Vec<f64> = rows.iter().map(|r| r.t - t0).collect();
+    let seq: Vec<u32> = rows.iter().map(|r| r.p.profile.seq).collect();
+    let pan_rad: Vec<f64> = rows.iter().map(|r| r.pan).collect();
+    let tilt_rad: Vec<f64> = rows.iter().map(|r| r.tilt).collect();
+    report.kept = n;
+    report.points = range_m.iter().filter(|r| r.is_finite()).count();
+    report.duration_s = stamp_s.last().copied().unwrap_or(0.0);
+    report.max_extra_delay_s = rows
+        .iter()
+        .map(|r| secs_since(origin, r.p.received) - sensor_s(r.p) - offset)
+        .fold(0.0f64, f64::max);
+    let mut cloud = PointCloud::organized(columns, n, points);
+    if let Some(intensity) = intensity {
+        cloud.fields.push(Field::scalar("intensity", FieldData::U8(intensity)));
+    }
+    if n > 0 {
+        let mid = n / 2;
+        let pose = calib.sensor_in_base(pan_rad[mid], tilt_rad[mid]);
+        let (t, q) = (pose.translation.vector, pose.rotation.quaternion());
+        cloud.viewpoint = Some([t.x, t.y, t.z, q.w, q.i, q.j, q.k]);
+    }
+    let start = if n > 0 { instant_at(origin, t0) } else { origin };
+    Ok(Sweep {
+        profiles: n,
+        columns,
+        start: Some(start),
+        stamp_s,
+        seq,
+        pan_rad,
+        tilt_rad,
+        range_m,
+        cloud,
+        report,
+    })
+}
 
-    // Sequence numbers, in arrival order, unwrapped to u64 relative to the newest.
+/// The sensor's timestamp of a profile (s).
+fn sensor_s(p: &ReceivedProfile) -> f64 {
+    p.profile.timestamp_ns as f64 * 1e-9
+}
+
+/// The profiles in sequence: duplicates and late frames dropped and counted, sequence numbers
+/// unwrapped to u64 relative to the newest, and the ones that never arrived counted.
+fn in_sequence<'a>(profiles: &'a [ReceivedProfile], report: &mut SweepReport) -> Vec<&'a ReceivedProfile> {
     let mut seen: HashSet<u64> = HashSet::new();
     let mut newest: Option<(u32, u64)> = None;
     let mut first_seq = 0u64;
@@ -395,9 +461,16 @@ pub fn assemble(
         let arrived = seen.iter().filter(|&&u| u >= first_seq && u <= last).count() as u64;
         report.missing_seq = usize::try_from(span.saturating_sub(arrived)).unwrap_or(usize::MAX);
     }
+    in_order
+}
 
-    // Format checks.
-    let mut usable: Vec<&ReceivedProfile> = Vec::with_capacity(in_order.len());
+/// The profiles of the calibration's width and encoding; the others dropped and counted.
+fn well_formed<'a>(
+    in_order: Vec<&'a ReceivedProfile>,
+    calib: &Calibration,
+    report: &mut SweepReport,
+) -> Vec<&'a ReceivedProfile> {
+    let mut usable = Vec::with_capacity(in_order.len());
     for p in in_order {
         if p.profile.rows.len() != calib.columns {
             report.dropped_bad_columns += 1;
@@ -407,48 +480,43 @@ pub fn assemble(
             usable.push(p);
         }
     }
+    usable
+}
 
-    // Clock offset: the least-delayed frame. Every received profile informs it (a late or
-    // duplicate frame only has a larger delay, which cannot lower the minimum).
-    let sensor_s = |p: &ReceivedProfile| p.profile.timestamp_ns as f64 * 1e-9;
-    let delays: Vec<f64> = profiles
-        .iter()
-        .map(|p| secs_since(origin, p.received) - sensor_s(p))
-        .collect();
-    let offset = delays.iter().copied().fold(f64::INFINITY, f64::min);
+/// A profile of the sweep, with its exposure time (s since the first position sample) and the
+/// joint angles then.
+struct Row<'a> {
+    p: &'a ReceivedProfile,
+    t: f64,
+    pan: f64,
+    tilt: f64,
+}
 
-    // Exposure times and joint angles.
-    let mut rows: Vec<(&ReceivedProfile, f64, f64, f64)> = Vec::with_capacity(usable.len());
-    for p in usable {
-        let t = sensor_s(p) + offset - sensor_latency_s;
-        match interpolate(&track, t) {
-            Some((pan, tilt)) => rows.push((p, t, pan, tilt)),
-            None => report.dropped_extrapolated += 1,
-        }
-    }
+/// The sweep's pixels, a row a profile: range, point in the base frame, and intensity where
+/// every profile has one.
+struct Projected {
+    range_m: Vec<f32>,
+    points: Vec<[f32; 3]>,
+    intensity: Option<Vec<u8>>,
+}
 
-    let columns = calib.columns;
-    let n = rows.len();
-    let t0 = rows.first().map_or(0.0, |r| r.1);
+/// Every pixel through the calibration chain at its profile's joint angles.
+fn project(rows: &[Row], calib: &Calibration) -> Projected {
+    let (columns, n) = (calib.columns, rows.len());
     let mut range_m = vec![f32::NAN; n * columns];
     let mut points = vec![[f32::NAN; 3]; n * columns];
     let with_intensity = n > 0
         && rows
             .iter()
-            .all(|r| r.0.profile.intensity.as_ref().is_some_and(|i| i.len() == columns));
+            .all(|r| r.p.profile.intensity.as_ref().is_some_and(|i| i.len() == columns));
     let mut intensity = if with_intensity {
         vec![0u8; n * columns]
     } else {
         Vec::new()
     };
-    let mut stamp_s = Vec::with_capacity(n);
-    let mut seq = Vec::with_capacity(n);
-    let mut pan_rad = Vec::with_capacity(n);
-    let mut tilt_rad = Vec::with_capacity(n);
-    let mut max_extra_delay = 0.0f64;
-    for (i, &(p, t, pan, tilt)) in rows.iter().enumerate() {
-        let pose = calib.sensor_in_base(pan, tilt);
-        for (col, &raw) in p.profile.rows.iter().enumerate() {
+    for (i, r) in rows.iter().enumerate() {
+        let pose = calib.sensor_in_base(r.pan, r.tilt);
+        for (col, &raw) in r.p.profile.rows.iter().enumerate() {
             let Some(q) = calib.point_in_sensor(col, raw) else {
                 continue;
             };
@@ -458,45 +526,17 @@ pub fn assemble(
             points[k] = [b.x as f32, b.y as f32, b.z as f32];
             if let (Some(dst), Some(src)) = (
                 intensity.get_mut(k),
-                p.profile.intensity.as_ref().and_then(|v| v.get(col)),
+                r.p.profile.intensity.as_ref().and_then(|v| v.get(col)),
             ) {
                 *dst = *src;
             }
         }
-        stamp_s.push(t - t0);
-        seq.push(p.profile.seq);
-        pan_rad.push(pan);
-        tilt_rad.push(tilt);
-        max_extra_delay = max_extra_delay.max(secs_since(origin, p.received) - sensor_s(p) - offset);
     }
-    report.kept = n;
-    report.points = range_m.iter().filter(|r| r.is_finite()).count();
-    report.duration_s = stamp_s.last().copied().unwrap_or(0.0);
-    report.max_extra_delay_s = max_extra_delay;
-
-    let mut cloud = PointCloud::organized(columns, n, points);
-    if with_intensity {
-        cloud.fields.push(Field::scalar("intensity", FieldData::U8(intensity)));
-    }
-    if n > 0 {
-        let mid = n / 2;
-        let pose = calib.sensor_in_base(pan_rad[mid], tilt_rad[mid]);
-        let (t, q) = (pose.translation.vector, pose.rotation.quaternion());
-        cloud.viewpoint = Some([t.x, t.y, t.z, q.w, q.i, q.j, q.k]);
-    }
-    let start = if n > 0 { instant_at(origin, t0) } else { origin };
-    Ok(Sweep {
-        profiles: n,
-        columns,
-        start: Some(start),
-        stamp_s,
-        seq,
-        pan_rad,
-        tilt_rad,
+    Projected {
         range_m,
-        cloud,
-        report,
-    })
+        points,
+        intensity: with_intensity.then_some(intensity),
+    }
 }
 
 #[cfg(test)]

@@ -10,6 +10,9 @@
 //!
 //! A camera that sends nothing while acquiring is asked for a register; when that fails too,
 //! the camera is gone: [`Error::Disconnected`], and the thread ends. The owner reopens it.
+//!
+//! Over 600 lines on purpose: the camera's setup, its grab thread and the source
+//! that serves its profiles share the thread's commands and the block counter.
 
 #![allow(unsafe_code)]
 
@@ -239,8 +242,8 @@ pub fn discover() -> Vec<Discovered> {
         .collect()
 }
 
-/// Opens and sets up the camera; the `Result` says why not.
-fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
+/// Opens the camera and sets the configured features, and the rows a block when given.
+fn open_with_features(cfg: &GigeConfig) -> Result<Camera, Error> {
     let address = cfg.address.as_str();
     let cam = Camera::new(Some(address)).map_err(|e| camera_error(address, "cannot open the GigE Vision camera", e))?;
     for (name, value) in &cfg.features {
@@ -256,6 +259,14 @@ fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
         cam.set_integer("Height", i64::from(h))
             .map_err(|e| feature_error("Height", format!("cannot set {h} rows a frame: {e}")))?;
     }
+    Ok(cam)
+}
+
+/// Opens the camera with the configured features set, then reads what a block means from it;
+/// the `Result` says why not.
+fn setup(cfg: &GigeConfig) -> Result<(Camera, CameraInfo), Error> {
+    let address = cfg.address.as_str();
+    let cam = open_with_features(cfg)?;
     let device = cam
         .device()
         .ok_or_else(|| camera_error(address, "no device behind the camera", "aravis gave none"))?;
@@ -377,55 +388,31 @@ fn grab_thread(
     blocks: mpsc::UnboundedSender<Block>,
     ready: oneshot::Sender<Result<CameraInfo, Error>>,
 ) {
-    let (cam, info) = match setup(&cfg) {
+    let (cam, info, stream) = match open_stream(&cfg) {
         Ok(v) => v,
         Err(e) => {
             let _ = ready.send(Err(e));
             return;
         }
     };
-    let address = cfg.address.clone();
-    let stream = match cam.create_stream() {
-        Ok(s) => s,
-        Err(e) => {
-            let _ = ready.send(Err(camera_error(&address, "cannot open a stream", e)));
-            return;
-        }
+    let mut grab = Grabber {
+        address: cfg.address.clone(),
+        stamped: cfg.stamped,
+        line_period_ns: 1e9 / info.line_rate_hz,
+        width: info.width,
+        height: info.rows_per_frame,
+        enc: info.encoding,
+        cam,
+        acquiring: false,
+        counter: BlockCounter::default(),
+        failed_blocks: 0,
+        last_block: Instant::now(),
     };
-    // A block's payload holds its pixels, and perhaps padding or chunks; not gigabytes more.
-    let need = info
-        .encoding
-        .pixel
-        .bytes(info.width * info.rows_per_frame)
-        .unwrap_or(usize::MAX);
-    let payload = match cam.payload() {
-        Ok(p) if (p as usize) >= need && (p as usize) <= need.saturating_mul(2).saturating_add(1 << 16) => p as usize,
-        Ok(p) => {
-            let _ = ready.send(Err(feature_error(
-                "PayloadSize",
-                format!("{p} bytes for a block of {need}: the camera's size features disagree"),
-            )));
-            return;
-        }
-        Err(e) => {
-            let _ = ready.send(Err(feature_error("PayloadSize", e)));
-            return;
-        }
-    };
-    for _ in 0..cfg.buffers.max(2) {
-        stream.push_buffer(Buffer::new_allocate(payload));
-    }
-    let line_period_ns = 1e9 / info.line_rate_hz;
-    let (width, height, enc) = (info.width, info.rows_per_frame, info.encoding);
     if ready.send(Ok(info)).is_err() {
         return;
     }
-    let mut acquiring = false;
-    let mut counter = BlockCounter::default();
-    let mut failed_blocks = 0u64;
-    let mut last_block = Instant::now();
     loop {
-        let command = if acquiring {
+        let command = if grab.acquiring {
             commands
                 .try_recv()
                 .map_err(|e| matches!(e, std_mpsc::TryRecvError::Disconnected))
@@ -435,100 +422,168 @@ fn grab_thread(
                 .map_err(|e| matches!(e, std_mpsc::RecvTimeoutError::Disconnected))
         };
         match command {
-            Ok(Command::Start(reply)) => {
-                let r = cam
-                    .start_acquisition()
-                    .map_err(|e| camera_error(&address, "cannot start acquisition", e));
-                acquiring |= r.is_ok();
-                counter = BlockCounter::default();
-                last_block = Instant::now();
-                let _ = reply.send(r);
-            }
-            Ok(Command::Stop(reply)) => {
-                acquiring = false;
-                let _ = reply.send(
-                    cam.stop_acquisition()
-                        .map_err(|e| camera_error(&address, "cannot stop acquisition", e)),
-                );
-            }
+            Ok(c) => grab.obey(c),
             // The owner is gone: leave the camera quiet.
             Err(true) => {
-                if acquiring {
-                    let _ = cam.stop_acquisition();
+                if grab.acquiring {
+                    let _ = grab.cam.stop_acquisition();
                 }
                 return;
             }
             Err(false) => {}
         }
-        if !acquiring {
+        if !grab.acquiring {
             continue;
         }
         let Some(buffer) = stream.timeout_pop_buffer(POP_WAIT_US) else {
-            if last_block.elapsed() > SILENCE_PROBE {
+            if grab.last_block.elapsed() > SILENCE_PROBE {
                 // Nothing for a while: is the camera still there? A register read fails
                 // after GVCP's retries when it is not.
-                if let Err(e) = cam.integer("Width") {
-                    tracing::warn!("{address}: the camera stopped answering: {e}");
+                if let Err(e) = grab.cam.integer("Width") {
+                    tracing::warn!("{}: the camera stopped answering: {e}", grab.address);
                     let _ = blocks.send(Err(Error::Disconnected));
                     return;
                 }
-                last_block = Instant::now();
+                grab.last_block = Instant::now();
             }
             continue;
         };
+        let delivered = grab.take(&buffer, &blocks);
+        stream.push_buffer(buffer);
+        if !delivered {
+            let _ = grab.cam.stop_acquisition();
+            return;
+        }
+    }
+}
+
+/// The camera set up as `cfg` asks, and its stream with `cfg.buffers` buffers of one block's
+/// payload each.
+fn open_stream(cfg: &GigeConfig) -> Result<(Camera, CameraInfo, aravis::Stream), Error> {
+    let (cam, info) = setup(cfg)?;
+    let stream = cam
+        .create_stream()
+        .map_err(|e| camera_error(&cfg.address, "cannot open a stream", e))?;
+    // A block's payload holds its pixels, and perhaps padding or chunks; not gigabytes more.
+    let need = info
+        .encoding
+        .pixel
+        .bytes(info.width * info.rows_per_frame)
+        .unwrap_or(usize::MAX);
+    let payload = match cam.payload() {
+        Ok(p) if (p as usize) >= need && (p as usize) <= need.saturating_mul(2).saturating_add(1 << 16) => p as usize,
+        Ok(p) => {
+            return Err(feature_error(
+                "PayloadSize",
+                format!("{p} bytes for a block of {need}: the camera's size features disagree"),
+            ));
+        }
+        Err(e) => return Err(feature_error("PayloadSize", e)),
+    };
+    for _ in 0..cfg.buffers.max(2) {
+        stream.push_buffer(Buffer::new_allocate(payload));
+    }
+    Ok((cam, info, stream))
+}
+
+/// The grab thread's camera and what it keeps between blocks.
+struct Grabber {
+    address: String,
+    stamped: StampedRow,
+    line_period_ns: f64,
+    width: usize,
+    height: usize,
+    enc: RangeEncoding,
+    cam: Camera,
+    acquiring: bool,
+    counter: BlockCounter,
+    failed_blocks: u64,
+    /// When the last good block came (or acquisition started, or the camera last answered).
+    last_block: Instant,
+}
+
+impl Grabber {
+    fn obey(&mut self, command: Command) {
+        match command {
+            Command::Start(reply) => {
+                let r = self
+                    .cam
+                    .start_acquisition()
+                    .map_err(|e| camera_error(&self.address, "cannot start acquisition", e));
+                self.acquiring |= r.is_ok();
+                self.counter = BlockCounter::default();
+                self.last_block = Instant::now();
+                let _ = reply.send(r);
+            }
+            Command::Stop(reply) => {
+                self.acquiring = false;
+                let _ = reply.send(
+                    self.cam
+                        .stop_acquisition()
+                        .map_err(|e| camera_error(&self.address, "cannot stop acquisition", e)),
+                );
+            }
+        }
+    }
+
+    /// One buffer from the stream: a good block decoded and sent on; a failed, misshapen or
+    /// undecodable one said and skipped. False when nobody takes the blocks any more.
+    fn take(&mut self, buffer: &Buffer, blocks: &mpsc::UnboundedSender<Block>) -> bool {
         let received = Instant::now();
         let status = buffer.status();
         let shape = (buffer.image_width(), buffer.image_height(), buffer.image_pixel_format());
-        let expected = (width as i32, height as i32);
+        let expected = (self.width as i32, self.height as i32);
         if status != BufferStatus::Success {
             // Incomplete or lost blocks (a packet size over the path's MTU, a full link): said,
             // and the camera is not alive for them.
-            failed_blocks += 1;
-            if failed_blocks.is_power_of_two() {
-                tracing::warn!("{address}: {failed_blocks} blocks failed, the last {status:?}");
+            self.failed_blocks += 1;
+            if self.failed_blocks.is_power_of_two() {
+                tracing::warn!(
+                    "{}: {} blocks failed, the last {status:?}",
+                    self.address,
+                    self.failed_blocks
+                );
             }
-        } else if (shape.0, shape.1) != expected || RangePixel::from_pfnc(shape.2.raw()) != Some(enc.pixel) {
+            return true;
+        }
+        if (shape.0, shape.1) != expected || RangePixel::from_pfnc(shape.2.raw()) != Some(self.enc.pixel) {
             tracing::warn!(
-                "{address}: a block of {} x {} {:?} where {} x {} {:?} was set up: skipped",
+                "{}: a block of {} x {} {:?} where {} x {} {:?} was set up: skipped",
+                self.address,
                 shape.0,
                 shape.1,
                 shape.2,
-                width,
-                height,
-                enc.pixel
+                self.width,
+                self.height,
+                self.enc.pixel
             );
-        } else {
-            last_block = received;
-            let block = counter.next(buffer.frame_id());
-            let (ptr, len) = buffer.data();
-            let bytes: &[u8] = if ptr.is_null() || len == 0 {
-                &[]
-            } else {
-                // SAFETY: aravis hands out the buffer's own data and its length; the buffer is
-                // alive (owned here) and not pushed back to the stream until `bytes` is dead.
-                unsafe { std::slice::from_raw_parts(ptr, len) }
-            };
-            let timing = RowTiming {
-                block_ns: buffer.timestamp(),
-                line_period_ns,
-                stamped: cfg.stamped,
-            };
-            let first_seq = (block.wrapping_mul(height as u64)) as u32;
-            let decoded = decode_block(bytes, width, height, &enc, &timing, first_seq)
-                .map_err(|e: BlockError| Error::Camera(format!("{address}: block {}: {e}", buffer.frame_id())));
-            match decoded {
-                Ok(profiles) => {
-                    if blocks.send(Ok((profiles, received))).is_err() {
-                        let _ = cam.stop_acquisition();
-                        return;
-                    }
-                }
-                // A block that does not decode is lost, as a corrupt SQPF frame is: its
-                // sequence numbers show as missing.
-                Err(e) => tracing::warn!("{e}"),
-            }
+            return true;
         }
-        stream.push_buffer(buffer);
+        self.last_block = received;
+        let block = self.counter.next(buffer.frame_id());
+        let (ptr, len) = buffer.data();
+        let bytes: &[u8] = if ptr.is_null() || len == 0 {
+            &[]
+        } else {
+            // SAFETY: aravis hands out the buffer's own data and its length; the buffer is
+            // alive (borrowed here) and not pushed back to the stream until `bytes` is dead.
+            unsafe { std::slice::from_raw_parts(ptr, len) }
+        };
+        let timing = RowTiming {
+            block_ns: buffer.timestamp(),
+            line_period_ns: self.line_period_ns,
+            stamped: self.stamped,
+        };
+        let first_seq = (block.wrapping_mul(self.height as u64)) as u32;
+        let decoded = decode_block(bytes, self.width, self.height, &self.enc, &timing, first_seq)
+            .map_err(|e: BlockError| Error::Camera(format!("{}: block {}: {e}", self.address, buffer.frame_id())));
+        match decoded {
+            Ok(profiles) => return blocks.send(Ok((profiles, received))).is_ok(),
+            // A block that does not decode is lost, as a corrupt SQPF frame is: its sequence
+            // numbers show as missing.
+            Err(e) => tracing::warn!("{e}"),
+        }
+        true
     }
 }
 

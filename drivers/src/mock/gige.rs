@@ -271,6 +271,47 @@ const FRAME_POLL_US: u32 = 1000;
 /// answers the control channel.
 const MAX_BLOCK_S: f64 = 0.5;
 
+/// When the first row of the next block of `height` rows `period` apart is exposed. The line
+/// clock runs on from the last block, whenever the emulator gets round to asking (a busy host
+/// asks late: the rows were exposed on time all the same); after a pause (acquisition stopped
+/// for a second or more) it starts again now.
+fn block_start(state: &State, period: Duration, height: usize) -> Instant {
+    let mut next = state.next_row.lock().unwrap_or_else(|p| p.into_inner());
+    let now = Instant::now();
+    let restart_after = (period * (2 * height as u32)).max(Duration::from_secs(1));
+    let first = match *next {
+        Some(t) if now.saturating_duration_since(t) < restart_after => t,
+        _ => now,
+    };
+    *next = Some(first + period * height as u32);
+    first
+}
+
+/// The pixels into the frame's bytes: 16 bits little-endian, or 12 bits packed two in three
+/// bytes (`Coord3D_C12p`).
+fn pack(pixels: &[u16], bits: usize, bytes: &mut [u8]) {
+    if bits == 16 {
+        for (dst, p) in bytes.chunks_exact_mut(2).zip(pixels) {
+            dst.copy_from_slice(&p.to_le_bytes());
+        }
+        return;
+    }
+    for (k, pair) in pixels.chunks(2).enumerate() {
+        let a = pair[0];
+        let b = pair.get(1).copied().unwrap_or(0);
+        let out = [
+            a as u8,
+            ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8,
+            (b >> 4) as u8,
+        ];
+        for (j, byte) in out.iter().enumerate() {
+            if let Some(d) = bytes.get_mut(3 * k + j) {
+                *d = *byte;
+            }
+        }
+    }
+}
+
 /// `ArvFakeCameraFillPattern`: called by the emulator's thread for every frame, after it set
 /// the frame's size, format, timestamp and id (ours overrides the timestamp).
 unsafe extern "C" fn fill(
@@ -323,20 +364,7 @@ unsafe extern "C" fn fill(
         };
         let period = Duration::from_secs_f64(1.0 / line_rate.min(1e6));
         let max = if bits == 16 { 65_535.0 } else { 4_095.0 };
-        // The line clock runs on from the last block, whenever the emulator gets round to
-        // asking (a busy host asks late: the rows were exposed on time all the same); after a
-        // pause (acquisition stopped for a second or more) it starts again now.
-        let first = {
-            let mut next = state.next_row.lock().unwrap_or_else(|p| p.into_inner());
-            let now = Instant::now();
-            let restart_after = (period * (2 * height as u32)).max(Duration::from_secs(1));
-            let first = match *next {
-                Some(t) if now.saturating_duration_since(t) < restart_after => t,
-                _ => now,
-            };
-            *next = Some(first + period * height as u32);
-            first
-        };
+        let first = block_start(state, period, height);
         let last = first + period * (height as u32 - 1);
         let wait = last.saturating_duration_since(Instant::now());
         if !wait.is_zero() {
@@ -357,26 +385,7 @@ unsafe extern "C" fn fill(
                 }
             }
         }
-        if bits == 16 {
-            for (dst, p) in bytes.chunks_exact_mut(2).zip(&pixels) {
-                dst.copy_from_slice(&p.to_le_bytes());
-            }
-        } else {
-            for (k, pair) in pixels.chunks(2).enumerate() {
-                let a = pair[0];
-                let b = pair.get(1).copied().unwrap_or(0);
-                let out = [
-                    a as u8,
-                    ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8,
-                    (b >> 4) as u8,
-                ];
-                for (j, byte) in out.iter().enumerate() {
-                    if let Some(d) = bytes.get_mut(3 * k + j) {
-                        *d = *byte;
-                    }
-                }
-            }
-        }
+        pack(&pixels, bits, bytes);
         let host_s = first.saturating_duration_since(state.epoch).as_secs_f64();
         let camera_ns = ((host_s * (1.0 + state.clock.drift_ppm * 1e-6) + state.clock.offset_s) * 1e9).max(0.0);
         // SAFETY: as above.

@@ -173,23 +173,66 @@ pub fn run(a: MockArgs) -> Result<()> {
 }
 
 async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
-    use sqscan::mock::rig::{RigConfig, RigMock};
+    use sqscan::mock::rig::RigMock;
     if a.faults.replug_after_ms.is_some() {
         anyhow::bail!(
             "--replug-after-ms is for `sqscan mock ptu`: the rig's PTU comes back with --ptu-replug-after SECS"
         );
     }
-    let ptu_replug_after = a
-        .ptu_replug_after
-        .map(|s| {
-            Duration::try_from_secs_f64(s)
-                .ok()
-                .filter(|d| *d <= Duration::from_secs(86_400))
-                .with_context(|| format!("--ptu-replug-after {s}: give 0 to 86400 seconds"))
-        })
-        .transpose()?;
-    let scene = sqscan::sim::Scene::from_file(&a.scene, models_dir)?;
-    let cfg = RigConfig {
+    let cfg = rig_config(&a)?;
+    let scene = std::sync::Arc::new(sqscan::sim::Scene::from_file(&a.scene, models_dir)?);
+    let columns = scene.rig.sensor.columns;
+    let rig = RigMock::start(scene.clone(), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
+        .context("cannot start the mock rig")?;
+    println!(
+        "mock rig: {} PTU on {}",
+        a.protocol.model(),
+        shown(&rig.ptu_path, &a.ptu_link)
+    );
+    println!(
+        "mock rig: sensor ({columns} columns, {} Hz) on {}",
+        a.rate,
+        shown(&rig.sensor_path, &a.sensor_link)
+    );
+    let unplug_after = seconds("--camera-unplug-after", a.camera_unplug_after)?;
+    let replug_after = seconds("--camera-replug-after", a.camera_replug_after)?;
+    // Kept until the rig stops, or unplugged and plugged back in when asked to.
+    let _camera = if a.sensor == "gige" {
+        let camera = CameraPlug {
+            args: a.clone_camera_args(),
+            scene,
+            ptu: rig.ptu.clone(),
+            cfg: cfg.clone(),
+        };
+        camera.start(unplug_after, replug_after)?
+    } else {
+        if unplug_after.is_some() {
+            anyhow::bail!("--camera-unplug-after is for --sensor gige");
+        }
+        drop(scene);
+        None
+    };
+    let RigMock {
+        ptu_task,
+        sensor_task,
+        ptu_replugged,
+        ..
+    } = rig;
+    tokio::spawn(announce_replugged_ptu(ptu_replugged, a.ptu_link.clone()));
+    let result = tokio::select! {
+        r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
+        r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),
+        r = shutdown_signal() => r,
+    };
+    for link in [&a.ptu_link, &a.sensor_link].into_iter().flatten() {
+        let _ = std::fs::remove_file(link);
+    }
+    result
+}
+
+/// The rig's devices and faults from the command line.
+fn rig_config(a: &MockRigArgs) -> Result<sqscan::mock::rig::RigConfig> {
+    Ok(sqscan::mock::rig::RigConfig {
         ptu_kind: a.protocol,
         rate_hz: a.rate,
         seed: a.faults.seed,
@@ -202,116 +245,85 @@ async fn mock_rig(a: MockRigArgs, models_dir: &Path) -> Result<()> {
             disconnect_after: a.sensor_faults.sensor_disconnect_after,
             seed: a.faults.seed,
         },
-        ptu_replug_after,
+        ptu_replug_after: seconds("--ptu-replug-after", a.ptu_replug_after)?,
         tilt_axis: sqscan_drivers::AxisConfig::new(f64::from(a.tilt_sign), 0.0)
             .map_err(|e| anyhow::anyhow!("--tilt-sign: {e}; give 1 or -1"))?,
-        ..RigConfig::default()
-    };
-    let columns = scene.rig.sensor.columns;
-    let fraction_bits = scene.rig.sensor.fraction_bits;
-    let scene = std::sync::Arc::new(scene);
-    let rig = RigMock::start(scene.clone(), &cfg, a.ptu_link.as_deref(), a.sensor_link.as_deref())
-        .context("cannot start the mock rig")?;
-    let shown = |path: &Path, link: &Option<PathBuf>| {
-        format!(
-            "{}{}",
-            path.display(),
-            link.as_ref()
-                .map(|l| format!(" (link {})", l.display()))
-                .unwrap_or_default()
-        )
-    };
-    println!(
-        "mock rig: {} PTU on {}",
-        a.protocol.model(),
-        shown(&rig.ptu_path, &a.ptu_link)
-    );
-    println!(
-        "mock rig: sensor ({columns} columns, {} Hz) on {}",
-        a.rate,
-        shown(&rig.sensor_path, &a.sensor_link)
-    );
-    let secs = |flag: &str, s: Option<f64>| {
-        s.map(|s| {
-            Duration::try_from_secs_f64(s)
-                .ok()
-                .filter(|d| *d <= Duration::from_secs(86_400))
-                .with_context(|| format!("{flag} {s}: give 0 to 86400 seconds"))
-        })
-        .transpose()
-    };
-    let unplug_after = secs("--camera-unplug-after", a.camera_unplug_after)?;
-    let replug_after = secs("--camera-replug-after", a.camera_replug_after)?;
-    // Kept until the rig stops, or unplugged and plugged back in when asked to.
-    let _camera = if a.sensor == "gige" {
+        ..sqscan::mock::rig::RigConfig::default()
+    })
+}
+
+/// A duration of at most a day from the seconds a flag gives.
+fn seconds(flag: &str, s: Option<f64>) -> Result<Option<Duration>> {
+    s.map(|s| {
+        Duration::try_from_secs_f64(s)
+            .ok()
+            .filter(|d| *d <= Duration::from_secs(86_400))
+            .with_context(|| format!("{flag} {s}: give 0 to 86400 seconds"))
+    })
+    .transpose()
+}
+
+/// A device's path, with the link to it where one was asked for.
+fn shown(path: &Path, link: &Option<PathBuf>) -> String {
+    format!(
+        "{}{}",
+        path.display(),
+        link.as_ref()
+            .map(|l| format!(" (link {})", l.display()))
+            .unwrap_or_default()
+    )
+}
+
+/// Announces the replugged PTU, as the first one was.
+async fn announce_replugged_ptu(mut replugged: tokio::sync::watch::Receiver<Option<PathBuf>>, link: Option<PathBuf>) {
+    if replugged.wait_for(Option::is_some).await.is_ok()
+        && let Some(path) = replugged.borrow().clone()
+    {
+        println!("mock rig: PTU plugged back in on {}", shown(&path, &link));
+    }
+}
+
+/// What the rig's GigE Vision camera is made of, to plug it in (again).
+struct CameraPlug {
+    args: CameraArgs,
+    scene: std::sync::Arc<sqscan::sim::Scene>,
+    ptu: std::sync::Arc<std::sync::Mutex<dyn sqscan_drivers::mock::MockDevice>>,
+    cfg: sqscan::mock::rig::RigConfig,
+}
+
+impl CameraPlug {
+    /// Starts the camera: kept (returned) until the rig stops, or unplugged after
+    /// `unplug_after` and plugged back in `replug_after` later by a task of its own.
+    fn start(self, unplug_after: Option<Duration>, replug_after: Option<Duration>) -> Result<Option<Camera>> {
+        let (columns, fraction_bits) = (self.scene.rig.sensor.columns, self.scene.rig.sensor.fraction_bits);
         let camera = start_camera_with(
-            &a.clone_camera_args(),
-            scene.clone(),
-            rig.ptu.clone(),
-            &cfg,
+            &self.args,
+            self.scene.clone(),
+            self.ptu.clone(),
+            &self.cfg,
             columns,
             fraction_bits,
         )?;
-        match unplug_after {
-            Some(after) => {
-                let (a2, ptu, cfg2) = (a.clone_camera_args(), rig.ptu.clone(), cfg.clone());
-                tokio::spawn(async move {
-                    tokio::time::sleep(after).await;
-                    unplug(camera);
-                    println!("mock rig: GigE Vision camera unplugged");
-                    let Some(again) = replug_after else { return };
-                    tokio::time::sleep(again).await;
-                    match start_camera_with(&a2, scene, ptu, &cfg2, columns, fraction_bits) {
-                        Ok(_camera) => {
-                            println!("mock rig: GigE Vision camera plugged back in");
-                            // Kept plugged in until the rig stops.
-                            std::future::pending::<()>().await;
-                        }
-                        Err(e) => eprintln!("mock rig: cannot plug the camera back in: {e:#}"),
-                    }
-                });
-                None
+        let Some(after) = unplug_after else {
+            return Ok(Some(camera));
+        };
+        tokio::spawn(async move {
+            tokio::time::sleep(after).await;
+            unplug(camera);
+            println!("mock rig: GigE Vision camera unplugged");
+            let Some(again) = replug_after else { return };
+            tokio::time::sleep(again).await;
+            match start_camera_with(&self.args, self.scene, self.ptu, &self.cfg, columns, fraction_bits) {
+                Ok(_camera) => {
+                    println!("mock rig: GigE Vision camera plugged back in");
+                    // Kept plugged in until the rig stops.
+                    std::future::pending::<()>().await;
+                }
+                Err(e) => eprintln!("mock rig: cannot plug the camera back in: {e:#}"),
             }
-            None => Some(camera),
-        }
-    } else {
-        if unplug_after.is_some() {
-            anyhow::bail!("--camera-unplug-after is for --sensor gige");
-        }
-        drop(scene);
-        None
-    };
-    let RigMock {
-        ptu_task,
-        sensor_task,
-        mut ptu_replugged,
-        ..
-    } = rig;
-    // Announce the replugged PTU, as the first one was.
-    let ptu_link = a.ptu_link.clone();
-    tokio::spawn(async move {
-        if ptu_replugged.wait_for(Option::is_some).await.is_ok()
-            && let Some(path) = ptu_replugged.borrow().clone()
-        {
-            println!(
-                "mock rig: PTU plugged back in on {}{}",
-                path.display(),
-                ptu_link
-                    .as_ref()
-                    .map(|l| format!(" (link {})", l.display()))
-                    .unwrap_or_default()
-            );
-        }
-    });
-    let result = tokio::select! {
-        r = ptu_task => r.context("mock PTU task failed")?.map(|end| println!("PTU {end:?}")).context("mock PTU line failed"),
-        r = sensor_task => r.context("mock sensor task failed")?.map(|end| println!("sensor {end:?}")).context("mock sensor line failed"),
-        r = shutdown_signal() => r,
-    };
-    for link in [&a.ptu_link, &a.sensor_link].into_iter().flatten() {
-        let _ = std::fs::remove_file(link);
+        });
+        Ok(None)
     }
-    result
 }
 
 /// Unplugs the camera: the emulator stops and closes its sockets.
