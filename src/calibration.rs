@@ -25,18 +25,17 @@
 //! Files are read as a serde struct ([`CalibrationFile`]) and validated into [`Calibration`];
 //! every inconsistency is a [`SpecError`] naming the file and the field.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
 use nalgebra::{Isometry3, Matrix3, Point3, Vector3};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use sqscan_drivers::AxisConfig;
 
 use crate::pose::PoseSpec;
 use crate::spec::{SpecError, parse_toml, read_toml};
 
 /// An axis mapping as written in the file: `joint = sign * device + offset_rad`.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct AxisFile {
     pub sign: f64,
@@ -45,7 +44,7 @@ pub struct AxisFile {
 }
 
 /// The calibration file as written (see `calibration/README.md`).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct CalibrationFile {
     #[serde(default)]
@@ -71,7 +70,7 @@ pub struct CalibrationFile {
 
 /// A per-column lookup table: for each column, the laser-plane point at each sample row;
 /// rows between samples are interpolated linearly, rows outside them map to no point.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LookupFile {
     /// Sample rows (px), strictly increasing, at least two.
@@ -303,65 +302,45 @@ impl Calibration {
         Some(self.sensor_in_base(pan_rad, tilt_rad).transform_point(&Point3::from(p)))
     }
 
-    /// The calibration as a file, shortest round-trip floats (the golden file's generator).
-    /// A lookup table is not written: this serves derived (homography) calibrations.
-    pub fn to_toml(&self, description: &str) -> String {
-        let mut s = String::new();
+    /// The calibration as a file (the golden file's generator), through the same
+    /// [`CalibrationFile`] it is read as: floats as the shortest text that reads back as the
+    /// same number, so a lookup table round-trips exactly.
+    pub fn to_toml(&self, description: &str) -> Result<String, toml::ser::Error> {
         let pose = |iso: &Isometry3<f64>| {
             let t = iso.translation.vector;
             let q = iso.rotation.quaternion();
             let sign = if q.w < 0.0 { -1.0 } else { 1.0 };
-            format!(
-                "{{ position = [{:?}, {:?}, {:?}], orientation = [{:?}, {:?}, {:?}, {:?}] }}",
-                t.x,
-                t.y,
-                t.z,
-                sign * q.i,
-                sign * q.j,
-                sign * q.k,
-                sign * q.w
-            )
-        };
-        // TOML's own quoting: Rust's `{:?}` escapes a control character as `\u{1b}`, which TOML
-        // does not read.
-        let _ = writeln!(s, "description = {}", toml::Value::String(description.to_owned()));
-        let _ = writeln!(s, "columns = {}", self.columns);
-        let _ = writeln!(s, "fraction_bits = {}", self.fraction_bits);
-        let _ = writeln!(
-            s,
-            "# [x, y, w] = H [col + 0.5, row_px, 1]; the point is (x/w, y/w) in the laser plane (m)"
-        );
-        let _ = writeln!(s, "homography = [");
-        for r in 0..3 {
-            let h = &self.homography;
-            let _ = writeln!(s, "    [{:?}, {:?}, {:?}],", h[(r, 0)], h[(r, 1)], h[(r, 2)]);
-        }
-        let _ = writeln!(s, "]");
-        let _ = writeln!(s, "laser_plane = {}", pose(&self.laser_plane_in_sensor));
-        let _ = writeln!(s, "sensor_mount = {}", pose(&self.sensor_in_tilt));
-        let _ = writeln!(s, "ptu = {}", pose(&self.ptu_in_base));
-        for (name, a) in [("pan", self.pan), ("tilt", self.tilt)] {
-            let _ = writeln!(s, "{name} = {{ sign = {:?}, offset_rad = {:?} }}", a.sign, a.offset_rad);
-        }
-        if let Some(l) = &self.lookup {
-            // `{:?}` prints the shortest text that reads back as the same f64: the table
-            // round-trips exactly.
-            let row = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ");
-            let _ = writeln!(
-                s,
-                "\n# Per-column lookup table: laser-plane x, y (m) at the sample rows (px)."
-            );
-            let _ = writeln!(s, "[lookup]");
-            let _ = writeln!(s, "rows_px = [{}]", row(&l.rows_px));
-            for (name, table) in [("x", &l.x), ("y", &l.y)] {
-                let _ = writeln!(s, "{name} = [");
-                for col in table {
-                    let _ = writeln!(s, "    [{}],", row(col));
-                }
-                let _ = writeln!(s, "]");
+            PoseSpec {
+                position: [t.x, t.y, t.z],
+                orientation: Some([sign * q.i, sign * q.j, sign * q.k, sign * q.w]),
+                ..PoseSpec::default()
             }
-        }
-        s
+        };
+        let axis = |a: AxisConfig| AxisFile {
+            sign: a.sign,
+            offset_rad: a.offset_rad,
+        };
+        let h = &self.homography;
+        let file = CalibrationFile {
+            description: description.to_owned(),
+            columns: self.columns,
+            fraction_bits: self.fraction_bits,
+            homography: [0, 1, 2].map(|r| [h[(r, 0)], h[(r, 1)], h[(r, 2)]]),
+            laser_plane: pose(&self.laser_plane_in_sensor),
+            sensor_mount: pose(&self.sensor_in_tilt),
+            ptu: pose(&self.ptu_in_base),
+            pan: axis(self.pan),
+            tilt: axis(self.tilt),
+            lookup: self.lookup.as_ref().map(|l| LookupFile {
+                rows_px: l.rows_px.clone(),
+                x: l.x.clone(),
+                y: l.y.clone(),
+            }),
+        };
+        Ok(format!(
+            "# homography: [x, y, w] = H [col + 0.5, row_px, 1]; the point is (x/w, y/w) in the laser plane (m)\n{}",
+            toml::to_string(&file)?
+        ))
     }
 }
 
@@ -452,7 +431,9 @@ mod tests {
             }
         };
         // Written back, the table reads back the same, whatever the description holds.
-        let text = cal.to_toml("with a lookup table, \"quotes\", a tab\t, an escape \u{1b} and a backslash \\");
+        let text = cal
+            .to_toml("with a lookup table, \"quotes\", a tab\t, an escape \u{1b} and a backslash \\")
+            .unwrap();
         assert!(text.contains("[lookup]"));
         assert_eq!(Calibration::from_toml_str(&text, &path).unwrap(), cal);
 

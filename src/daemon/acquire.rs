@@ -10,12 +10,12 @@ use tokio::task::JoinSet;
 
 use super::backend::Backend;
 use super::record;
-use super::state::{Shared, SweepEntry, lock, stopped};
+use super::state::{Shared, SweepEntry, lock};
 
 /// Runs until shutdown.
 pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
     shared.devices.set(backend.devices());
-    let mut shutdown = shared.shutdown.subscribe();
+    let mut shutdown = shared.shutdown().listen();
     let mut next_id = 1u64;
     let mut forward = true;
     let mut last_completed: Option<Instant> = None;
@@ -29,12 +29,12 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
         if !shared.config().continuous {
             tokio::select! {
                 () = shared.sweep_wanted.notified() => {}
-                () = stopped(&mut shutdown) => break,
+                () = shutdown.thrown() => break,
             }
         }
         let result = tokio::select! {
             r = backend.sweep(forward, &shared.devices, &shared.joints) => r,
-            () = stopped(&mut shutdown) => break,
+            () = shutdown.thrown() => break,
         };
         match result {
             Ok(data) => {
@@ -62,7 +62,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 if !shared.config().sweep.pause.is_zero() {
                     tokio::select! {
                         () = tokio::time::sleep(shared.config().sweep.pause) => {}
-                        () = stopped(&mut shutdown) => break,
+                        () = shutdown.thrown() => break,
                     }
                 }
             }

@@ -13,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use tokio::io::{AsyncRead, AsyncWrite, BufReader};
-use tokio::sync::{Notify, Semaphore, mpsc, watch};
+use tokio::sync::{Notify, Semaphore, mpsc};
 use tokio::task::{AbortHandle, JoinSet};
 
 use super::answer::{answer, detection_reply, handle};
@@ -23,7 +23,8 @@ use super::lines::LineReader;
 use super::outbox::{Outbox, Outgoing, spawn_writer};
 use super::protocol::{self, Command, Request};
 use super::reply::{ErrorCode, Reply, Version, Watch};
-use super::state::{Shared, lock, stopped};
+use super::shutdown::Listener;
+use super::state::{Shared, lock};
 
 /// Requests of one client in progress at most (beyond them its next line is not read yet).
 pub const MAX_IN_FLIGHT: usize = 64;
@@ -132,12 +133,12 @@ struct Handler {
     watching: Vec<String>,
     /// One cloud of this connection in memory at a time: a client cannot take every slot.
     cloud_gate: Arc<Semaphore>,
-    shutdown: watch::Receiver<bool>,
+    shutdown: Listener,
 }
 
 impl Handler {
     fn new(shared: Arc<Shared>, out: Outbox) -> Handler {
-        let shutdown = shared.shutdown.subscribe();
+        let shutdown = shared.shutdown().listen();
         Handler {
             shared,
             out,
@@ -215,7 +216,7 @@ impl Handler {
         let idle_timeout = self.shared.config().idle_timeout;
         tokio::select! {
             r = lines.next(rd) => Woke::Line(r),
-            () = stopped(&mut self.shutdown) => {
+            () = self.shutdown.thrown() => {
                 // Whatever is in flight will not be answered: say why before closing.
                 self.out.reply(Reply::error(None, ErrorCode::Stopping, "the daemon is stopping")).await;
                 Woke::Close
@@ -247,7 +248,7 @@ impl Handler {
         tokio::select! {
             biased;
             () = self.out.drained() => true,
-            () = stopped(&mut self.shutdown) => {
+            () = self.shutdown.thrown() => {
                 self.out.try_goodbye();
                 false
             }
@@ -323,7 +324,7 @@ impl Handler {
         tokio::select! {
             biased;
             () = self.out.reply(reply) => Flow::Go,
-            () = stopped(&mut self.shutdown) => {
+            () = self.shutdown.thrown() => {
                 self.out.try_goodbye();
                 Flow::Close
             }

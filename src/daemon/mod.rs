@@ -14,8 +14,8 @@
 //! the configuration, as `sqscand` does.
 //!
 //! Module arrows point one way: `backend` (the trait and the types it hands over) at the
-//! bottom; `simulator` and `hardware` implement it; `state` holds what the tasks share;
-//! `acquire` and `server` run on it. Within the server: `server` accepts clients, `connection`
+//! bottom; `simulator` and `hardware` implement it; `state` holds what the tasks share, with
+//! the [`shutdown`] switch every task listens to; `acquire` and `server` run on it. Within the server: `server` accepts clients, `connection`
 //! serves one (its reader and its `Handler`, a method a request kind), over
 //! `outbox` (its queue and writer); `answer` replies to requests, `cloud` sends points, and
 //! both wait for sweeps through `waiting`.
@@ -44,6 +44,7 @@ pub mod reply;
 #[cfg(feature = "ros2")]
 mod ros2;
 mod server;
+pub mod shutdown;
 mod simulator;
 mod socket;
 mod state;
@@ -302,7 +303,7 @@ impl Daemon {
         if let Some(n) = &self.notifier {
             let _ = n.stopping();
         }
-        self.shared.shutdown.send_replace(true);
+        self.shared.shutdown().begin();
         let all = futures_join(self.tasks);
         if tokio::time::timeout(Duration::from_millis(1500), all).await.is_err() {
             tracing::warn!("some tasks did not stop in time");
@@ -361,7 +362,7 @@ async fn supervise(shared: Arc<Shared>, tasks: [(&'static str, tokio::task::Join
         r = &mut a => (name_a, r, b),
         r = &mut b => (name_b, r, a),
     };
-    if !*shared.shutdown.borrow() {
+    if !shared.shutdown().begun() {
         let why = match result {
             Ok(()) => format!("the {name} task ended"),
             Err(e) if e.is_panic() => {
@@ -387,7 +388,7 @@ async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
     let period = notify::watchdog_interval().map(|w| w / 2);
     let mut sweeps = shared.latest.subscribe();
     let mut tick = tokio::time::interval(period.unwrap_or(Duration::from_secs(3600)));
-    let mut shutdown = shared.shutdown.subscribe();
+    let mut shutdown = shared.shutdown().listen();
     loop {
         tokio::select! {
             _ = tick.tick() => {
@@ -408,7 +409,7 @@ async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
                 };
                 let _ = n.status(&text);
             }
-            () = state::stopped(&mut shutdown) => return,
+            () = shutdown.thrown() => return,
         }
     }
 }

@@ -23,7 +23,7 @@ use super::connection::client;
 use super::idle::Idle;
 use super::reply::{ErrorCode, Reply};
 use super::socket::bind_unix;
-use super::state::{Shared, lock, stopped};
+use super::state::{Shared, lock};
 
 /// How long a new client waits for the slot of an idle client closed to make room for it.
 const EVICT_WAIT: Duration = Duration::from_secs(2);
@@ -69,7 +69,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
     // Fixed for the daemon's life: a reload does not resize the server.
     let slots = Arc::new(Semaphore::new(slots_total(&shared)));
     let idle: Idle = Arc::default();
-    let mut shutdown = shared.shutdown.subscribe();
+    let mut shutdown = shared.shutdown().listen();
     let (unix, socket_path) = match listeners.unix {
         Some((l, p)) => (Some(l), p),
         None => (None, PathBuf::new()),
@@ -107,7 +107,7 @@ pub async fn serve(shared: Arc<Shared>, listeners: Listeners) {
                 super::memory::give_back_memory();
                 untrimmed = None;
             }
-            () = stopped(&mut shutdown) => break,
+            () = shutdown.thrown() => break,
         }
     }
     // Each client sees the shutdown itself, says so and flushes (bounded by its writer's

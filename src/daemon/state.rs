@@ -24,17 +24,12 @@ use super::config::Config;
 use super::reply::{
     ClientCounts, ConfigInfo, DetectionCounts, Fault, Mode, RecordedJson, Status, SweepCounts, SweepRef, SweepSummary,
 };
+use super::shutdown::Shutdown;
 
 /// Locks a std mutex, taking the data even if a panicking thread poisoned it: the data here are
 /// counters and status texts, always consistent between statements.
 pub fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
-}
-
-/// Resolves once the daemon is stopping. (Awaiting `wait_for` directly in a `select!` would
-/// hold its read guard across the other branches' awaits, making the task not `Send`.)
-pub async fn stopped(rx: &mut watch::Receiver<bool>) {
-    let _ = rx.wait_for(|s| *s).await;
 }
 
 /// One completed sweep.
@@ -340,8 +335,8 @@ pub struct Shared {
     /// makes no progress loses its slot sooner (`outbox::STALL_WHILE_WANTED`).
     pub cloud_waiting: std::sync::atomic::AtomicUsize,
     pub started: Instant,
-    /// Turns true when the daemon is stopping.
-    pub shutdown: watch::Sender<bool>,
+    /// Thrown when the daemon is stopping.
+    shutdown: Shutdown,
     /// Why a task the daemon cannot run without ended (a panic, or a return before shutdown):
     /// `status` reports it, the systemd watchdog stops, and `sqscand` exits with an error.
     pub failure: watch::Sender<Option<String>>,
@@ -386,7 +381,7 @@ impl Shared {
             cloud_slots: Arc::new(Semaphore::new(CLOUD_SLOTS)),
             cloud_waiting: Default::default(),
             started: Instant::now(),
-            shutdown: watch::channel(false).0,
+            shutdown: Shutdown::default(),
             // A viewer that falls this far behind misses detections (it is told it lagged).
             detected: tokio::sync::broadcast::channel(64).0,
             joints: Default::default(),
@@ -443,7 +438,12 @@ impl Shared {
     }
 
     pub fn is_stopping(&self) -> bool {
-        *self.shutdown.borrow()
+        self.shutdown.begun()
+    }
+
+    /// The daemon's shutdown switch.
+    pub fn shutdown(&self) -> &Shutdown {
+        &self.shutdown
     }
 
     pub fn status(&self) -> Status {

@@ -267,7 +267,7 @@ pub struct Follow {
     sweeps: tokio::sync::watch::Receiver<Option<Arc<SweepEntry>>>,
     detected: tokio::sync::broadcast::Receiver<DetectedEvent>,
     joints: Option<tokio::sync::broadcast::Receiver<JointSample>>,
-    shutdown: tokio::sync::watch::Receiver<bool>,
+    shutdown: super::shutdown::Listener,
     /// Who follows, for the warning when detections were skipped.
     who: &'static str,
 }
@@ -278,7 +278,7 @@ impl Follow {
             sweeps: shared.latest.subscribe(),
             detected: shared.detected.subscribe(),
             joints: None,
-            shutdown: shared.shutdown.subscribe(),
+            shutdown: shared.shutdown().listen(),
             who,
         }
     }
@@ -310,11 +310,7 @@ impl Follow {
                     Err(RecvError::Lagged(n)) => tracing::warn!("{} fell behind and skipped {n} joint samples", self.who),
                     Err(RecvError::Closed) => self.joints = None,
                 },
-                r = self.shutdown.changed() => {
-                    if r.is_err() || *self.shutdown.borrow() {
-                        return None;
-                    }
-                }
+                () = self.shutdown.thrown() => return None,
             }
         }
     }

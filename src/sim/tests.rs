@@ -221,7 +221,11 @@ fn sim_rig_file_is_the_rig_of_fig3() {
     if std::env::var_os("SQSCAN_REGENERATE").is_some() {
         // Atomically: the other tests read this file in parallel.
         let tmp = path.with_extension("toml.tmp");
-        std::fs::write(&tmp, derived.to_toml("The simulated rig of scenes/fig3_table.toml")).unwrap();
+        std::fs::write(
+            &tmp,
+            derived.to_toml("The simulated rig of scenes/fig3_table.toml").unwrap(),
+        )
+        .unwrap();
         std::fs::rename(&tmp, &path).unwrap();
     }
     let file = Calibration::from_file(&path).unwrap();
