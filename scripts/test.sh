@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 # gige: aravis (its library, and its camera emulator the tests serve on loopback); libusb is a
 # build dependency of aravis-sys that libaravis-dev does not pull in. lintian: the package test
-# (tests/package.rs) checks the Debian package with it. python3-seccomp: the ROS 2 test refuses
+# (tests/package/main.rs) checks the Debian package with it. python3-seccomp: the ROS 2 test refuses
 # netlink sockets to the daemon as systemd's RestrictAddressFamilies does.
 packages=(pkg-config libaravis-dev libusb-1.0-0-dev lintian python3-seccomp)
 missing=()

@@ -2,7 +2,7 @@
 //! that name their layout (the `ros2msg` schema encoding of MCAP and rosbag2). Written here
 //! rather than generated: sqscan needs five message types and no ROS installation, and the
 //! encoding is checked against an independent decoder (PyPI `mcap-ros2-support`, in
-//! `tests/mcap.rs`).
+//! `tests/service/mcap.rs`).
 //!
 //! The definitions are ROS 2 Humble's and later (`vision_msgs` 4: a `Detection3D` holds its
 //! `results`, `bbox` and `id`).

@@ -1,6 +1,6 @@
 """A ROS 2 subscriber that is not sqscan: Eclipse Cyclone DDS (PyPI `cyclonedds`) with its own
 IDL definitions of the messages, as ROS 2 maps them to DDS (topic `rt/<name>`, type
-`<package>::msg::dds_::<Type>_`, plain CDR). Used by tests/ros2.rs, inside a private network
+`<package>::msg::dds_::<Type>_`, plain CDR). Used by tests/service/ros2.rs, inside a private network
 namespace with only loopback.
 
 Usage: dds_sub.py SOCKET OBJECT SECONDS [DOMAIN]

@@ -15,8 +15,7 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 use sqscan_drivers::mock::netns::in_private_network;
 
-mod common;
-use common::{Proc, python, root, sqscand, tmpdir, wait_for};
+use crate::common::{Proc, python, root, sqscand, tmpdir, wait_for};
 
 /// A Cyclone DDS subscriber sees the sweep a `find` asked for on `/sqscan/points` (organized,
 /// NaN kept, in the configured frame, the same points as the PCD recording of that sweep), a
@@ -27,7 +26,7 @@ fn a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount() {
     let Some(python) = python(&["cyclonedds"]) else {
         return;
     };
-    if !in_private_network("a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount") {
+    if !in_private_network("ros2::a_cyclone_dds_subscriber_sees_the_sweep_the_detection_and_the_mount") {
         return;
     }
     let dir = tmpdir("ros2");
@@ -254,14 +253,14 @@ fn a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig()
     let Some(python) = python(&["cyclonedds"]) else {
         return;
     };
-    if !in_private_network("a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig") {
+    if !in_private_network("ros2::a_default_qos_reader_gets_every_joint_state_of_three_sweeps_on_the_mock_rig") {
         return;
     }
     let dir = tmpdir("ros2-paced");
-    let (_rig, ptu, sensor) = common::mock_rig(&dir, "powercube", &[]);
+    let (_rig, ptu, sensor) = crate::common::mock_rig(&dir, "powercube", &[]);
     let config = format!(
         "{}[acquisition]\nmode = \"on_demand\"\n[server]\nframe_id = \"base_link\"\n[ros2]\nnode = \"scanner\"\n",
-        common::rig_config(&ptu, &sensor, "powercube", "sim_rig.toml", 0.84)
+        crate::common::rig_config(&ptu, &sensor, "powercube", "sim_rig.toml", 0.84)
     );
     std::fs::write(dir.join("sqscand.toml"), config).unwrap();
     let _daemon = sqscand(&dir, "sqscand", &[]);
@@ -396,7 +395,7 @@ fn a_node_that_cannot_list_the_interfaces_refuses_to_start() {
         eprintln!("a_node_that_cannot_list_the_interfaces_refuses_to_start: skipped: no python3-seccomp");
         return;
     }
-    if !in_private_network("a_node_that_cannot_list_the_interfaces_refuses_to_start") {
+    if !in_private_network("ros2::a_node_that_cannot_list_the_interfaces_refuses_to_start") {
         return;
     }
     let dir = tmpdir("ros2-netlink");
@@ -457,7 +456,7 @@ fn dds_ports(pid: u32) -> Vec<u16> {
 
 /// The resident memory of a process (kB, `VmRSS`), or None once it has gone.
 fn rss_kb(pid: u32) -> Option<u64> {
-    common::try_rss(pid).map(|b| b >> 10)
+    crate::common::try_rss(pid).map(|b| b >> 10)
 }
 
 /// A daemon with the ROS 2 node on the simulator (sweeps on demand), in the private network
@@ -583,7 +582,7 @@ fn a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory() {
     let Some(python) = python(&["cyclonedds"]) else {
         return;
     };
-    if !in_private_network("a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory") {
+    if !in_private_network("ros2::a_data_frag_flood_declaring_4_gib_samples_costs_bounded_memory") {
         return;
     }
     let FloodTarget {
@@ -1000,7 +999,7 @@ fn a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working() {
     let Some(python) = python(&["cyclonedds"]) else {
         return;
     };
-    if !in_private_network("a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working") {
+    if !in_private_network("ros2::a_flood_of_mixed_hostile_datagrams_leaves_discovery_and_delivery_working") {
         return;
     }
     // Discovery's two ports (multicast and unicast) and the user traffic's two.

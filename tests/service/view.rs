@@ -11,8 +11,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-mod common;
-use common::{Proc, ask, free_port, node_modules, python, root, rss, sqscand, tmpdir, wait_for};
+use crate::common::{Proc, ask, free_port, node_modules, python, root, rss, sqscand, tmpdir, wait_for};
 
 /// A client that connects and subscribes sees the server's info, the three advertised channels,
 /// then the sweep a `find` asked for (organized, in the configured frame, as many points as the

@@ -8,8 +8,6 @@ use sqscan::learn::simulated::learn_simulated;
 use sqscan::model::Model;
 use std::path::PathBuf;
 
-mod common;
-
 fn model(name: &str) -> Model {
     Model::load(name, &PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models")).unwrap()
 }
@@ -103,14 +101,14 @@ fn the_written_model_loads() {
 
 /// The mug learned from the labelled white mug (object 5) of mOSD test34 (`models/learned_mug.toml`,
 /// see its comment block) finds a labelled mug of learn33: its centre within 4 cm of the centroid
-/// of that mug's labelled points, as tests/real_data.rs asks of the shipped mug; asked for every
+/// of that mug's labelled points, as tests/cli/real_data.rs asks of the shipped mug; asked for every
 /// instance, it finds both of learn33's mugs.
 #[test]
 fn learned_mug_lands_on_a_mug_in_learn33() {
     use nalgebra::{Point3, Vector3};
     use sqscan::cloud::{FieldData, read_cloud};
     use sqscan::detect::{Params, detect};
-    let cloud = read_cloud(&common::real_data("learn33.pcd")).unwrap();
+    let cloud = read_cloud(&crate::common::real_data("learn33.pcd")).unwrap();
     let labels = match cloud.field("label").map(|f| &f.data) {
         Some(FieldData::U32(l)) => l.clone(),
         _ => panic!("no label field"),
@@ -257,7 +255,7 @@ fn three_parts_from_a_pot_with_two_handles() {
 fn a_real_segmented_can_is_learned_as_a_can() {
     use nalgebra::{Point3, Vector3};
     use sqscan::learn::{learn, support_below};
-    let cloud = sqscan::cloud::read_cloud(&common::real_data("cylinder")).unwrap();
+    let cloud = sqscan::cloud::read_cloud(&crate::common::real_data("cylinder")).unwrap();
     let points: Vec<Point3<f64>> = cloud.finite_points();
     let up = Vector3::z();
     let params = LearnParams {

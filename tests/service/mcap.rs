@@ -9,8 +9,7 @@ use std::time::Duration;
 
 use serde_json::{Value, json};
 
-mod common;
-use common::{ask, python, root, sqscand, tmpdir, wait_for};
+use crate::common::{ask, python, root, sqscand, tmpdir, wait_for};
 
 /// A sweep recorded with `[record] mcap = true`: the MCAP file beside the PCD holds the cloud
 /// (organized, NaN kept, the same points as the PCD), a joint state per profile, the watched

@@ -293,7 +293,7 @@ fn mock_rig_binary_replugs_its_ptu_once_and_keeps_the_sensor_streaming() {
 #[test]
 fn sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf() {
     if !sqscan_drivers::mock::gige::in_private_network(
-        "sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf",
+        "ptu_cli::sensor_grab_from_a_gige_vision_camera_prints_what_it_prints_for_sqpf",
     ) {
         return;
     }

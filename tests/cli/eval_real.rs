@@ -6,8 +6,6 @@ use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
-
 fn sqscan(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_sqscan")).args(args).output().unwrap()
 }
@@ -136,7 +134,7 @@ fn eval_real_scores_a_labelled_simulated_set() {
 /// found, the upside-down ones flagged so, and nothing else is answered.
 #[test]
 fn eval_real_on_mosd_scenes() {
-    let Some(dir) = common::shared_data("data/mosd_learn", "eval_real_on_mosd_scenes") else {
+    let Some(dir) = crate::common::shared_data("data/mosd_learn", "eval_real_on_mosd_scenes") else {
         return;
     };
     let file = labels_of(&dir, &["learn8", "learn30", "learn38", "learn44"], "eval-real-mosd");
@@ -310,7 +308,8 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
 /// the biscuit tin of test32, all found, with no false answer, by CATALOGUE.md's rule.
 #[test]
 fn eval_real_by_identity_on_stacked_mosd_scenes() {
-    let Some(dir) = common::shared_data("data/mosd_test_even", "eval_real_by_identity_on_stacked_mosd_scenes") else {
+    let Some(dir) = crate::common::shared_data("data/mosd_test_even", "eval_real_by_identity_on_stacked_mosd_scenes")
+    else {
         return;
     };
     let catalogue = dir.join("../CATALOGUE.md");
@@ -341,7 +340,8 @@ fn eval_real_by_identity_on_stacked_mosd_scenes() {
 /// rest on the table, it is found (both mugs of the scene, on seeds 1-8).
 #[test]
 fn the_floating_mug_of_learn39_rests_on_the_table() {
-    let Some(dir) = common::shared_data("data/mosd_learn", "the_floating_mug_of_learn39_rests_on_the_table") else {
+    let Some(dir) = crate::common::shared_data("data/mosd_learn", "the_floating_mug_of_learn39_rests_on_the_table")
+    else {
         return;
     };
     let file = labels_of(&dir, &["learn39"], "eval-learn39");

@@ -8,7 +8,6 @@ use std::path::PathBuf;
 
 use proptest::prelude::*;
 
-mod common;
 use sqscan::cloud::{
     CloudError, Field, FieldData, PcdData, PlyFormat, PointCloud, lzf, read_cloud, read_pcd, read_ply, read_text,
     write_cloud, write_pcd, write_ply, write_text,
@@ -381,12 +380,12 @@ const REAL: [Expected; 9] = [
 fn real_files_load_with_documented_counts() {
     for (name, points, finite, (w, h), bbox) in REAL {
         let path = if NOT_CARRIED.contains(&name) {
-            match common::shared_data(&format!("data/real/{name}"), "real_files_load_with_documented_counts") {
+            match crate::common::shared_data(&format!("data/real/{name}"), "real_files_load_with_documented_counts") {
                 Some(path) => path,
                 None => continue,
             }
         } else {
-            common::real_data(name)
+            crate::common::real_data(name)
         };
         let c = read_cloud(&path).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(c.len(), points, "{name}");
@@ -414,7 +413,7 @@ fn real_files_load_with_documented_counts() {
 
 #[test]
 fn real_files_have_the_documented_fields() {
-    let c = read_cloud(&common::real_data("learn33.pcd")).unwrap();
+    let c = read_cloud(&crate::common::real_data("learn33.pcd")).unwrap();
     let names: Vec<&str> = c.fields.iter().map(|f| f.name.as_str()).collect();
     assert_eq!(names, ["label", "rgba"]);
     let Some(FieldData::U32(labels)) = c.field("label").map(|f| &f.data) else {
@@ -431,18 +430,18 @@ fn real_files_have_the_documented_fields() {
     let nan_points = c.len() - c.finite_count();
     assert_eq!(counts.get(&0), Some(&nan_points));
 
-    let box_cloud = read_cloud(&common::real_data("box")).unwrap();
+    let box_cloud = read_cloud(&crate::common::real_data("box")).unwrap();
     let Some(FieldData::U8(red)) = box_cloud.field("red").map(|f| &f.data) else {
         panic!("box: no u8 red column");
     };
     assert_eq!(red[0], 144);
-    let milk = read_cloud(&common::real_data("milk.pcd")).unwrap();
+    let milk = read_cloud(&crate::common::real_data("milk.pcd")).unwrap();
     assert!(milk.fields.is_empty());
 }
 
 #[test]
 fn real_files_round_trip_bit_exact() {
-    let c = read_cloud(&common::real_data("test34.pcd")).unwrap();
+    let c = read_cloud(&crate::common::real_data("test34.pcd")).unwrap();
     for data in [PcdData::Ascii, PcdData::Binary, PcdData::BinaryCompressed] {
         let bytes = pcd_bytes(&c, data);
         let back = read_pcd(&bytes[..]).unwrap();

@@ -9,8 +9,7 @@ use std::process::Command;
 
 use serde_json::Value;
 
-mod common;
-use common::{root, tmpdir};
+use crate::common::{root, tmpdir};
 
 #[test]
 fn a_two_minute_soak_on_the_mock_rig_loses_no_answer_and_recovers_from_every_fault() {

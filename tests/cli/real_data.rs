@@ -10,8 +10,7 @@ use sqscan::detect::{Params, detect};
 use sqscan::model::Model;
 use std::path::{Path, PathBuf};
 
-mod common;
-use common::real_data as data;
+use crate::common::real_data as data;
 
 /// Centroids of the labelled objects `label / 10` in `objects`.
 fn centroids(cloud: &PointCloud, objects: &[u32]) -> Vec<(u32, Point3<f64>)> {

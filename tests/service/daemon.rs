@@ -17,9 +17,8 @@ use sqscan::eval::{Symmetry, truth_pose};
 use sqscan::model::Model;
 use sqscan::sim::Scene;
 
-mod common;
-use common::protocol::check_reply;
-use common::{Proc, free_port, tmpdir, wait_for};
+use crate::common::protocol::check_reply;
+use crate::common::{Proc, free_port, tmpdir, wait_for};
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -323,7 +322,7 @@ fn idle_and_slowloris_clients_are_closed_after_the_idle_timeout() {
 /// honest client waits for one. Other requests are answered meanwhile.
 #[test]
 fn clients_that_ask_for_clouds_and_never_read_cannot_starve_an_honest_one() {
-    let limit = common::raise_open_files();
+    let limit = crate::common::raise_open_files();
     let dir = tmpdir("clouds");
     let (_d, socket) = start_daemon(&dir, &sim_config(), &[]);
     let mut c = Client::connect(&socket);
@@ -578,7 +577,7 @@ fn a_sweep_completed_just_before_sigterm_is_still_recorded() {
 /// share each, and an honest client is answered meanwhile.
 #[test]
 fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
-    let limit = common::raise_open_files();
+    let limit = crate::common::raise_open_files();
     if limit < 1200 {
         eprintln!("SKIPPED: this process may open {limit} files, fewer than the 1,000 clients need");
         return;
@@ -587,7 +586,7 @@ fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
     let config = format!("{}\n[server]\nmax_clients = 1100\n", sim_config());
     let (d, socket) = start_daemon(&dir, &config, &[]);
     let pid = d.0.id();
-    let base = common::rss(pid);
+    let base = crate::common::rss(pid);
     let requests = "{\"cmd\":\"models\"}\n".repeat(200);
     let mut clients = Vec::new();
     let mut peak = base;
@@ -596,12 +595,12 @@ fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
         c.write_all(requests.as_bytes()).unwrap();
         clients.push(c);
         if k % 50 == 0 {
-            peak = peak.max(common::rss(pid));
+            peak = peak.max(crate::common::rss(pid));
         }
     }
     let start = Instant::now();
     while start.elapsed() < Duration::from_secs(5) {
-        peak = peak.max(common::rss(pid));
+        peak = peak.max(crate::common::rss(pid));
         std::thread::sleep(Duration::from_millis(100));
     }
     let t = Instant::now();
@@ -622,7 +621,7 @@ fn a_thousand_clients_that_never_read_their_replies_cost_bounded_memory() {
 #[test]
 fn a_thousand_idle_and_two_hundred_slowloris_clients_under_a_1024_file_limit_do_not_lock_out_find() {
     use std::os::unix::process::CommandExt;
-    let limit = common::raise_open_files();
+    let limit = crate::common::raise_open_files();
     if limit < 1400 {
         eprintln!("SKIPPED: this process may open {limit} files, fewer than the 1,224 clients need");
         return;
@@ -654,7 +653,7 @@ fn a_thousand_idle_and_two_hundred_slowloris_clients_under_a_1024_file_limit_do_
         clients.push(c);
     }
     let t = Instant::now();
-    let found = common::ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":30}));
+    let found = crate::common::ask(&socket, json!({"cmd":"find","object":"cup","timeout_s":30}));
     assert_eq!(found["class"], "detection", "{found}\n{}", log(&dir));
     assert!(t.elapsed() < Duration::from_secs(20), "find took {:?}", t.elapsed());
     let warnings = log(&dir).matches("accept on").count();
@@ -938,7 +937,7 @@ fn start_rig(dir: &Path, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
 }
 
 fn start_rig_with(dir: &Path, protocol: &str, extra: &[&str]) -> (Proc, PathBuf, PathBuf) {
-    common::mock_rig(dir, protocol, extra)
+    crate::common::mock_rig(dir, protocol, extra)
 }
 
 fn hardware_config(ptu: &Path, sensor: &Path) -> String {
@@ -946,7 +945,7 @@ fn hardware_config(ptu: &Path, sensor: &Path) -> String {
 }
 
 fn hardware_config_with(ptu: &Path, sensor: &Path, protocol: &str, calibration: &str, tilt_to: f64) -> String {
-    common::rig_config(ptu, sensor, protocol, calibration, tilt_to)
+    crate::common::rig_config(ptu, sensor, protocol, calibration, tilt_to)
 }
 
 #[test]
@@ -1621,7 +1620,7 @@ timeout_s = 5.0
 #[cfg(feature = "gige")]
 #[test]
 fn a_gige_vision_rig_finds_the_cup() {
-    if !in_private_network("a_gige_vision_rig_finds_the_cup") {
+    if !in_private_network("daemon::a_gige_vision_rig_finds_the_cup") {
         return;
     }
     let dir = tmpdir("gige");
@@ -1669,7 +1668,7 @@ fn a_gige_vision_rig_finds_the_cup() {
 #[cfg(feature = "gige")]
 #[test]
 fn an_unplugged_gige_camera_drops_the_sweep_and_comes_back() {
-    if !in_private_network("an_unplugged_gige_camera_drops_the_sweep_and_comes_back") {
+    if !in_private_network("daemon::an_unplugged_gige_camera_drops_the_sweep_and_comes_back") {
         return;
     }
     let dir = tmpdir("gige-unplug");
@@ -1699,7 +1698,7 @@ fn an_unplugged_gige_camera_drops_the_sweep_and_comes_back() {
 #[cfg(feature = "gige")]
 #[test]
 fn a_gige_camera_without_a_needed_feature_stops_the_start_naming_it() {
-    if !in_private_network("a_gige_camera_without_a_needed_feature_stops_the_start_naming_it") {
+    if !in_private_network("daemon::a_gige_camera_without_a_needed_feature_stops_the_start_naming_it") {
         return;
     }
     let dir = tmpdir("gige-stock");
@@ -1733,7 +1732,7 @@ fn a_gige_camera_without_a_needed_feature_stops_the_start_naming_it() {
 #[cfg(feature = "gige")]
 #[test]
 fn an_unreachable_gige_camera_is_retried() {
-    if !in_private_network("an_unreachable_gige_camera_is_retried") {
+    if !in_private_network("daemon::an_unreachable_gige_camera_is_retried") {
         return;
     }
     let dir = tmpdir("gige-absent");

@@ -1,9 +1,7 @@
 //! The protocol's three descriptions agree: the reply types (`src/daemon/reply.rs`), the JSON
 //! Schema generated from them (`docs/protocol.schema.json`), and `docs/PROTOCOL.md`'s examples,
 //! requests and error codes. Regenerate the schema file after changing the types with
-//! `SQSCAN_BLESS=1 cargo test --test protocol`.
-
-mod common;
+//! `SQSCAN_BLESS=1 cargo test --test service protocol::`.
 
 use std::path::PathBuf;
 
@@ -43,7 +41,7 @@ fn the_schema_file_is_what_the_code_generates() {
     assert!(
         on_disk == generated,
         "{} differs from the schema of src/daemon/reply.rs: regenerate it with \
-         SQSCAN_BLESS=1 cargo test --test protocol",
+         SQSCAN_BLESS=1 cargo test --test service protocol::",
         path.display()
     );
 }
@@ -55,7 +53,7 @@ fn every_example_in_protocol_md_is_a_valid_reply_of_this_version() {
     assert!(examples.len() >= 7, "{} examples", examples.len());
     let mut classes = std::collections::BTreeSet::new();
     for v in &examples {
-        common::protocol::check_reply(v);
+        crate::common::protocol::check_reply(v);
         classes.insert(v["class"].as_str().unwrap().to_string());
         if v["class"] == "version" {
             assert_eq!(
@@ -114,7 +112,7 @@ fn protocol_md_lists_every_error_code_and_no_other() {
 #[test]
 fn replies_that_break_the_protocol_are_refused() {
     let ok: Value = serde_json::from_str(r#"{"class":"watch","objects":["cup"],"enable":true}"#).unwrap();
-    common::protocol::check_reply(&ok);
+    crate::common::protocol::check_reply(&ok);
     for bad in [
         r#"{"class":"watch","objects":["cup"]}"#,
         r#"{"class":"watch","objects":"cup","enable":true}"#,
@@ -124,12 +122,12 @@ fn replies_that_break_the_protocol_are_refused() {
         r#"{"class":"gossip"}"#,
     ] {
         let v: Value = serde_json::from_str(bad).unwrap();
-        assert!(common::protocol::problems(&v).is_some(), "accepted {bad}");
+        assert!(crate::common::protocol::problems(&v).is_some(), "accepted {bad}");
     }
     // A field the types do not know is an undocumented field: refused here, though a client
     // would ignore it.
     let extra: Value = serde_json::from_str(r#"{"class":"watch","objects":[],"enable":false,"colour":1}"#).unwrap();
-    assert!(common::protocol::problems(&extra).is_some());
+    assert!(crate::common::protocol::problems(&extra).is_some());
     let r: Reply = serde_json::from_value(ok).unwrap();
     assert!(!r.is_error());
 }
