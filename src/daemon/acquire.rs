@@ -10,11 +10,11 @@ use tokio::task::JoinSet;
 
 use super::backend::Backend;
 use super::record;
-use super::state::{Shared, SweepEntry, lock};
+use super::state::{Shared, SweepEntry};
 
 /// Runs until shutdown.
 pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
-    shared.devices.set(backend.devices());
+    shared.devices().set(backend.devices());
     let mut shutdown = shared.shutdown().listen();
     let mut next_id = 1u64;
     let mut forward = true;
@@ -28,21 +28,21 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
         }
         if !shared.config().continuous {
             tokio::select! {
-                () = shared.sweep_wanted.notified() => {}
+                () = shared.sweep_asked() => {}
                 () = shutdown.thrown() => break,
             }
         }
         let result = tokio::select! {
-            r = backend.sweep(forward, &shared.devices, &shared.joints) => r,
+            r = backend.sweep(forward, shared.devices(), shared.joints()) => r,
             () = shutdown.thrown() => break,
         };
         match result {
             Ok(data) => {
                 let entry = Arc::new(SweepEntry::new(next_id, data));
                 next_id += 1;
-                shared.stats.sweeps_completed.fetch_add(1, Ordering::Relaxed);
+                shared.stats().sweeps_completed.fetch_add(1, Ordering::Relaxed);
                 if let Some(prev) = last_completed {
-                    shared.stats.record_sweep_period(prev.elapsed().as_secs_f64());
+                    shared.stats().record_sweep_period(prev.elapsed().as_secs_f64());
                 }
                 last_completed = Some(entry.completed);
                 tracing::info!(
@@ -51,7 +51,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                     entry.points,
                     entry.sweep.profiles
                 );
-                shared.latest.send_replace(Some(entry.clone()));
+                shared.publish_sweep(entry.clone());
                 warm_detections(&shared, &entry);
                 if let Some(dir) = shared.config().record_dir.clone() {
                     recordings.spawn(record_sweep(shared.clone(), entry.clone(), dir));
@@ -67,15 +67,15 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
                 }
             }
             Err(f) => {
-                shared.stats.sweeps_dropped.fetch_add(1, Ordering::Relaxed);
+                shared.stats().sweeps_dropped.fetch_add(1, Ordering::Relaxed);
                 tracing::warn!("sweep dropped: {}", f.message);
-                shared.stats.record_fault(format!("sweep dropped: {}", f.message));
+                shared.stats().record_fault(format!("sweep dropped: {}", f.message));
                 // A failed sweep leaves the unit somewhere in the range: start the next one
                 // from the configured start.
                 forward = true;
                 if !shared.config().continuous {
                     // Whoever asked is still waiting: try again.
-                    shared.sweep_wanted.notify_one();
+                    shared.want_sweep();
                 }
             }
         }
@@ -91,7 +91,7 @@ pub async fn run<B: Backend>(shared: Arc<Shared>, mut backend: B) {
 /// The objects detected on every sweep: the configuration's and the clients' watches.
 fn watched_objects(shared: &Shared) -> Vec<String> {
     let mut objects: Vec<String> = shared.config().watch.clone();
-    objects.extend(lock(&shared.watched).keys().cloned());
+    objects.extend(shared.watched());
     objects.sort();
     objects.dedup();
     objects
@@ -111,7 +111,7 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
             }
         }
         extras.mcap = Some(found);
-        extras.mount = shared.mount;
+        extras.mount = shared.mount().copied();
     }
     let (keep, frame, mcap) = (config.record_keep, config.frame_id.clone(), config.record_mcap);
     let e = entry.clone();
@@ -132,10 +132,10 @@ async fn record_sweep(shared: Arc<Shared>, entry: Arc<SweepEntry>, dir: std::pat
     });
     if let Err((lost, err)) = written {
         if lost {
-            shared.stats.recordings_lost.fetch_add(1, Ordering::Relaxed);
+            shared.stats().recordings_lost.fetch_add(1, Ordering::Relaxed);
         }
         tracing::error!("{err}");
-        shared.stats.record_fault(err);
+        shared.stats().record_fault(err);
     }
 }
 

@@ -22,14 +22,18 @@ struct Waiting<'a>(&'a Shared);
 
 impl<'a> Waiting<'a> {
     fn new(shared: &'a Shared) -> Self {
-        shared.cloud_waiting.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        shared
+            .cloud_waiting()
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Waiting(shared)
     }
 }
 
 impl Drop for Waiting<'_> {
     fn drop(&mut self) {
-        self.0.cloud_waiting.fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+        self.0
+            .cloud_waiting()
+            .fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
     }
 }
 
@@ -64,7 +68,7 @@ pub(super) async fn cloud(
             tokio::time::sleep(READ_POLL).await;
         }
         let _waiting = Waiting::new(shared);
-        let daemon = shared.cloud_slots.clone().acquire_owned().await.ok()?;
+        let daemon = shared.cloud_slot().await?;
         Some(vec![mine, daemon])
     };
     let Ok(Some(slots)) = tokio::time::timeout_at(deadline.into(), slots).await else {

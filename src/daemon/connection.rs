@@ -194,7 +194,7 @@ impl Handler {
                 }
                 Ok(Some(Ok(()))) if buf.iter().all(|b| b.is_ascii_whitespace()) => {}
                 Ok(Some(Ok(()))) => {
-                    self.shared.stats.requests.fetch_add(1, Ordering::Relaxed);
+                    self.shared.stats().requests.fetch_add(1, Ordering::Relaxed);
                     match protocol::parse_request(&buf) {
                         Ok(r) => return Some(r),
                         Err(e) => self.out.reply(e.reply()).await,
@@ -284,7 +284,7 @@ impl Handler {
             return;
         }
         self.stop_watch();
-        set_watched(&self.shared, &self.watching, &objects);
+        self.shared.move_watch(&self.watching, &objects);
         self.watching = objects.clone();
         self.out
             .reply(Reply::Watch(Watch {
@@ -300,7 +300,7 @@ impl Handler {
     /// `unwatch`: no more updates.
     async fn unwatch(&mut self, id: Option<Value>) {
         self.stop_watch();
-        set_watched(&self.shared, &self.watching, &[]);
+        self.shared.move_watch(&self.watching, &[]);
         self.watching.clear();
         self.out
             .reply(Reply::Watch(Watch {
@@ -343,36 +343,20 @@ impl Handler {
     /// Ends the connection: its watch and requests in flight, then lets the queued replies go
     /// out (bounded by the writer's own timeout).
     async fn close(mut self, writer: tokio::task::JoinHandle<()>) {
-        set_watched(&self.shared, &self.watching, &[]);
+        self.shared.move_watch(&self.watching, &[]);
         self.tasks.abort_all();
         drop(self.out);
         let _ = tokio::time::timeout(Duration::from_secs(1), writer).await;
     }
 }
 
-/// Moves this client's watch from `old` to `new` in the shared refcounts.
-fn set_watched(shared: &Shared, old: &[String], new: &[String]) {
-    let mut w = lock(&shared.watched);
-    for o in old {
-        if let Some(n) = w.get_mut(o) {
-            *n -= 1;
-            if *n == 0 {
-                w.remove(o);
-            }
-        }
-    }
-    for o in new {
-        *w.entry(o.clone()).or_insert(0) += 1;
-    }
-}
-
 /// Every sweep's detections of `objects`, until aborted.
 async fn watch_sweeps(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Option<Value>) {
-    let mut rx = shared.latest.subscribe();
+    let mut rx = shared.sweeps();
     // The newest sweep so far is answered at once; then each new one.
     rx.mark_changed();
     if !shared.config().continuous {
-        shared.sweep_wanted.notify_one();
+        shared.want_sweep();
     }
     loop {
         if rx.changed().await.is_err() {
@@ -387,7 +371,7 @@ async fn watch_sweeps(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id
             out.update(detection_reply(&entry, &det, false, &shared.config().frame_id).with_id(id.clone()));
         }
         if !shared.config().continuous {
-            shared.sweep_wanted.notify_one();
+            shared.want_sweep();
         }
     }
 }

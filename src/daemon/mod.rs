@@ -142,7 +142,7 @@ pub async fn probe(config: &Config) -> Result<Vec<String>> {
 
 /// A running daemon's handle, for `main` and for tests that run it in-process.
 pub struct Daemon {
-    pub shared: Arc<Shared>,
+    shared: Arc<Shared>,
     tasks: Vec<tokio::task::JoinHandle<()>>,
     socket: Option<std::path::PathBuf>,
     notifier: Option<Arc<notify::Notifier>>,
@@ -239,7 +239,7 @@ impl Daemon {
     /// Why the daemon cannot go on, once a task it cannot run without has ended before
     /// [`stop`](Self::stop) (a panic or a fatal error); pending until then.
     pub async fn failed(&self) -> String {
-        let mut rx = self.shared.failure.subscribe();
+        let mut rx = self.shared.failures();
         match rx.wait_for(Option::is_some).await {
             Ok(f) => f.clone().unwrap_or_default(),
             Err(_) => std::future::pending().await,
@@ -263,7 +263,7 @@ impl Daemon {
             let models = load_models(&new.models_dir)?;
             check_watch(&new, &models)?;
             // A client's watch would go silent: refuse, as for the configuration's own list.
-            let watched: Vec<String> = state::lock(&self.shared.watched).keys().cloned().collect();
+            let watched: Vec<String> = self.shared.watched();
             if let Some(w) = watched.iter().find(|w| !models.contains_key(*w)) {
                 bail!("{}: no model {w:?}, which a client watches", new.models_dir.display());
             }
@@ -344,7 +344,7 @@ fn keep_fixed(old: &Config, mut new: Config) -> (Config, Vec<&'static str>) {
 }
 
 fn lock_reload_error(shared: &Shared, why: String) {
-    state::lock(&shared.reload).error = Some(why);
+    shared.reload_failed(why);
 }
 
 async fn futures_join(tasks: Vec<tokio::task::JoinHandle<()>>) {
@@ -377,7 +377,7 @@ async fn supervise(shared: Arc<Shared>, tasks: [(&'static str, tokio::task::Join
             Err(_) => format!("the {name} task was cancelled"),
         };
         tracing::error!("{why}; the daemon cannot go on");
-        shared.failure.send_replace(Some(why));
+        shared.fail(why);
     }
     let _ = rest.await;
 }
@@ -386,13 +386,13 @@ async fn supervise(shared: Arc<Shared>, tasks: [(&'static str, tokio::task::Join
 /// and no essential task has failed.
 async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
     let period = notify::watchdog_interval().map(|w| w / 2);
-    let mut sweeps = shared.latest.subscribe();
+    let mut sweeps = shared.sweeps();
     let mut tick = tokio::time::interval(period.unwrap_or(Duration::from_secs(3600)));
     let mut shutdown = shared.shutdown().listen();
     loop {
         tokio::select! {
             _ = tick.tick() => {
-                if let Some(f) = shared.failure.borrow().as_ref() {
+                if let Some(f) = shared.failure().as_ref() {
                     // No more pings: systemd's watchdog restarts the service.
                     let _ = n.status(&format!("failed: {f}"));
                     return;
@@ -404,8 +404,8 @@ async fn systemd_task(shared: Arc<Shared>, n: Arc<notify::Notifier>) {
             r = sweeps.changed() => {
                 if r.is_err() { return; }
                 let text = match sweeps.borrow_and_update().as_ref() {
-                    Some(e) => format!("sweep {}: {} points; {}", e.id, e.points, shared.devices.summary()),
-                    None => shared.devices.summary(),
+                    Some(e) => format!("sweep {}: {} points; {}", e.id, e.points, shared.devices().summary()),
+                    None => shared.devices().summary(),
                 };
                 let _ = n.status(&text);
             }

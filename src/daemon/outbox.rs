@@ -81,7 +81,7 @@ async fn write_message<W: AsyncWrite + Unpin>(shared: &Shared, wr: &mut W, l: &O
                 progress = Instant::now();
             }
             Err(_) => {
-                let wanted = holds_slots && shared.cloud_waiting.load(Ordering::Relaxed) > 0;
+                let wanted = holds_slots && shared.cloud_waiting().load(Ordering::Relaxed) > 0;
                 let limit = if wanted { STALL_WHILE_WANTED } else { WRITE_TIMEOUT };
                 if progress.elapsed() >= limit {
                     return false;
@@ -145,7 +145,7 @@ impl Outbox {
     /// as one message so that nothing (a watch update) comes between them.
     pub(super) async fn reply_with(&self, v: Reply, payload: Option<Payload>) {
         if v.is_error() {
-            self.shared.stats.errors_sent.fetch_add(1, Ordering::Relaxed);
+            self.shared.stats().errors_sent.fetch_add(1, Ordering::Relaxed);
         }
         let mut l = v.line().into_bytes();
         let Ok(room) = self.room.clone().acquire_many_owned(room_for(l.len())).await else {
@@ -168,7 +168,7 @@ impl Outbox {
     /// bytes).
     pub(super) fn update(&self, v: Reply) {
         if !self.try_queue(v) {
-            self.shared.stats.watch_skipped.fetch_add(1, Ordering::Relaxed);
+            self.shared.stats().watch_skipped.fetch_add(1, Ordering::Relaxed);
         }
     }
 
@@ -208,7 +208,7 @@ mod tests {
             // Returns at once even though nobody reads.
             out.update(Reply::error(None, ErrorCode::Internal, format!("k{k}")));
         }
-        assert_eq!(shared.stats.watch_skipped.load(Ordering::Relaxed), 3);
+        assert_eq!(shared.stats().watch_skipped.load(Ordering::Relaxed), 3);
         let text = |o: Outgoing| String::from_utf8_lossy(&o.bytes).into_owned();
         assert!(text(rx.recv().await.unwrap()).contains("\"k0\""));
         assert!(text(rx.recv().await.unwrap()).contains("\"k1\""));
@@ -229,7 +229,7 @@ mod tests {
         }
         let queued = MAX_QUEUED_BYTES - out.room.available_permits();
         assert_eq!(queued, MAX_QUEUED_BYTES / n * n);
-        let skipped = shared.stats.watch_skipped.load(Ordering::Relaxed) as usize;
+        let skipped = shared.stats().watch_skipped.load(Ordering::Relaxed) as usize;
         assert_eq!(skipped, 1000 - MAX_QUEUED_BYTES / n);
     }
 }

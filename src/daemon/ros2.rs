@@ -151,7 +151,7 @@ pub async fn run(shared: Arc<Shared>, cfg: Ros2Config, started: Started) {
     if let Err(e) = serve(&shared, &cfg, started).await {
         let msg = format!("the ROS 2 node: {e:#}");
         tracing::error!("{msg}");
-        shared.failure.send_replace(Some(msg));
+        shared.fail(msg);
     }
 }
 
@@ -171,7 +171,7 @@ async fn serve(shared: &Arc<Shared>, cfg: &Ros2Config, started: Started) -> Resu
             tracing::warn!("the ROS 2 node's spinner stopped: {e:?}");
         }
     });
-    if let Some(m) = shared.mount {
+    if let Some(m) = shared.mount().copied() {
         let data = topics::tf_static(&frame, &m, Time::from_unix_s(unix_now()));
         if let Err(e) = pubs.tf_static.publish(Encoded::new(data)) {
             tracing::warn!("/tf_static: {e:?}");

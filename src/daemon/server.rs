@@ -194,10 +194,10 @@ fn spawn_client<R, W>(
             let _ = tokio::time::timeout(Duration::from_secs(1), wr.write_all(msg.line().as_bytes())).await;
             return;
         };
-        shared.stats.clients.fetch_add(1, Ordering::Relaxed);
-        shared.stats.clients_total.fetch_add(1, Ordering::Relaxed);
+        shared.stats().clients.fetch_add(1, Ordering::Relaxed);
+        shared.stats().clients_total.fetch_add(1, Ordering::Relaxed);
         client(shared.clone(), idle, BufReader::new(rd), wr, fd).await;
-        shared.stats.clients.fetch_sub(1, Ordering::Relaxed);
+        shared.stats().clients.fetch_sub(1, Ordering::Relaxed);
     });
 }
 

@@ -140,7 +140,7 @@ impl SweepEntry {
             .clone();
         cell.get_or_init(|| async {
             // The semaphore is never closed, so acquire cannot fail; a detection then runs anyway.
-            let _permit = shared.detect_slots.acquire().await.ok();
+            let _permit = shared.detection_slot().await;
             let entry = self.clone();
             let config = &loaded.config;
             let params = Params {
@@ -194,10 +194,10 @@ impl SweepEntry {
                 }
             };
             let latency = self.last_profile.elapsed();
-            shared.stats.record_detection(started.elapsed(), latency);
+            shared.stats().record_detection(started.elapsed(), latency);
             let detected = Arc::new(Detected { latency, report });
             // Nobody listening (no live view) is no error.
-            let _ = shared.detected.send((self.clone(), model_for_view, detected.clone()));
+            shared.announce((self.clone(), model_for_view, detected.clone()));
             detected
         })
         .await
@@ -314,36 +314,36 @@ pub struct Shared {
     /// The configuration and the models in use: swapped whole by a reload (SIGHUP), so a task
     /// that took one sees a consistent set until it asks again.
     loaded: RwLock<Arc<Loaded>>,
-    pub reload: Mutex<Reload>,
+    reload: Mutex<Reload>,
     /// The newest completed sweep.
-    pub latest: watch::Sender<Option<Arc<SweepEntry>>>,
+    latest: watch::Sender<Option<Arc<SweepEntry>>>,
     /// Wakes an on-demand acquisition loop.
-    pub sweep_wanted: Notify,
+    sweep_wanted: Notify,
     /// What the backend calls itself (`status` shows it).
-    pub backend: &'static str,
+    backend: &'static str,
     /// The rig's fixed transforms, where the backend knows them (published and recorded as
     /// `/tf_static`).
-    pub mount: Option<super::backend::Mount>,
-    pub devices: Devices,
-    pub stats: Stats,
+    mount: Option<super::backend::Mount>,
+    devices: Devices,
+    stats: Stats,
     /// Objects watched by clients, with how many watch each.
-    pub watched: Mutex<BTreeMap<String, usize>>,
-    pub detect_slots: Semaphore,
+    watched: Mutex<BTreeMap<String, usize>>,
+    detect_slots: Semaphore,
     /// `cloud` payloads in memory at once ([`CLOUD_SLOTS`]).
-    pub cloud_slots: Arc<Semaphore>,
+    cloud_slots: Arc<Semaphore>,
     /// `cloud` requests waiting for one of those slots: while there are any, a transfer that
     /// makes no progress loses its slot sooner (`outbox::STALL_WHILE_WANTED`).
-    pub cloud_waiting: std::sync::atomic::AtomicUsize,
-    pub started: Instant,
+    cloud_waiting: std::sync::atomic::AtomicUsize,
+    started: Instant,
     /// Thrown when the daemon is stopping.
     shutdown: Shutdown,
     /// Why a task the daemon cannot run without ended (a panic, or a return before shutdown):
     /// `status` reports it, the systemd watchdog stops, and `sqscand` exits with an error.
-    pub failure: watch::Sender<Option<String>>,
+    failure: watch::Sender<Option<String>>,
     /// Every detection as it is made, for whoever shows them (the live view).
-    pub detected: tokio::sync::broadcast::Sender<DetectedEvent>,
+    detected: tokio::sync::broadcast::Sender<DetectedEvent>,
     /// The PTU's joint angles as the sweeps go (ROS 2 publishes them).
-    pub joints: super::backend::JointFeed,
+    joints: super::backend::JointFeed,
 }
 
 /// A detection made, on which sweep, of which model.
@@ -446,13 +446,125 @@ impl Shared {
         &self.shutdown
     }
 
+    /// Publishes a completed sweep as the newest.
+    pub fn publish_sweep(&self, entry: Arc<SweepEntry>) {
+        self.latest.send_replace(Some(entry));
+    }
+
+    /// Follows the newest sweep.
+    pub fn sweeps(&self) -> watch::Receiver<Option<Arc<SweepEntry>>> {
+        self.latest.subscribe()
+    }
+
+    /// Asks an on-demand acquisition loop for a sweep (kept until the loop next waits).
+    pub fn want_sweep(&self) {
+        self.sweep_wanted.notify_one();
+    }
+
+    /// Resolves when a sweep is asked for.
+    pub async fn sweep_asked(&self) {
+        self.sweep_wanted.notified().await
+    }
+
+    /// Records why a task the daemon cannot run without ended.
+    pub fn fail(&self, why: String) {
+        self.failure.send_replace(Some(why));
+    }
+
+    /// Why the daemon failed, if it did.
+    pub fn failure(&self) -> Option<String> {
+        self.failure.borrow().clone()
+    }
+
+    /// Follows the daemon's failure.
+    pub fn failures(&self) -> watch::Receiver<Option<String>> {
+        self.failure.subscribe()
+    }
+
+    /// Moves one client's watch from the objects `old` to `new`.
+    pub fn move_watch(&self, old: &[String], new: &[String]) {
+        let mut w = lock(&self.watched);
+        for o in old {
+            if let Some(n) = w.get_mut(o) {
+                *n -= 1;
+                if *n == 0 {
+                    w.remove(o);
+                }
+            }
+        }
+        for o in new {
+            *w.entry(o.clone()).or_insert(0) += 1;
+        }
+    }
+
+    /// The objects some client watches.
+    pub fn watched(&self) -> Vec<String> {
+        lock(&self.watched).keys().cloned().collect()
+    }
+
+    /// Tells whoever shows detections (the live view, ROS 2) of one made.
+    pub fn announce(&self, event: DetectedEvent) {
+        let _ = self.detected.send(event);
+    }
+
+    /// Follows the detections as they are made.
+    pub fn detections(&self) -> tokio::sync::broadcast::Receiver<DetectedEvent> {
+        self.detected.subscribe()
+    }
+
+    /// One of the `detect.workers` slots a detection runs in; `None` once they are closed.
+    pub async fn detection_slot(&self) -> Option<tokio::sync::SemaphorePermit<'_>> {
+        self.detect_slots.acquire().await.ok()
+    }
+
+    /// One of the [`CLOUD_SLOTS`]; `None` once they are closed.
+    pub async fn cloud_slot(&self) -> Option<tokio::sync::OwnedSemaphorePermit> {
+        self.cloud_slots.clone().acquire_owned().await.ok()
+    }
+
+    /// `cloud` requests waiting for one of the slots: while there are any, a transfer that
+    /// makes no progress loses its slot sooner.
+    pub fn cloud_waiting(&self) -> &std::sync::atomic::AtomicUsize {
+        &self.cloud_waiting
+    }
+
+    /// Records why the last reload failed (the configuration in use stays).
+    pub fn reload_failed(&self, why: String) {
+        lock(&self.reload).error = Some(why);
+    }
+
+    /// When the configuration was last loaded, how often, and why the last reload failed.
+    pub fn reload_status(&self) -> Reload {
+        lock(&self.reload).clone()
+    }
+
+    /// The rig's fixed transforms, where the backend knows them.
+    pub fn mount(&self) -> Option<&super::backend::Mount> {
+        self.mount.as_ref()
+    }
+
+    /// The devices' states, as the backend reports them.
+    pub fn devices(&self) -> &Devices {
+        &self.devices
+    }
+
+    /// The daemon's counters.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+
+    /// The PTU's joint angles as the sweeps go.
+    pub fn joints(&self) -> &super::backend::JointFeed {
+        &self.joints
+    }
+
     pub fn status(&self) -> Status {
         let s = &self.stats;
         let det = lock(&s.detections);
         let periods = lock(&s.sweep_periods);
         let sweep_rate = median_of(&periods).filter(|p| *p > 0.0).map(|p| round3(60.0 / p));
         let config = self.config();
-        let reload = lock(&self.reload).clone();
+        let reload = self.reload_status();
         let unix = |t: SystemTime| {
             t.duration_since(SystemTime::UNIX_EPOCH)
                 .map(|d| d.as_secs_f64())
@@ -562,7 +674,7 @@ mod tests {
         let after = e.detection(&shared, cup, false).await;
         assert!(!Arc::ptr_eq(&first, &after));
         assert_eq!(shared.loaded().generation, 1);
-        assert_eq!(lock(&shared.reload).count, 1);
+        assert_eq!(shared.reload_status().count, 1);
     }
 
     /// The objects asked for on one sweep share its filtered, plane-free scene: the first

@@ -275,8 +275,8 @@ pub struct Follow {
 impl Follow {
     pub fn new(shared: &Shared, who: &'static str) -> Follow {
         Follow {
-            sweeps: shared.latest.subscribe(),
-            detected: shared.detected.subscribe(),
+            sweeps: shared.sweeps(),
+            detected: shared.detections(),
             joints: None,
             shutdown: shared.shutdown().listen(),
             who,
@@ -285,7 +285,7 @@ impl Follow {
 
     /// Follows the joint angles too, as the backend reads them during each sweep.
     pub fn with_joints(mut self, shared: &Shared) -> Follow {
-        self.joints = Some(shared.joints.subscribe());
+        self.joints = Some(shared.joints().subscribe());
         self
     }
 

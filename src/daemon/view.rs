@@ -55,7 +55,7 @@ pub async fn run(shared: Arc<Shared>, listen: SocketAddr) {
     if let Err(e) = serve(&shared, listen).await {
         let msg = format!("the Foxglove view on {listen}: {e:#}");
         tracing::error!("{msg}");
-        shared.failure.send_replace(Some(msg));
+        shared.fail(msg);
     }
 }
 
@@ -71,7 +71,7 @@ impl ServerListener for Latched {
         if channel.id() != self.tf_static.id() {
             return;
         }
-        let Some(m) = self.shared.mount.as_ref() else {
+        let Some(m) = self.shared.mount() else {
             return;
         };
         let frame = self.shared.config().frame_id.clone();
@@ -86,7 +86,7 @@ impl ServerListener for Latched {
 }
 
 async fn serve(shared: &Arc<Shared>, listen: SocketAddr) -> Result<()> {
-    let mount = shared.mount;
+    let mount = shared.mount().copied();
     let ctx = foxglove::Context::new();
     let channels = Channels {
         points: channel(&ctx, topics::POINTS, schema::POINT_CLOUD2, schema::point_cloud2())?,

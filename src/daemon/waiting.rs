@@ -19,14 +19,14 @@ pub(super) async fn wait_for_sweep(
     deadline: Instant,
     ok: impl Fn(&SweepEntry) -> bool,
 ) -> Result<Arc<SweepEntry>, (ErrorCode, String)> {
-    let mut rx = shared.latest.subscribe();
+    let mut rx = shared.sweeps();
     loop {
         if let Some(e) = rx.borrow_and_update().clone()
             && ok(&e)
         {
             return Ok(e);
         }
-        if let Some(finished) = shared.devices.finished() {
+        if let Some(finished) = shared.devices().finished() {
             let last = match shared.newest() {
                 Some(e) => format!("the last sweep ({}) is {:.1} s old", e.id, e.age().as_secs_f64()),
                 None => "no sweep was served".into(),
@@ -34,7 +34,7 @@ pub(super) async fn wait_for_sweep(
             return Err((ErrorCode::ReplayFinished, format!("{finished}; {last}")));
         }
         if !shared.config().continuous {
-            shared.sweep_wanted.notify_one();
+            shared.want_sweep();
         }
         // A replay that runs out says so on its devices, not with a sweep: look at them now and
         // then while waiting.
@@ -43,7 +43,7 @@ pub(super) async fn wait_for_sweep(
             match tokio::time::timeout_at(slice.into(), rx.changed()).await {
                 Ok(r) => break Some(r),
                 Err(_) if Instant::now() >= deadline => break None,
-                Err(_) if shared.devices.finished().is_some() => break Some(Ok(())),
+                Err(_) if shared.devices().finished().is_some() => break Some(Ok(())),
                 Err(_) => {}
             }
         };
