@@ -131,35 +131,18 @@ pub fn prune(dir: &Path, keep: usize) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cloud::{PointCloud, read_cloud};
+    use crate::cloud::read_cloud;
     use crate::daemon::backend::Swept;
-    use crate::sweep::{Sweep, SweepReport};
+    use crate::sweep::Sweep;
     use std::time::Instant;
 
     #[test]
     fn records_atomically_and_prunes() {
         let dir = std::env::temp_dir().join(format!("sqscan-record-{}", std::process::id()));
         let _ = fs::remove_dir_all(&dir);
-        let mut pts = vec![[0.5f32, 0.1, 0.7]; 6];
-        pts[2] = [f32::NAN; 3];
         for id in 1..=4 {
-            let mut cloud = PointCloud::organized(3, 2, pts.clone());
-            cloud.viewpoint = Some([0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0]);
-            let sweep = Sweep {
-                profiles: 2,
-                columns: 3,
-                start: None,
-                stamp_s: vec![0.0, 0.02],
-                seq: vec![0, 1],
-                pan_rad: vec![0.0; 2],
-                tilt_rad: vec![0.5, 0.51],
-                range_m: pts.iter().map(|p| if p[0].is_nan() { f32::NAN } else { 0.8 }).collect(),
-                cloud,
-                report: SweepReport {
-                    kept: 2,
-                    ..SweepReport::default()
-                },
-            };
+            let mut sweep = Sweep::flat_patch(Some(2));
+            sweep.cloud.viewpoint = Some([0.0, 0.0, 1.35, 1.0, 0.0, 0.0, 0.0]);
             let e = SweepEntry::new(
                 id,
                 Swept {

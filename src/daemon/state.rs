@@ -632,19 +632,7 @@ mod tests {
 
     /// A 2 x 3 sweep of a flat patch.
     fn entry(id: u64) -> Arc<SweepEntry> {
-        let points = vec![[0.5f32, 0.0, 0.7]; 6];
-        let sweep = Sweep {
-            profiles: 2,
-            columns: 3,
-            start: None,
-            stamp_s: vec![0.0, 0.02],
-            seq: vec![0, 1],
-            pan_rad: vec![0.0; 2],
-            tilt_rad: vec![0.5, 0.51],
-            range_m: vec![0.86; 6],
-            cloud: crate::cloud::PointCloud::organized(3, 2, points),
-            report: Default::default(),
-        };
+        let sweep = Sweep::flat_patch(None);
         let now = Instant::now();
         Arc::new(SweepEntry::new(
             id,

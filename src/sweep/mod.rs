@@ -120,6 +120,36 @@ pub struct Sweep {
 }
 
 impl Sweep {
+    /// The smallest sweep there is: two profiles of three columns on a flat patch 0.86 m away,
+    /// every pixel a return but `hole` (an index into the pixels). What the daemon's tests hand
+    /// over where a sweep's content does not matter, only its passage.
+    pub fn flat_patch(hole: Option<usize>) -> Sweep {
+        let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
+        let mut range_m = vec![0.86f32; 6];
+        if let Some(k) = hole.filter(|&k| k < points.len()) {
+            points[k] = [f32::NAN; 3];
+            range_m[k] = f32::NAN;
+        }
+        let returns = range_m.iter().filter(|r| r.is_finite()).count();
+        Sweep {
+            profiles: 2,
+            columns: 3,
+            start: None,
+            stamp_s: vec![0.0, 0.02],
+            seq: vec![0, 1],
+            pan_rad: vec![0.0; 2],
+            tilt_rad: vec![0.5, 0.51],
+            range_m,
+            cloud: PointCloud::organized(3, 2, points),
+            report: SweepReport {
+                received: 2,
+                kept: 2,
+                points: returns,
+                ..SweepReport::default()
+            },
+        }
+    }
+
     /// The sweep if it kept at least `needed` profiles, else [`SweepError::TooFewProfiles`].
     pub fn require_profiles(self, needed: usize) -> Result<Sweep, SweepError> {
         if self.profiles < needed {

@@ -1311,29 +1311,7 @@ impl sqscan::daemon::Backend for FlatPatch {
         tokio::time::sleep(Duration::from_millis(20)).await;
         self.sweeps += 1;
         assert!(Some(self.sweeps) != self.panic_at, "the test backend's bug");
-        let mut points = vec![[0.5f32, 0.0, 0.7]; 6];
-        points[4] = [f32::NAN; 3];
-        let range_m = points
-            .iter()
-            .map(|p| if p[0].is_nan() { f32::NAN } else { 0.86 })
-            .collect();
-        let sweep = sqscan::sweep::Sweep {
-            profiles: 2,
-            columns: 3,
-            start: None,
-            stamp_s: vec![0.0, 0.02],
-            seq: vec![0, 1],
-            pan_rad: vec![0.0; 2],
-            tilt_rad: vec![0.5, 0.51],
-            range_m,
-            cloud: sqscan::cloud::PointCloud::organized(3, 2, points),
-            report: sqscan::sweep::SweepReport {
-                received: 2,
-                kept: 2,
-                points: 5,
-                ..Default::default()
-            },
-        };
+        let sweep = sqscan::sweep::Sweep::flat_patch(Some(4));
         let started = Instant::now();
         Ok(sqscan::daemon::Swept {
             sweep,
