@@ -2,15 +2,12 @@
 //! pose, says "not here" when it is not, gives the same answer for the same seed, and survives
 //! degenerate input.
 
+use crate::common::root;
 use sqscan::detect::{Params, detect};
 use sqscan::eval::{self, Symmetry};
 use sqscan::model::Model;
 use sqscan::sim::{Scene, simulate};
-use std::path::{Path, PathBuf};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
+use std::path::Path;
 
 fn scene(name: &str) -> Scene {
     Scene::from_file(&root().join("scenes").join(name), &root().join("models")).unwrap()

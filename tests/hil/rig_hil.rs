@@ -2,10 +2,10 @@
 //! table) on ptys in this process, the real PTU driver and the real sensor device on the other
 //! side, and the calibration turning raw profiles into base-frame points.
 
-use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::common::root;
 use sqscan::mock::rig::{RigConfig, RigMock};
 use sqscan::sim::Scene;
 use sqscan_drivers::PtuKind;
@@ -13,10 +13,6 @@ use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::profile::SeqEvent;
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
 use sqscan_drivers::{Goal, PanTilt};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn profiles_at_a_commanded_tilt_calibrate_onto_the_table() {

@@ -2,10 +2,10 @@
 //! the PTU's angles at each exposure) on ptys in this process, the real PowerCube driver and the
 //! real sensor device opened on them, and `sweep::acquire` assembling what they deliver.
 
-use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
+use crate::common::root;
 use nalgebra::Point3;
 use sqscan::geometry::PlacedSuperquadric;
 use sqscan::mock::rig::{RigConfig, RigMock};
@@ -16,10 +16,6 @@ use sqscan_drivers::PtuKind;
 use sqscan_drivers::mock::Faults;
 use sqscan_drivers::powercube::{PowerCubeConfig, PowerCubePtu};
 use sqscan_drivers::sensor::{ProfileSensor, SensorConfig};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// The Fig. 3 scene without sensor noise or dropouts: every return is exactly on a surface (up
 /// to the 1/16 px row quantisation, about a millimetre here), so what is left is the assembly.

@@ -20,10 +20,6 @@ use sqscan::sim::Scene;
 use crate::common::protocol::check_reply;
 use crate::common::{Proc, free_port, tmpdir, wait_for};
 
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
-
 /// Starts `sqscand --config` on `config` text written into `dir`; returns once the socket
 /// answers.
 fn start_daemon(dir: &Path, config: &str, env: &[(&str, &str)]) -> (Proc, PathBuf) {
@@ -1568,6 +1564,7 @@ fn a_replayed_recording_gives_the_same_answers_to_the_digit() {
 
 // A GigE Vision rig (the mock camera on aravis's emulator, the PowerCube on a pty) runs only
 // inside a private network namespace with only loopback.
+use crate::common::root;
 #[cfg(feature = "gige")]
 use sqscan_drivers::mock::gige::in_private_network;
 

@@ -3,15 +3,10 @@
 //! requests and error codes. Regenerate the schema file after changing the types with
 //! `SQSCAN_BLESS=1 cargo test --test service protocol::`.
 
-use std::path::PathBuf;
-
+use crate::common::root;
 use serde_json::Value;
 use sqscan::daemon::protocol::parse_request;
 use sqscan::daemon::reply::{ErrorCode, PROTO_MAJOR, PROTO_MINOR, Reply, schema};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 fn protocol_md() -> String {
     std::fs::read_to_string(root().join("docs/PROTOCOL.md")).unwrap()

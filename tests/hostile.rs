@@ -1,16 +1,19 @@
 //! Hostile and broken input to the detector: each case that once gave a wrong answer
 //! keeps a test named after it. Bounds are asserted with a wide margin; the tight figures are in
 //! BENCHMARKS.md.
+//!
+//! A test binary of its own, kept small: the peak memory of a child `sqscan` is read from
+//! wait4(2), and Linux starts a child's peak at its parent's resident size when it execs, so
+//! a parent that also runs daemons would hide the child's figure under its own.
 
+mod common;
+
+use common::root;
 use sqscan::detect::{Params, detect};
 use sqscan::eval;
 use sqscan::model::Model;
 use sqscan::sim::{Scene, simulate};
 use std::path::PathBuf;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-}
 
 /// The cup of the simulated Fig. 3 sweep, found where it is with `extra` points added to the
 /// cloud (a few wild returns), at each of a few seeds.
