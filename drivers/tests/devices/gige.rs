@@ -56,7 +56,7 @@ fn runtime() -> tokio::runtime::Runtime {
 
 #[test]
 fn opened_by_address_set_up_by_feature_name_and_decoded_row_by_row() {
-    if !in_private_network("opened_by_address_set_up_by_feature_name_and_decoded_row_by_row") {
+    if !in_private_network("gige::opened_by_address_set_up_by_feature_name_and_decoded_row_by_row") {
         return;
     }
     let (_camera, start) = camera(CameraClock::default());
@@ -109,7 +109,7 @@ fn opened_by_address_set_up_by_feature_name_and_decoded_row_by_row() {
 
 #[test]
 fn features_that_cannot_be_set_are_named() {
-    if !in_private_network("features_that_cannot_be_set_are_named") {
+    if !in_private_network("gige::features_that_cannot_be_set_are_named") {
         return;
     }
     let (_camera, _) = camera(CameraClock::default());
@@ -136,7 +136,7 @@ fn features_that_cannot_be_set_are_named() {
 
 #[test]
 fn the_camera_clock_runs_with_its_offset_and_drift() {
-    if !in_private_network("the_camera_clock_runs_with_its_offset_and_drift") {
+    if !in_private_network("gige::the_camera_clock_runs_with_its_offset_and_drift") {
         return;
     }
     // 5000 s ahead and 2 % fast (far beyond a real camera's tens of ppm, so that three seconds
@@ -179,7 +179,7 @@ fn the_camera_clock_runs_with_its_offset_and_drift() {
 
 #[test]
 fn a_camera_unplugged_while_acquiring_is_a_disconnect() {
-    if !in_private_network("a_camera_unplugged_while_acquiring_is_a_disconnect") {
+    if !in_private_network("gige::a_camera_unplugged_while_acquiring_is_a_disconnect") {
         return;
     }
     let (camera, _) = camera(CameraClock::default());
