@@ -9,6 +9,9 @@
 //! out 10-20 mm too deep or too wide (a Pringles can 73 mm across learned as 85 mm), which is
 //! the size of the next box on the shelf. The top of a convex object on the table, seen from
 //! above, is seen whole: its outline is the cross-section, to within the sensor's noise.
+//!
+//! Over 600 lines, a third of them tests: the measurement's checks (standing, a flat top, walls
+//! under it) are tested together, on synthetic views of boxes, cans and their neighbours.
 
 use super::seen::hull2d;
 use super::state::State;
