@@ -512,6 +512,7 @@ impl Shared {
     }
 
     /// Follows the detections as they are made.
+    #[cfg(any(feature = "mcap", feature = "foxglove", feature = "ros2"))]
     pub fn detections(&self) -> tokio::sync::broadcast::Receiver<DetectedEvent> {
         self.detected.subscribe()
     }

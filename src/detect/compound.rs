@@ -140,7 +140,7 @@ pub fn combinations(
             params,
             settings: &settings,
             visit,
-            stream: |pi: usize| stream_seed(params.seed, 1_000_000 * (round + 1) + (step * 100 + pi) as u64),
+            first_stream: 1_000_000 * (round + 1) + (step * 100) as u64,
         };
         partial = place.extend(partial);
     }
@@ -193,17 +193,18 @@ fn visit_order(model: &Model, anchor: usize) -> Vec<Visit> {
 
 /// One step of growing the combinations: one part looked for against each partial
 /// combination's placement of its parent.
-struct PlacePart<'a, S: Fn(usize) -> u64 + Sync> {
+struct PlacePart<'a> {
     prep: &'a Prepared,
     model: &'a Model,
     params: &'a Params,
     settings: &'a SearchSettings,
     visit: Visit,
-    /// The random stream of the trials around each partial combination.
-    stream: S,
+    /// The random stream of the trials around the first partial combination; the k-th takes
+    /// the k-th after it.
+    first_stream: u64,
 }
 
-impl<S: Fn(usize) -> u64 + Sync> PlacePart<'_, S> {
+impl PlacePart<'_> {
     /// Every partial combination once for each distinct placement of the part found against
     /// it, or once as it is where none is.
     fn extend(&self, partial: Vec<Combination>) -> Vec<Combination> {
@@ -296,7 +297,7 @@ impl<S: Fn(usize) -> u64 + Sync> PlacePart<'_, S> {
                         m,
                         self.settings,
                         &self.prep.checks[part],
-                        (self.stream)(pi),
+                        stream_seed(self.params.seed, self.first_stream + pi as u64),
                     ));
                 }
                 Some(search::distinct(fits, &[]))
