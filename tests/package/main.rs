@@ -8,7 +8,6 @@
 //! with `SQSCAN_BLESS=1 cargo test --test package`.
 
 mod architecture;
-mod lengths;
 
 use std::collections::BTreeMap;
 use std::io::Write;

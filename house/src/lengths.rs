@@ -1,15 +1,13 @@
-//! The rooms are livable: no function outside tests over 100 lines, no file over 600 without a
-//! line at its top that says why.
+//! Function lengths, from the source text.
 //!
 //! syn says which functions there are and which are test code; their lengths come from the source
 //! text, from the `fn` keyword to the closing brace, matched by a scanner that skips comments,
-//! strings and character literals. Spans would give the lines too, but only with proc-macro2's
-//! `span-locations`, a feature that, enabled by a dev-dependency alone, made the lint, doc and
-//! test steps each rebuild every procedural macro in the tree.
+//! strings and character literals (spans would give the lines too, but only with proc-macro2's
+//! `span-locations`).
 
 use std::path::{Path, PathBuf};
 
-use crate::architecture::{is_test_only, read, root};
+use crate::modules::is_test_only;
 
 /// A function found by syn: its name and whether it is test code.
 struct Found {
@@ -174,7 +172,7 @@ fn span_of(code: &[u8], from: usize, name: &str) -> Option<(usize, usize)> {
 }
 
 /// Every function outside tests in `text` longer than `limit` lines, as `file:line name (n lines)`.
-fn long_functions(file: &Path, text: &str, limit: usize) -> Vec<String> {
+pub(crate) fn long_functions(file: &Path, text: &str, limit: usize) -> Vec<String> {
     let parsed = syn::parse_file(text).unwrap_or_else(|e| panic!("{}: {e}", file.display()));
     let mut found = Vec::new();
     functions(&parsed.items, false, &mut found);
@@ -194,7 +192,7 @@ fn long_functions(file: &Path, text: &str, limit: usize) -> Vec<String> {
 }
 
 /// Every `.rs` file under `dir`.
-fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+pub(crate) fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     for e in std::fs::read_dir(dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
         let p = e.unwrap().path();
         if p.is_dir() {
@@ -205,78 +203,36 @@ fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
     }
 }
 
-#[test]
-fn no_function_over_100_lines_and_no_file_over_600_without_a_reason() {
+/// Every function outside tests longer than `limit` lines in the `.rs` files under `dirs` of
+/// `base` (none in files under a `tests` directory or named `tests.rs`), and every file over
+/// `file_limit` lines without an `Over N lines` reason in its first 16 lines; and the files
+/// read.
+pub(crate) fn long_functions_and_files(
+    base: &Path,
+    dirs: &[String],
+    limit: usize,
+    file_limit: usize,
+) -> (Vec<String>, Vec<String>, Vec<PathBuf>) {
     let mut files = Vec::new();
-    for dir in ["src", "drivers/src", "tests", "benches"] {
-        rust_files(&root().join(dir), &mut files);
+    for dir in dirs {
+        rust_files(&base.join(dir), &mut files);
     }
     files.sort();
     let (mut long, mut large) = (Vec::new(), Vec::new());
+    let reason = format!("Over {file_limit} lines");
     for f in &files {
-        let text = read(f);
-        let in_tests = f.starts_with(root().join("tests")) || f.ends_with("tests.rs");
+        let text = crate::modules::read(f);
+        let rel = f.strip_prefix(base).unwrap_or(f);
+        let in_tests = rel.starts_with("tests") || f.ends_with("tests.rs");
         if !in_tests {
-            long.extend(long_functions(f.strip_prefix(root()).unwrap(), &text, 100));
+            long.extend(long_functions(rel, &text, limit));
         }
         // The reason is the module's first paragraph or the one after it.
         let head: String = text.lines().take(16).collect::<Vec<_>>().join("\n");
-        if text.lines().count() > 600 && !head.contains("Over 600 lines") {
-            large.push(format!(
-                "{} ({} lines)",
-                f.strip_prefix(root()).unwrap().display(),
-                text.lines().count()
-            ));
+        let n = text.lines().count();
+        if n > file_limit && !head.contains(&reason) {
+            large.push(format!("{} ({n} lines)", rel.display()));
         }
     }
-    assert!(
-        long.is_empty(),
-        "functions over 100 lines outside tests:\n{}",
-        long.join("\n")
-    );
-    assert!(
-        large.is_empty(),
-        "files over 600 lines with no `Over 600 lines ...` reason at the top:\n{}",
-        large.join("\n")
-    );
-}
-
-#[test]
-fn lengths_count_code_braces_only_and_leave_test_code_out() {
-    // Braces in strings, raw strings, characters and comments are not the code's; a lifetime is
-    // not a character; a test function of the same name earlier in the file is passed over.
-    let text = r###"
-#[cfg(test)]
-mod tests {
-    fn go() {
-        let _ = 1;
-        let _ = 2;
-        let _ = 3;
-    }
-}
-
-/// Five lines, from `fn` to its brace.
-fn go<'a>(s: &'a str) -> usize {
-    let _ = ("}", '{', '}', r#"}"}"#, b"{", '\'', "\"}"); // }
-    /* } /* nested } */ } */
-    s.len()
-}
-
-impl S {
-    fn short(&self) {}
-    fn declared();
-    fn six() -> [u8; 2] {
-        let x = [0u8; 2];
-        let r#type = x;
-        // {
-        r#type
-    }
-}
-"###;
-    let file = Path::new("made/up.rs");
-    assert_eq!(long_functions(file, text, 6), Vec::<String>::new());
-    assert_eq!(
-        long_functions(file, text, 4),
-        vec!["made/up.rs:12 go (5 lines)", "made/up.rs:21 six (6 lines)"]
-    );
+    (long, large, files)
 }
