@@ -1,7 +1,9 @@
-//! What a part rests on, where that is not the support plane (the shell test of
-//! [`super::verify`] leaves it out).
+//! What a part rests on (the shell test of [`super::verify`] leaves it out): the support plane's
+//! points the plane removal left, or the top of whatever else the part stands on.
 
+use super::plane_check::approximation_tolerance;
 use super::space::SearchSpace;
+use crate::cloud::plane::Plane;
 use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 
@@ -22,7 +24,18 @@ pub(super) struct Support {
     base: Option<(Vector3<f64>, f64)>,
     /// How far from that height (m) a point is on the support.
     band: f64,
+    /// The support plane, and the height over it (m) below which a point is the plane's own:
+    /// [`PLANE_RESIDUE`] times the removal band at the part, at most the approximation
+    /// tolerance of its shape.
+    plane: Option<(Plane, f64)>,
 }
+
+/// Below this many times the plane removal's band (three noise sigmas) over the support plane a
+/// point is the plane's, left by the removal: the noise's tail and the table's unevenness. Kept
+/// in the shell, they lay along the foot of every object standing on the table (a standing
+/// cereal box in mOSD learn32: 300 of its 460 shell points within 5 mm of the table, the
+/// removal's band 3.9 mm), and counted against it.
+const PLANE_RESIDUE: f64 = 2.0;
 
 impl Support {
     pub(super) fn new(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Support {
@@ -37,7 +50,12 @@ impl Support {
             // larger box's, around a fit on its lower part).
             (lowest + plane.d > band).then_some((n, lowest))
         });
-        Support { base, band }
+        let centre = Point3::from(placed.pose.translation.vector);
+        // Never more than the model's approximation of the part's own foot: a small part's
+        // lowest wall must still answer for what lies around it.
+        let residue = (PLANE_RESIDUE * 3.0 * space.noise.at(&centre)).min(approximation_tolerance(&placed.shape));
+        let plane = space.plane.map(|p| (p, residue));
+        Support { base, band, plane }
     }
 
     /// Whether a point lies on the surface the part may rest on: at the base's height, on a
@@ -48,6 +66,11 @@ impl Support {
     /// drops away: an upturned bowl whose rim rests near the edge of a tin is held to its shell
     /// test there.)
     pub(super) fn holds(&self, space: &SearchSpace<'_>, p: &Point3<f64>) -> bool {
+        if let Some((plane, residue)) = &self.plane
+            && plane.signed_distance(p) < *residue
+        {
+            return true;
+        }
         let Some((n, h)) = self.base else { return false };
         let height = n.dot(&p.coords);
         if (height - h).abs() > self.band {
@@ -59,5 +82,84 @@ impl Support {
             level += usize::from((n.dot(&space.points[k].coords) - height).abs() <= 0.5 * SUPPORT_PATCH);
         });
         5 * level >= 4 * all
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::prepare::{index, scene};
+    use super::super::verify::score;
+    use super::super::{Params, detect};
+    use super::{PLANE_RESIDUE, approximation_tolerance};
+    use crate::cloud::grid::Grid;
+    use crate::cloud::plane::orthonormal_basis;
+    use crate::model::Model;
+    use nalgebra::Point3;
+    use std::sync::Arc;
+
+    /// The plane removal leaves the table's noise tail just above its band. Along the foot of a
+    /// part standing on the table those points are the table's, not the part's surface going on
+    /// past its model, and are not in its shell (a standing cereal box of mOSD learn32 had 300 of
+    /// its 460 shell points there, a standing Pringles can of test32 was refused for them).
+    #[test]
+    fn the_tables_residue_at_a_standing_parts_foot_is_not_in_its_shell() {
+        let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+        let models = root.join("models");
+        // A spray tin standing alone, seen by a sensor of little noise: the residue's height (a
+        // tenth of the tin's radius) then lies above the removal's band.
+        let rig = std::fs::read_to_string(root.join("scenes/fig4_tools.toml")).unwrap();
+        let rig = &rig[rig.find("[table]").unwrap()..rig.find("[[object]]").unwrap()];
+        let text = format!(
+            "description = \"a spray tin alone\"\n{}\n[[object]]\nmodel = \"spray_tin\"\npose = {{ position = [0.85, 0.0, 0.0] }}\n",
+            rig.replace("noise_sigma_at_1m = 0.002", "noise_sigma_at_1m = 0.0006")
+        );
+        let dir = std::env::temp_dir().join(format!("sqscan-residue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("tin.toml"), text).unwrap();
+        let sim = crate::sim::Scene::from_file(&dir.join("tin.toml"), &models).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        let sweep = crate::sim::simulate(&sim, 1);
+        let model = Model::load("spray_tin", &models).unwrap();
+        let params = Params {
+            viewpoint: sweep.cloud.viewpoint_position(),
+            ..Params::default()
+        };
+        let found = detect(&sweep.cloud.points, &model, &params);
+        let pose = found.best_found().expect("the tin is found").pose;
+        let placed = model.placed_parts(&pose)[0];
+        let mut prep = index(Arc::new(scene(&sweep.cloud.points, &params)), &model, &params);
+        let shell = |prep: &super::super::prepare::Prepared| {
+            score(&prep.space(), &placed, 0.0, params.gamma, &prep.samples[0]).shell_points
+        };
+        let before = shell(&prep);
+        // A ring of the table's points around the foot, between the removal's band and the
+        // residue's height over the table, just outside the wall's surface band.
+        let plane = prep.scene.plane.expect("a table");
+        let centre = Point3::from(placed.pose.translation.vector);
+        let removal = 3.0 * prep.noise().at(&centre);
+        let residue = (PLANE_RESIDUE * removal).min(approximation_tolerance(&placed.shape));
+        assert!(residue > removal, "{residue} over {removal}");
+        let surface_band = (2.5 * prep.noise().at(&centre)).max(0.002);
+        let foot = centre - plane.normal * plane.signed_distance(&centre);
+        let (u, w) = orthonormal_basis(&plane.normal);
+        let radius = placed.shape.a[0];
+        let ring: Vec<Point3<f64>> = (0..120)
+            .map(|k| {
+                let t = k as f64 / 120.0 * std::f64::consts::TAU;
+                let out = radius + surface_band + 0.0015;
+                foot + plane.normal * (0.5 * (removal + residue)) + (u * t.cos() + w * t.sin()) * out
+            })
+            .collect();
+        assert!(
+            ring.iter().all(|p| placed.surface_distance(p) > surface_band),
+            "the ring lies outside the surface band"
+        );
+        prep.mid.extend(ring);
+        prep.mid_grid = Grid::new(&prep.mid, 1.2 * prep.max_size);
+        let after = shell(&prep);
+        assert!(
+            after <= before + 3,
+            "shell points {before} without the ring, {after} with it"
+        );
     }
 }
