@@ -188,16 +188,20 @@ pub(super) fn object_at(
         regions.len(),
         regions.iter().map(|r| r.len()).take(12).collect::<Vec<_>>()
     );
-    merge_belonging(points, object, regions, up)
+    merge_belonging(points, object, regions, up, false)
 }
 
 /// `object` with those of `regions` that belong to it, seen along `up`, as [`object_at`] tells
-/// (a region must come within [`BELONGS_WITHIN`] of it as well).
+/// (a region must come within [`BELONGS_WITHIN`] of it as well); with `rims`, also a region level
+/// with the object's top ([`RIM_LEVEL`]) inside the circle of that top ([`rim_circle`]): an open
+/// container's inside seen through its opening beyond its near wall, which lie side by side
+/// seen from above (the mOSD white bowl of learn35 shown at its labelled centroid, on its wall).
 pub(super) fn merge_belonging(
     points: &[Point3<f64>],
     mut object: Vec<usize>,
     mut regions: Vec<Vec<usize>>,
     up: &Vector3<f64>,
+    rims: bool,
 ) -> Vec<usize> {
     let (u, w) = crate::cloud::plane::orthonormal_basis(up);
     let flat = |i: &usize| (points[*i].coords.dot(&u), points[*i].coords.dot(&w));
@@ -213,12 +217,29 @@ pub(super) fn merge_belonging(
         let object_top = top(&object);
         let object_points: Vec<Point3<f64>> = object.iter().map(|&i| points[i]).collect();
         let grid = crate::cloud::grid::Grid::new(&object_points, BELONGS_WITHIN);
+        let rim = if rims {
+            rim_circle(points, &object, up, object_top)
+        } else {
+            None
+        };
+        let within_rim = |r: &[usize]| {
+            rim.is_some_and(|(c, radius)| {
+                r.iter()
+                    .filter(|i| {
+                        let (x, y) = flat(i);
+                        (x - c.x).hypot(y - c.y) <= radius + RIM_MARGIN
+                    })
+                    .count() as f64
+                    >= 0.8 * r.len() as f64
+            })
+        };
         let joins = regions.iter().position(|r| {
             let r_top = top(r);
             r.iter()
                 .any(|&i| grid.any_within(&object_points, &points[i], BELONGS_WITHIN))
                 && ((r_top <= object_top + 0.01 && within(r, &hull))
-                    || (r_top > object_top && within(&object, &super::seen::hull2d(r.iter().map(flat).collect()))))
+                    || (r_top > object_top && within(&object, &super::seen::hull2d(r.iter().map(flat).collect())))
+                    || ((r_top - object_top).abs() <= RIM_LEVEL && within_rim(r)))
         });
         match joins {
             Some(k) => object.extend(regions.swap_remove(k)),
@@ -229,6 +250,47 @@ pub(super) fn merge_belonging(
 
 /// A region that belongs to an object comes this close to it (m).
 const BELONGS_WITHIN: f64 = 0.05;
+
+/// An open container's outer wall and its inside seen through the opening reach the same rim:
+/// their tops lie within this of each other (m), and the rim is the band this deep below the
+/// wall's top.
+const RIM_LEVEL: f64 = 0.01;
+/// How far (m) outside the rim's circle the inside's points may lie: the noise, and the rim's
+/// thickness.
+const RIM_MARGIN: f64 = 0.005;
+
+/// The circle, seen along `up`, of the top of the object's wall: its centre in the plane's
+/// basis and its radius. `None` where the top's points do not make a circle no larger than the
+/// object: an arc of an open container's rim (its near wall, with the inside seen through the
+/// opening beyond it) does; a box's top edge does not.
+fn rim_circle(
+    points: &[Point3<f64>],
+    object: &[usize],
+    up: &Vector3<f64>,
+    object_top: f64,
+) -> Option<(nalgebra::Vector2<f64>, f64)> {
+    let (u, w) = crate::cloud::plane::orthonormal_basis(up);
+    let flat = |i: usize| nalgebra::Vector2::new(points[i].coords.dot(&u), points[i].coords.dot(&w));
+    let rim: Vec<nalgebra::Vector2<f64>> = object
+        .iter()
+        .filter(|&&i| points[i].coords.dot(up) > object_top - RIM_LEVEL)
+        .map(|&i| flat(i))
+        .collect();
+    if rim.len() < 20 {
+        return None;
+    }
+    let centre = super::profile::circle_fit(&rim)?;
+    let mut d: Vec<f64> = rim.iter().map(|p| (p - centre).norm()).collect();
+    let radius = crate::numeric::median(&mut d)?;
+    let all: Vec<nalgebra::Vector2<f64>> = object.iter().map(|&i| flat(i)).collect();
+    let extent = all
+        .iter()
+        .flat_map(|a| all.iter().step_by(7).map(move |b| (a - b).norm()))
+        .fold(0.0, f64::max);
+    // The rim points fit the circle, and it is no wider than the object seen from above.
+    let spread = crate::numeric::median(&mut d.iter().map(|x| (x - radius).abs()).collect::<Vec<_>>())?;
+    (2.0 * radius <= 1.1 * extent && spread <= RIM_MARGIN).then_some((centre, radius))
+}
 
 #[cfg(test)]
 mod tests {

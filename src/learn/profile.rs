@@ -181,7 +181,7 @@ pub(super) fn measure(points: &[Point3<f64>], plane: &Plane, viewpoint: &Point3<
 /// The centre of the circle through `points`: the algebraic fit, then Gauss-Newton on the
 /// Huber-weighted distances (the algebraic fit weights points by their radius and is pulled by
 /// strays).
-fn circle_fit(points: &[Vector2<f64>]) -> Option<Vector2<f64>> {
+pub(super) fn circle_fit(points: &[Vector2<f64>]) -> Option<Vector2<f64>> {
     let mut centre = kasa_centre(points)?;
     for _ in 0..20 {
         let mut d: Vec<f64> = points.iter().map(|p| (p - centre).norm()).collect();

@@ -87,7 +87,7 @@ pub fn segment_at(points: &[Point3<f64>], params: &LearnParams, at: &Point3<f64>
                         .filter(|(j, c)| *j != k && c.len() >= 10)
                         .map(|(_, c)| c)
                         .collect();
-                    super::convex::merge_belonging(points, object, others, &pl.normal)
+                    super::convex::merge_belonging(points, object, others, &pl.normal, true)
                 }
                 None => {
                     let mut clusters = clusters;
