@@ -217,8 +217,14 @@ pub(super) fn merge_belonging(
         let object_top = top(&object);
         let object_points: Vec<Point3<f64>> = object.iter().map(|&i| points[i]).collect();
         let grid = crate::cloud::grid::Grid::new(&object_points, BELONGS_WITHIN);
-        let rim = if rims {
-            rim_circle(points, &object, up, object_top)
+        // Only where a region is near and level with the object's top.
+        let level_near = |r: &[usize]| {
+            (top(r) - object_top).abs() <= RIM_LEVEL
+                && r.iter()
+                    .any(|&i| grid.any_within(&object_points, &points[i], BELONGS_WITHIN))
+        };
+        let rim = if rims && regions.iter().any(|r| level_near(r)) {
+            rim_circle(points, &object, &hull, up, object_top)
         } else {
             None
         };
@@ -260,12 +266,13 @@ const RIM_LEVEL: f64 = 0.01;
 const RIM_MARGIN: f64 = 0.005;
 
 /// The circle, seen along `up`, of the top of the object's wall: its centre in the plane's
-/// basis and its radius. `None` where the top's points do not make a circle no larger than the
+/// basis and its radius (`hull`: the object's outline in that basis). `None` where the top's points do not make a circle no larger than the
 /// object: an arc of an open container's rim (its near wall, with the inside seen through the
 /// opening beyond it) does; a box's top edge does not.
 fn rim_circle(
     points: &[Point3<f64>],
     object: &[usize],
+    hull: &[(f64, f64)],
     up: &Vector3<f64>,
     object_top: f64,
 ) -> Option<(nalgebra::Vector2<f64>, f64)> {
@@ -282,10 +289,10 @@ fn rim_circle(
     let centre = super::profile::circle_fit(&rim)?;
     let mut d: Vec<f64> = rim.iter().map(|p| (p - centre).norm()).collect();
     let radius = crate::numeric::median(&mut d)?;
-    let all: Vec<nalgebra::Vector2<f64>> = object.iter().map(|&i| flat(i)).collect();
-    let extent = all
+    // The object's width seen from above: the longest chord of its outline.
+    let extent = hull
         .iter()
-        .flat_map(|a| all.iter().step_by(7).map(move |b| (a - b).norm()))
+        .flat_map(|a| hull.iter().map(move |b| (a.0 - b.0).hypot(a.1 - b.1)))
         .fold(0.0, f64::max);
     // The rim points fit the circle, and it is no wider than the object seen from above.
     let spread = crate::numeric::median(&mut d.iter().map(|x| (x - radius).abs()).collect::<Vec<_>>())?;
