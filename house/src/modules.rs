@@ -4,9 +4,6 @@
 //! Code under `#[cfg(test)]` is left out: a test may reach wherever it needs to. A `pub use`
 //! re-export is followed to where the item lives instead of counting as a use, so that a
 //! module's face (its `mod.rs` re-exporting its parts) is not taken for a dependency.
-//!
-//! Over 600 lines on purpose: the module tree, the resolver and the two checks that read
-//! through them belong together.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};

@@ -266,9 +266,10 @@ const RIM_LEVEL: f64 = 0.01;
 const RIM_MARGIN: f64 = 0.005;
 
 /// The circle, seen along `up`, of the top of the object's wall: its centre in the plane's
-/// basis and its radius (`hull`: the object's outline in that basis). `None` where the top's points do not make a circle no larger than the
-/// object: an arc of an open container's rim (its near wall, with the inside seen through the
-/// opening beyond it) does; a box's top edge does not.
+/// basis and its radius (`hull`: the object's outline in that basis). `None` where the top's
+/// points do not make a circle no larger than the object: an arc of an open container's rim
+/// (its near wall, with the inside seen through the opening beyond it) does; a box's top edge
+/// does not.
 fn rim_circle(
     points: &[Point3<f64>],
     object: &[usize],
