@@ -14,8 +14,8 @@
 //!   acquired with any PTU and [`sqscan_drivers::sensor::ProfileSource`].
 //! - [`sim`]: scene files and the ray-cast scanner, which delivers the same `Sweep`; [`mock`]:
 //!   the mock rig on pseudo-terminals.
-//! - [`detect`]: the superquadric detector; [`eval`] scores it against the simulator's truth;
-//!   [`learn`]: a model from a scan.
+//! - [`detect`]: the superquadric detector; [`grasp`]: where a parallel gripper can take what
+//!   it found; [`eval`] scores it against the simulator's truth; [`learn`]: a model from a scan.
 //! - [`daemon`]: `sqscand`, handed a [`daemon::Backend`] and its [`daemon::Listeners`].
 //! - [`logging`], [`atomic`]: what both binaries share.
 //!
@@ -30,6 +30,7 @@ pub mod daemon;
 pub mod detect;
 pub mod eval;
 pub mod geometry;
+pub mod grasp;
 pub mod learn;
 pub mod logging;
 pub mod mock;
@@ -39,5 +40,6 @@ pub mod pose;
 pub mod ros;
 pub mod sim;
 pub mod spec;
+pub mod surface_samples;
 pub mod sweep;
 mod symmetry;

@@ -285,7 +285,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__detect)
-            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --repeat --help"
+            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --repeat --grasps --gripper --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -331,6 +331,14 @@ _sqscan() {
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;
+                --grasps)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --gripper)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
                 *)
                     COMPREPLY=()
                     ;;
@@ -339,7 +347,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__eval)
-            opts="-h --models-dir --scene --model --trials --seed --absent --truth-object --model-in-object --ransac-trials --json --help"
+            opts="-h --models-dir --scene --model --trials --seed --absent --truth-object --model-in-object --ransac-trials --json --grasps --gripper --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -377,6 +385,10 @@ _sqscan() {
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;
+                --gripper)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
                 *)
                     COMPREPLY=()
                     ;;
@@ -385,7 +397,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__eval__subcmd__real)
-            opts="-h --models-dir --labels --clouds --model --class --identity --catalogue --learned-from --seed --max-range --json --help"
+            opts="-h --models-dir --labels --clouds --model --class --identity --catalogue --learned-from --seed --max-range --json --grasps --gripper --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -431,6 +443,10 @@ _sqscan() {
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;
+                --gripper)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
                 *)
                     COMPREPLY=()
                     ;;
@@ -439,7 +455,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__find)
-            opts="-h --max-age --timeout --all --socket --json --help"
+            opts="-h --max-age --timeout --all --grasps --socket --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -450,6 +466,10 @@ _sqscan() {
                     return 0
                     ;;
                 --timeout)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --grasps)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;
@@ -1659,13 +1679,17 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__watch)
-            opts="-h --count --socket --json --help"
+            opts="-h --count --grasps --socket --json --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
             fi
             case "${prev}" in
                 --count)
+                    COMPREPLY=($(compgen -f "${cur}"))
+                    return 0
+                    ;;
+                --grasps)
                     COMPREPLY=($(compgen -f "${cur}"))
                     return 0
                     ;;

@@ -68,6 +68,8 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l viewpoint -d 'S
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l hypotheses -d 'Hypotheses for the (largest) part [default: the model\'s m, else from the scene\'s extent]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l trials -d 'RANSAC trials per hypothesis' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l repeat -d 'Run the detection N times on the cloud in this process and report the fastest run, for benchmarks: the runs after the first are warm, as in the daemon. Every run must give the same answer' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l grasps -d 'Give every found object up to N grasps of a parallel gripper, best first, checked against the cloud (docs/GRASPS.md)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l gripper -d 'The gripper\'s settings: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l all -d 'Report every accepted instance that does not overlap a better one'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l keep-plane -d 'Keep the dominant plane instead of removing it'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -s h -l help -d 'Print help'
@@ -106,8 +108,10 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l seed -d 'First se
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l truth-object -d 'The scene object the model is (its pose is the truth) [default: the object of the same model, else the one with the model\'s first part\'s shape]; for a learned model' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l model-in-object -d 'The model\'s frame in the truth object\'s frame, "x,y,z,qx,qy,qz,qw" (m, quaternion): the truth is the object\'s pose composed with it. A learned model\'s frame is where the learner put it on the object (its `model_pose` in the learning cloud, composed with the inverse of the object\'s pose there), not the shipped model\'s [default: the identity]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l ransac-trials -d 'RANSAC trials per hypothesis of the detector (`detect --trials`) [default: the detector\'s]' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l gripper -d 'The gripper\'s settings for --grasps: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l absent -d 'Remove the object from the scene and count false "found" answers'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l json -d 'Print one JSON object instead of a table'
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -l grasps -d 'Plan a grasp for every correct detection and judge it against the truth: returned where a brute-force sampler over the true object and scene finds a valid one, and the first grasp valid (contacts within 3 mm of the true surface and in the friction cone, the gripper 3 mm clear of the true table and every other true object)'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l labels -d 'Labels file (JSON: one entry a scene, its objects with class, identity, pose, support, centroid, visible, upright)' -r -F
@@ -119,7 +123,9 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l catalogue -d
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l learned-from -d 'The view the model was learned from, SCENE:GROUP: answers there are neutral and it is not counted in recall' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l seed -d 'Seed of every random choice of the search' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l gripper -d 'The gripper\'s settings for --grasps: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l json -d 'Print one JSON object instead of the text report'
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l grasps -d 'Plan grasps for every right answer and check the first against the labels: how many found objects get a grasp, and how many first grasps sweep no point that is not the object\'s'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -f -a "ptu" -d 'Run a mock pan-tilt unit on a pty until interrupted'
@@ -219,6 +225,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand sensor; and __fish_seen_su
 complete -c sqscan -n "__fish_sqscan_using_subcommand sensor; and __fish_seen_subcommand_from help" -f -a "help" -d 'Print this message or the help of the given subcommand(s)'
 complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l max-age -d 'Accept a sweep up to this old (s); else wait for the next one' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l timeout -d 'Give up after this long (s)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l grasps -d 'Up to N grasps of the daemon\'s gripper for each found instance, best first' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l socket -d 'The daemon\'s socket, or tcp://HOST:PORT for a daemon listening on TCP ([server] tcp) [default: $SQSCAN_SOCKET, else $XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else /run/sqscan/sqscand.sock: the first that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l all -d 'Every instance, not only the best'
 complete -c sqscan -n "__fish_sqscan_using_subcommand find" -l json -d 'Print the daemon\'s JSON replies as they are, one a line'
@@ -234,6 +241,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand cloud" -l socket -d 'The d
 complete -c sqscan -n "__fish_sqscan_using_subcommand cloud" -l json -d 'Print the daemon\'s JSON replies as they are, one a line'
 complete -c sqscan -n "__fish_sqscan_using_subcommand cloud" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand watch" -l count -d 'Stop after this many detection messages (default: until interrupted)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand watch" -l grasps -d 'Up to N grasps of the daemon\'s gripper for each found instance, best first' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand watch" -l socket -d 'The daemon\'s socket, or tcp://HOST:PORT for a daemon listening on TCP ([server] tcp) [default: $SQSCAN_SOCKET, else $XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else /run/sqscan/sqscand.sock: the first that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand watch" -l json -d 'Print the daemon\'s JSON replies as they are, one a line'
 complete -c sqscan -n "__fish_sqscan_using_subcommand watch" -s h -l help -d 'Print help'

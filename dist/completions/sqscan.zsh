@@ -71,6 +71,8 @@ _arguments "${_arguments_options[@]}" : \
 '--hypotheses=[Hypotheses for the (largest) part \[default\: the model'\''s m, else from the scene'\''s extent\]]:M:_default' \
 '--trials=[RANSAC trials per hypothesis]:TRIALS:_default' \
 '--repeat=[Run the detection N times on the cloud in this process and report the fastest run, for benchmarks\: the runs after the first are warm, as in the daemon. Every run must give the same answer]:N:_default' \
+'--grasps=[Give every found object up to N grasps of a parallel gripper, best first, checked against the cloud (docs/GRASPS.md)]:N:_default' \
+'--gripper=[The gripper'\''s settings\: a TOML file of the \[gripper\] table'\''s keys \[default\: a Robotiq 2F-85-class gripper\]]:GRIPPER.toml:_files' \
 '--all[Report every accepted instance that does not overlap a better one]' \
 '--keep-plane[Keep the dominant plane instead of removing it]' \
 '-h[Print help]' \
@@ -119,8 +121,10 @@ _arguments "${_arguments_options[@]}" : \
 '--truth-object=[The scene object the model is (its pose is the truth) \[default\: the object of the same model, else the one with the model'\''s first part'\''s shape\]; for a learned model]:NAME:_default' \
 '--model-in-object=[The model'\''s frame in the truth object'\''s frame, "x,y,z,qx,qy,qz,qw" (m, quaternion)\: the truth is the object'\''s pose composed with it. A learned model'\''s frame is where the learner put it on the object (its \`model_pose\` in the learning cloud, composed with the inverse of the object'\''s pose there), not the shipped model'\''s \[default\: the identity\]]:X,Y,Z,QX,QY,QZ,QW:_default' \
 '--ransac-trials=[RANSAC trials per hypothesis of the detector (\`detect --trials\`) \[default\: the detector'\''s\]]:N:_default' \
+'--gripper=[The gripper'\''s settings for --grasps\: a TOML file of the \[gripper\] table'\''s keys \[default\: a Robotiq 2F-85-class gripper\]]:GRIPPER.toml:_files' \
 '--absent[Remove the object from the scene and count false "found" answers]' \
 '--json[Print one JSON object instead of a table]' \
+'--grasps[Plan a grasp for every correct detection and judge it against the truth\: returned where a brute-force sampler over the true object and scene finds a valid one, and the first grasp valid (contacts within 3 mm of the true surface and in the friction cone, the gripper 3 mm clear of the true table and every other true object)]' \
 '-h[Print help]' \
 '--help[Print help]' \
 && ret=0
@@ -137,7 +141,9 @@ _arguments "${_arguments_options[@]}" : \
 '--learned-from=[The view the model was learned from, SCENE\:GROUP\: answers there are neutral and it is not counted in recall]:SCENE:GROUP:_default' \
 '--seed=[Seed of every random choice of the search]:SEED:_default' \
 '--max-range=[Ignore points farther than this from the viewpoint (m)]:M:_default' \
+'--gripper=[The gripper'\''s settings for --grasps\: a TOML file of the \[gripper\] table'\''s keys \[default\: a Robotiq 2F-85-class gripper\]]:GRIPPER.toml:_files' \
 '--json[Print one JSON object instead of the text report]' \
+'--grasps[Plan grasps for every right answer and check the first against the labels\: how many found objects get a grasp, and how many first grasps sweep no point that is not the object'\''s]' \
 '-h[Print help]' \
 '--help[Print help]' \
 && ret=0
@@ -403,6 +409,7 @@ esac
 _arguments "${_arguments_options[@]}" : \
 '--max-age=[Accept a sweep up to this old (s); else wait for the next one]:S:_default' \
 '--timeout=[Give up after this long (s)]:S:_default' \
+'--grasps=[Up to N grasps of the daemon'\''s gripper for each found instance, best first]:N:_default' \
 '--socket=[The daemon'\''s socket, or tcp\://HOST\:PORT for a daemon listening on TCP (\[server\] tcp) \[default\: \$SQSCAN_SOCKET, else \$XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else /run/sqscan/sqscand.sock\: the first that exists\]]:PATH:_files' \
 '--all[Every instance, not only the best]' \
 '--json[Print the daemon'\''s JSON replies as they are, one a line]' \
@@ -434,6 +441,7 @@ _arguments "${_arguments_options[@]}" : \
 (watch)
 _arguments "${_arguments_options[@]}" : \
 '--count=[Stop after this many detection messages (default\: until interrupted)]:N:_default' \
+'--grasps=[Up to N grasps of the daemon'\''s gripper for each found instance, best first]:N:_default' \
 '--socket=[The daemon'\''s socket, or tcp\://HOST\:PORT for a daemon listening on TCP (\[server\] tcp) \[default\: \$SQSCAN_SOCKET, else \$XDG_RUNTIME_DIR/sqscand.sock or ./sqscand.sock, else /run/sqscan/sqscand.sock\: the first that exists\]]:PATH:_files' \
 '--json[Print the daemon'\''s JSON replies as they are, one a line]' \
 '-h[Print help]' \

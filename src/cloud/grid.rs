@@ -223,7 +223,7 @@ pub fn voxel_subsample(points: &[Point3<f64>], voxel: f64) -> Vec<usize> {
 /// `v.floor() as i64` without a call to libm's `floor` (baseline x86-64 has no rounding
 /// instruction): truncate, then step down where that rounded up.
 #[inline(always)]
-fn floor_i64(v: f64) -> i64 {
+pub(crate) fn floor_i64(v: f64) -> i64 {
     let t = v as i64;
     if (t as f64) > v { t - 1 } else { t }
 }

@@ -6,7 +6,9 @@ use std::time::{Duration, Instant};
 
 use tokio::sync::Semaphore;
 
-use crate::detect::output::report_json;
+use crate::detect::output::{add_grasps, report_json};
+use crate::grasp::Gripper;
+use crate::model::Model;
 
 use super::cloud::{Payload, cloud};
 use super::protocol::{Command, Request};
@@ -14,11 +16,22 @@ use super::reply::{DetectionReply, ErrorCode, ModelJson, ModelPart, Models, Repl
 use super::state::{Shared, SweepEntry, round3};
 use super::waiting::wait_for_sweep;
 
-/// The `detection` reply: the detector's JSON, the sweep it was made on and how old that is.
-pub fn detection_reply(entry: &SweepEntry, det: &super::state::Detected, all: bool, frame: &str) -> Reply {
+/// The `detection` reply: the detector's JSON (with `grasps` grasps of `gripper` for each
+/// found instance of `model`), the sweep it was made on and how old that is.
+pub fn detection_reply(
+    entry: &SweepEntry,
+    det: &super::state::Detected,
+    all: bool,
+    frame: &str,
+    grasps: Option<(&Model, &Gripper, usize)>,
+) -> Reply {
+    let mut report = report_json(&det.report, all);
+    if let Some((model, gripper, n)) = grasps.filter(|g| g.2 > 0) {
+        add_grasps(&mut report, &det.report, model, &entry.sweep.cloud.points, gripper, n);
+    }
     Reply::Detection(Box::new(DetectionReply {
         id: None,
-        report: report_json(&det.report, all),
+        report,
         frame: frame.to_string(),
         sweep: entry.reference(),
         latency_ms: round3(det.latency.as_secs_f64() * 1e3),
@@ -49,6 +62,7 @@ pub(super) async fn answer(shared: &Arc<Shared>, req: &Request) -> Reply {
             max_age_s,
             timeout_s,
             all,
+            grasps,
         } => {
             let model = match shared.model(object) {
                 Ok(m) => m,
@@ -62,8 +76,15 @@ pub(super) async fn answer(shared: &Arc<Shared>, req: &Request) -> Reply {
                 Ok(e) => e,
                 Err((code, msg)) => return Reply::error(None, code, format!("find {object}: {msg}")),
             };
-            let det = entry.detection(shared, model, *all).await;
-            detection_reply(&entry, &det, *all, &shared.config().frame_id)
+            let det = entry.detection(shared, model.clone(), *all).await;
+            let config = shared.config();
+            detection_reply(
+                &entry,
+                &det,
+                *all,
+                &config.frame_id,
+                Some((&model, &config.gripper, *grasps)),
+            )
         }
         Command::Scan { timeout_s } => {
             let asked = Instant::now();

@@ -258,9 +258,9 @@ impl Handler {
     /// Answers one request, or starts the task that will.
     async fn request(&mut self, req: Request) -> Flow {
         match &req.command {
-            Command::Watch { objects } => {
+            Command::Watch { objects, grasps } => {
                 let objects = objects.clone();
-                self.watch(req.id, objects).await;
+                self.watch(req.id, objects, *grasps).await;
                 Flow::Go
             }
             Command::Unwatch => {
@@ -276,7 +276,7 @@ impl Handler {
     }
 
     /// `watch`: every sweep's detections of `objects` from now on, replacing an earlier watch.
-    async fn watch(&mut self, id: Option<Value>, objects: Vec<String>) {
+    async fn watch(&mut self, id: Option<Value>, objects: Vec<String>, grasps: usize) {
         if let Some(missing) = objects.iter().find_map(|o| self.shared.model(o).err()) {
             self.out
                 .reply(Reply::error(id, ErrorCode::UnknownObject, missing))
@@ -293,7 +293,7 @@ impl Handler {
                 enable: true,
             }))
             .await;
-        let task = watch_sweeps(self.shared.clone(), self.out.clone(), objects, id);
+        let task = watch_sweeps(self.shared.clone(), self.out.clone(), objects, grasps, id);
         self.watch_task = Some(self.tasks.spawn(task));
     }
 
@@ -351,7 +351,7 @@ impl Handler {
 }
 
 /// Every sweep's detections of `objects`, until aborted.
-async fn watch_sweeps(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id: Option<Value>) {
+async fn watch_sweeps(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, grasps: usize, id: Option<Value>) {
     let mut rx = shared.sweeps();
     // The newest sweep so far is answered at once; then each new one.
     rx.mark_changed();
@@ -367,8 +367,10 @@ async fn watch_sweeps(shared: Arc<Shared>, out: Outbox, objects: Vec<String>, id
         };
         for name in &objects {
             let Ok(model) = shared.model(name) else { continue };
-            let det = entry.detection(&shared, model, false).await;
-            out.update(detection_reply(&entry, &det, false, &shared.config().frame_id).with_id(id.clone()));
+            let det = entry.detection(&shared, model.clone(), false).await;
+            let config = shared.config();
+            let grasps = Some((&*model, &config.gripper, grasps));
+            out.update(detection_reply(&entry, &det, false, &config.frame_id, grasps).with_id(id.clone()));
         }
         if !shared.config().continuous {
             shared.want_sweep();

@@ -20,6 +20,8 @@ pub enum Command {
         max_age_s: f64,
         timeout_s: f64,
         all: bool,
+        /// Grasps to give each found instance (0: none).
+        grasps: usize,
     },
     /// A sweep now; the reply comes when it is complete.
     Scan {
@@ -36,6 +38,8 @@ pub enum Command {
     /// Detections of these objects on every sweep until the client leaves or unwatches.
     Watch {
         objects: Vec<String>,
+        /// Grasps to give each found instance (0: none).
+        grasps: usize,
     },
     Unwatch,
 }
@@ -181,7 +185,7 @@ fn request_id(obj: &Map<String, Value>) -> Result<Option<Value>, RequestError> {
 
 /// `find`: the object, how old a sweep may be, how long to wait, and whether every instance.
 fn find_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command, RequestError> {
-    check_keys(obj, &["object", "max_age_s", "timeout_s", "all"], "find", id)?;
+    check_keys(obj, &["object", "max_age_s", "timeout_s", "all", "grasps"], "find", id)?;
     let object = match obj.get("object") {
         Some(v) => object_name(v, "object", id)?,
         None => {
@@ -201,12 +205,31 @@ fn find_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command,
         max_age_s: number(obj, "max_age_s", DEFAULT_MAX_AGE_S, id)?,
         timeout_s: number(obj, "timeout_s", DEFAULT_TIMEOUT_S, id)?,
         all,
+        grasps: grasps(obj, id)?,
     })
+}
+
+/// Most grasps a request may ask for, per instance.
+pub const MAX_GRASPS: usize = 100;
+
+/// `"grasps"`: how many grasps each found instance gets (default none).
+fn grasps(obj: &Map<String, Value>, id: &Option<Value>) -> Result<usize, RequestError> {
+    match obj.get("grasps") {
+        None | Some(Value::Null) => Ok(0),
+        Some(Value::Number(n)) => match n.as_u64() {
+            Some(k) if k <= MAX_GRASPS as u64 => Ok(k as usize),
+            _ => Err(err(
+                id,
+                format!("\"grasps\": {n} is out of range: give a whole number from 0 to {MAX_GRASPS}"),
+            )),
+        },
+        Some(other) => Err(err(id, format!("\"grasps\": expected a whole number, got {other}"))),
+    }
 }
 
 /// `watch`: the objects, from `objects` (a list) and `object` (one name), each once.
 fn watch_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command, RequestError> {
-    check_keys(obj, &["objects", "object"], "watch", id)?;
+    check_keys(obj, &["objects", "object", "grasps"], "watch", id)?;
     let mut objects = Vec::new();
     if let Some(v) = obj.get("object") {
         objects.push(object_name(v, "object", id)?);
@@ -225,7 +248,10 @@ fn watch_command(obj: &Map<String, Value>, id: &Option<Value>) -> Result<Command
     }
     objects.sort();
     objects.dedup();
-    Ok(Command::Watch { objects })
+    Ok(Command::Watch {
+        objects,
+        grasps: grasps(obj, id)?,
+    })
 }
 
 impl RequestError {
@@ -248,6 +274,16 @@ mod tests {
     }
 
     #[test]
+    fn grasps_out_of_range_or_not_a_count_are_refused_by_name() {
+        for g in ["-1", "101", "1.5", "\"3\"", "true", "1e300", "18446744073709551616"] {
+            for cmd in [r#""find","object":"cup""#, r#""watch","object":"cup""#] {
+                let e = bad(&format!(r#"{{"cmd":{cmd},"grasps":{g}}}"#));
+                assert!(e.contains("\"grasps\""), "{g}: {e}");
+            }
+        }
+    }
+
+    #[test]
     fn parses_the_documented_requests() {
         assert_eq!(
             ok(r#"{"cmd":"find","object":"cup","max_age_s":2.0,"timeout_s":10}"#).command,
@@ -255,9 +291,14 @@ mod tests {
                 object: "cup".into(),
                 max_age_s: 2.0,
                 timeout_s: 10.0,
-                all: false
+                all: false,
+                grasps: 0
             }
         );
+        assert!(matches!(
+            ok(r#"{"cmd":"find","object":"cup","grasps":3}"#).command,
+            Command::Find { grasps: 3, .. }
+        ));
         let r = ok(r#"{"cmd":"find","object":"cup","id":7}"#);
         assert_eq!(r.id, Some(json!(7)));
         assert!(matches!(r.command, Command::Find { max_age_s, .. } if max_age_s == DEFAULT_MAX_AGE_S));
@@ -266,9 +307,14 @@ mod tests {
         assert_eq!(
             ok(r#"{"cmd":"watch","objects":["mug","cup","cup"]}"#).command,
             Command::Watch {
-                objects: vec!["cup".into(), "mug".into()]
+                objects: vec!["cup".into(), "mug".into()],
+                grasps: 0
             }
         );
+        assert!(matches!(
+            ok(r#"{"cmd":"watch","object":"cup","grasps":100}"#).command,
+            Command::Watch { grasps: 100, .. }
+        ));
         assert!(matches!(ok(r#"{"cmd":"scan"}"#).command, Command::Scan { .. }));
         assert_eq!(
             ok(r#"{"cmd":"cloud","max_age_s":0}"#).command,

@@ -12,7 +12,7 @@ use crate::sweep::SweepReport;
 /// Protocol version, sent in the `version` greeting. Minor bumps add fields or commands; a major
 /// bump changes or removes them.
 pub const PROTO_MAJOR: u32 = 2;
-pub const PROTO_MINOR: u32 = 1;
+pub const PROTO_MINOR: u32 = 2;
 
 /// One message from the daemon: an object with a `class`, and the `id` of the request it answers
 /// (absent for the greeting, for errors to lines that could not be read, and for requests sent

@@ -38,7 +38,6 @@ mod prepare;
 mod refine;
 mod report;
 mod rigid;
-mod sample_cache;
 mod search;
 mod select;
 mod shell;

@@ -69,6 +69,42 @@ pub struct DetectionJson {
     /// For compound models: how each connection of the model is met.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub connections: Vec<ConnectionJson>,
+    /// Where a parallel gripper can take the object, best first (`docs/GRASPS.md`); only when
+    /// asked for, and only for a found object.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub grasps: Vec<GraspJson>,
+}
+
+/// One grasp: the pose of the point midway between the pads (x closing, z approach).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, JsonSchema)]
+pub struct GraspJson {
+    /// The part taken.
+    pub part: String,
+    /// `across` (the pads on opposite sides of the part) or `rim` (across an open container's
+    /// wall, one pad inside).
+    pub kind: String,
+    pub pose: PoseJson,
+    /// Distance between the contacts (m).
+    pub opening_m: f64,
+    /// Where the pads touch the fitted surface, the +x pad's first.
+    pub contacts: [[f64; 3]; 2],
+    /// Where the gripper comes from, open, along the approach.
+    pub pregrasp: PoseJson,
+    /// Lower is better.
+    pub cost: f64,
+}
+
+/// A grasp in JSON, its part named `part`.
+pub fn grasp_json(part: &str, g: &crate::grasp::Grasp) -> GraspJson {
+    GraspJson {
+        part: part.to_string(),
+        kind: g.kind.name().into(),
+        pose: pose(&g.pose),
+        opening_m: r6(g.opening),
+        contacts: g.contacts.map(|c| [r6(c.x), r6(c.y), r6(c.z)]),
+        pregrasp: pose(&g.pregrasp),
+        cost: r6(g.cost),
+    }
 }
 
 /// Either every accepted instance (`all`), or the best candidate's fields at the top level.
@@ -136,6 +172,7 @@ pub fn detection_json(d: &Detection) -> DetectionJson {
                 distance_error_m: finite(*dd),
             })
             .collect(),
+        grasps: Vec::new(),
     }
 }
 
@@ -158,6 +195,7 @@ pub fn report_json(r: &Report, all: bool) -> ReportJson {
                 parts: Vec::new(),
                 upright: None,
                 connections: Vec::new(),
+                grasps: Vec::new(),
             },
         })
     };
@@ -173,5 +211,40 @@ pub fn report_json(r: &Report, all: bool) -> ReportJson {
             verify: r6(r.timing.verify_ms),
             total: r6(r.timing.total_ms),
         },
+    }
+}
+
+/// Give each found detection of `json` (made by [`report_json`] from `r`) up to `max` grasps of
+/// `gripper`, checked against `cloud` (the points `r` was detected in) and `r`'s plane.
+pub fn add_grasps(
+    json: &mut ReportJson,
+    r: &Report,
+    model: &crate::model::Model,
+    cloud: &[[f32; 3]],
+    gripper: &crate::grasp::Gripper,
+    max: usize,
+) {
+    let detections: Vec<&mut DetectionJson> = match &mut json.answer {
+        Answer::All { detections, .. } => detections.iter_mut().collect(),
+        Answer::Best(d) => vec![d],
+    };
+    for (dj, d) in detections.into_iter().zip(&r.detections) {
+        if !d.found {
+            continue;
+        }
+        // The parts placed (a compound's part may not be), with their names.
+        let (parts, names): (Vec<crate::grasp::Part>, Vec<&str>) = d
+            .parts
+            .iter()
+            .zip(&model.parts)
+            .filter_map(|(p, m)| {
+                p.placed
+                    .map(|placed| (crate::grasp::Part { placed, open: m.open }, p.name.as_str()))
+            })
+            .unzip();
+        dj.grasps = crate::grasp::plan(&parts, cloud, r.plane.as_ref(), gripper, max)
+            .iter()
+            .map(|g| grasp_json(names[g.part], g))
+            .collect();
     }
 }

@@ -1,10 +1,10 @@
 //! What the support plane allows: a part resting on it does not reach through it, and an open
 //! container stands on its base or its rim.
 
-use super::sample_cache::{LocalSamples, local_samples};
 use super::space::SearchSpace;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
+use crate::surface_samples::{LocalSamples, local_samples};
 use nalgebra::{Point3, Vector3};
 use std::sync::Arc;
 

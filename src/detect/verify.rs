@@ -20,7 +20,7 @@
 
 use super::base::BaseCap;
 use super::plane_check::approximation_tolerance;
-use super::sample_cache;
+
 use super::space::{SearchSpace, sample_radius};
 use super::support::Support;
 use crate::cloud::grid::Grid;
@@ -640,7 +640,7 @@ pub struct SurfaceSamples {
     data_spacing: f64,
     /// The part is an open container: its lid is an opening (see `model::Part::open`).
     open: bool,
-    pub(super) local: std::sync::Arc<sample_cache::LocalSamples>,
+    pub(super) local: std::sync::Arc<crate::surface_samples::LocalSamples>,
 }
 
 impl SurfaceSamples {
@@ -650,7 +650,7 @@ impl SurfaceSamples {
             spacing,
             data_spacing,
             open,
-            local: sample_cache::local_samples(shape, spacing, open),
+            local: crate::surface_samples::local_samples(shape, spacing, open),
         }
     }
 }
@@ -795,8 +795,8 @@ pub fn median_spacing(points: &[Point3<f64>]) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::sample_cache::{CACHED_SHAPES, SAMPLES, sample_local};
     use super::*;
+    use crate::surface_samples::{CACHED_SHAPES, SAMPLES, sample_local};
 
     /// A shape's samples at one spacing are made once and shared; another spacing, another
     /// shape or the open flag give their own, the same as sampled afresh; the cache stays

@@ -1,6 +1,7 @@
 //! Evaluation against the simulator's ground truth: re-simulate a scene with new sensor noise,
 //! detect with a new search seed, and score the pose modulo the object's symmetries.
 
+pub mod grasps;
 pub mod real;
 
 use crate::detect::{self, Params, Report};
@@ -43,6 +44,8 @@ pub struct Trial {
     pub rotation_error: f64,
     pub time_ms: f64,
     pub report: Report,
+    /// The simulated sweep's points the detection ran on.
+    pub cloud: Vec<[f32; 3]>,
 }
 
 /// Run one trial: simulate with `noise_seed`, detect with `params` (whose seed is the search seed).
@@ -77,6 +80,7 @@ pub fn trial(
         rotation_error,
         time_ms: report.timing.total_ms,
         report,
+        cloud: sweep.cloud.points,
     }
 }
 

@@ -162,6 +162,29 @@ fn simulated_backend_finds_the_cup_and_answers_every_request() {
         q[2].as_f64().unwrap(),
     ));
     assert!((q * Vector3::z()).z > 0.95, "{r}");
+    assert!(r.get("grasps").is_none(), "grasps only when asked: {r}");
+
+    // Grasps when asked: the gripper's pads on either side of the cup, the pre-grasp pose back
+    // along the approach, farther from the cup.
+    let r = c.ask(json!({"cmd":"find","object":"cup","grasps":2}));
+    let grasps = r["grasps"].as_array().unwrap_or_else(|| panic!("no grasps: {r}"));
+    assert!((1..=2).contains(&grasps.len()), "{r}");
+    let cup: Vec<f64> = (0..3).map(|k| r["pose"]["position"][k].as_f64().unwrap()).collect();
+    let dist = |p: &serde_json::Value| {
+        (0..3)
+            .map(|k| (p[k].as_f64().unwrap() - cup[k]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    for g in grasps {
+        let opening = g["opening_m"].as_f64().unwrap();
+        assert!(opening > 0.03 && opening < 0.085, "{g}");
+        assert!(dist(&g["pose"]["position"]) < 0.05, "{g}");
+        assert!(
+            dist(&g["pregrasp"]["position"]) > dist(&g["pose"]["position"]) + 0.05,
+            "{g}"
+        );
+    }
 
     // Not there: a clear "not found", not the most similar thing. The mug's nearest lookalike is
     // the scene's cup, a closed cylinder of nearly its size, which is what a mug on its rim shows

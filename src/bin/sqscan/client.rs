@@ -40,6 +40,9 @@ pub struct FindArgs {
     /// Every instance, not only the best
     #[arg(long)]
     all: bool,
+    /// Up to N grasps of the daemon's gripper for each found instance, best first
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    grasps: usize,
     #[command(flatten)]
     client: ClientArgs,
 }
@@ -52,6 +55,9 @@ pub struct WatchArgs {
     /// Stop after this many detection messages (default: until interrupted)
     #[arg(long, value_name = "N")]
     count: Option<u64>,
+    /// Up to N grasps of the daemon's gripper for each found instance, best first
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    grasps: usize,
     #[command(flatten)]
     client: ClientArgs,
 }
@@ -259,6 +265,21 @@ fn fmt_pose(p: &Value) -> String {
 }
 
 /// One line for a detection reply.
+/// A detection's grasps, a line each: kind, part, opening, pose.
+fn grasp_lines(d: &Value, indent: &str) -> String {
+    let mut s = String::new();
+    for g in d["grasps"].as_array().into_iter().flatten() {
+        s += &format!(
+            "\n{indent}grasp {} {}: opening {:.1} mm, {}",
+            g["kind"].as_str().unwrap_or("?"),
+            g["part"].as_str().unwrap_or("?"),
+            g["opening_m"].as_f64().unwrap_or(f64::NAN) * 1e3,
+            fmt_pose(&g["pose"])
+        );
+    }
+    s
+}
+
 fn detection_line(r: &Value) -> String {
     let object = r["object"].as_str().unwrap_or("?");
     let sweep = format!(
@@ -281,14 +302,16 @@ fn detection_line(r: &Value) -> String {
                 fmt_pose(&d["pose"]),
                 d["confidence"].as_f64().unwrap_or(0.0)
             );
+            s += &grasp_lines(d, "    ");
         }
         return s;
     }
     if r["found"] == true {
         format!(
-            "{object}: found {} (confidence {:.2}) in {sweep}",
+            "{object}: found {} (confidence {:.2}) in {sweep}{}",
             fmt_pose(&r["pose"]),
-            r["confidence"].as_f64().unwrap_or(0.0)
+            r["confidence"].as_f64().unwrap_or(0.0),
+            grasp_lines(r, "  ")
         )
     } else {
         format!("{object}: not found in {sweep}")
@@ -305,7 +328,7 @@ fn print(json_out: bool, r: &Value, human: impl FnOnce(&Value) -> String) {
 
 pub fn find(a: FindArgs) -> Result<()> {
     let mut c = Connection::open(&a.client)?;
-    let req = json!({"cmd": "find", "object": a.object, "max_age_s": a.max_age, "timeout_s": a.timeout, "all": a.all});
+    let req = json!({"cmd": "find", "object": a.object, "max_age_s": a.max_age, "timeout_s": a.timeout, "all": a.all, "grasps": a.grasps});
     let r = c.request(req, Duration::from_secs_f64(a.timeout + 30.0))?;
     fail_on_error(&r)?;
     print(a.client.json, &r, detection_line);
@@ -364,7 +387,10 @@ pub fn scan(a: ScanArgs) -> Result<()> {
 
 pub fn watch(a: WatchArgs) -> Result<()> {
     let mut c = Connection::open(&a.client)?;
-    let r = c.request(json!({"cmd": "watch", "objects": a.objects}), Duration::from_secs(30))?;
+    let r = c.request(
+        json!({"cmd": "watch", "objects": a.objects, "grasps": a.grasps}),
+        Duration::from_secs(30),
+    )?;
     fail_on_error(&r)?;
     if a.client.json {
         println!("{r}");

@@ -1,11 +1,12 @@
 //! `sqscan detect`: find an object in a point-cloud file.
 
 use crate::write_atomic;
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use clap::Args;
 use nalgebra::{Isometry3, Point3, Quaternion, Translation3, UnitQuaternion};
 use sqscan::cloud::{self, Field, FieldData, PlyFormat, PointCloud};
 use sqscan::detect::{self, Params};
+use sqscan::grasp::Gripper;
 use sqscan::model::Model;
 use std::path::{Path, PathBuf};
 
@@ -49,10 +50,28 @@ pub struct DetectArgs {
     /// same answer
     #[arg(long, value_name = "N", default_value_t = 1)]
     repeat: usize,
+    /// Give every found object up to N grasps of a parallel gripper, best first, checked
+    /// against the cloud (docs/GRASPS.md)
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    grasps: usize,
+    /// The gripper's settings: a TOML file of the [gripper] table's keys [default: a Robotiq
+    /// 2F-85-class gripper]
+    #[arg(long, value_name = "GRIPPER.toml")]
+    gripper: Option<PathBuf>,
 }
 
 /// Runs of one detection at most with `--repeat`.
 const MAX_REPEAT: usize = 1000;
+/// Grasps of one object at most with `--grasps`.
+const MAX_GRASPS: usize = 100;
+
+/// A gripper's settings from a TOML file of the `[gripper]` table's keys, checked.
+pub fn read_gripper(path: &Path) -> Result<Gripper> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("{}: cannot read", path.display()))?;
+    let g: Gripper = toml::from_str(&text).with_context(|| format!("{}: not a gripper's settings", path.display()))?;
+    g.validate().with_context(|| path.display().to_string())?;
+    Ok(g)
+}
 
 /// Comma-separated numbers ("1, -2.5,3").
 fn parse_numbers(s: &str) -> Result<Vec<f64>, String> {
@@ -117,11 +136,19 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     params.hypotheses = a.hypotheses;
     params.trials = a.trials;
     params.remove_plane = !a.keep_plane;
+    let gripper = match &a.gripper {
+        Some(path) => read_gripper(path)?,
+        None => Gripper::default(),
+    };
+    if a.grasps > MAX_GRASPS {
+        bail!("--grasps: give at most {MAX_GRASPS}");
+    }
     let report = fastest_of(a.repeat, || detect::detect(&cloud.points, &model, &params), a.all)?;
-    println!(
-        "{}",
-        serde_json::to_string(&detect::output::report_json(&report, a.all))?
-    );
+    let mut json = detect::output::report_json(&report, a.all);
+    if a.grasps > 0 {
+        detect::output::add_grasps(&mut json, &report, &model, &cloud.points, &gripper, a.grasps);
+    }
+    println!("{}", serde_json::to_string(&json)?);
     if let Some(out) = &a.out {
         let shown: Vec<&detect::Detection> = if a.all {
             report.detections.iter().collect()

@@ -13,6 +13,7 @@ use sqscan::eval::median_p95;
 use sqscan::eval::real::{
     Answer, Catalogue, FalseAnswer, LabelledObject, Rule, SceneLabels, SceneScore, Target, read_labels, score_scene,
 };
+use sqscan::grasp::{Gripper, Part, plan, sweeps_through};
 use sqscan::model::Model;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -56,6 +57,15 @@ pub struct EvalRealArgs {
     /// Print one JSON object instead of the text report
     #[arg(long)]
     json: bool,
+    /// Plan grasps for every right answer and check the first against
+    /// the labels: how many found objects get a grasp, and how many first grasps sweep no
+    /// point that is not the object's
+    #[arg(long)]
+    grasps: bool,
+    /// The gripper's settings for --grasps: a TOML file of the [gripper] table's keys
+    /// [default: a Robotiq 2F-85-class gripper]
+    #[arg(long, value_name = "GRIPPER.toml", requires = "grasps")]
+    gripper: Option<PathBuf>,
 }
 
 fn parse_learned_from(s: &str) -> Result<(String, i64), String> {
@@ -116,6 +126,13 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
     };
     let mut times = Vec::new();
     let mut rows = Vec::new();
+    let mut grasps = GraspTally {
+        gripper: match &a.gripper {
+            Some(p) => crate::detect::read_gripper(p)?,
+            None => Gripper::default(),
+        },
+        ..GraspTally::default()
+    };
     for s in &scenes {
         let path = a.clouds.join(format!("{}.pcd", s.scene));
         let cloud = cloud::read_cloud(&path).with_context(|| format!("scene {}", s.scene))?;
@@ -140,9 +157,16 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
             })
             .collect();
         let score = score_scene(s, &rule, &answers);
+        if a.grasps {
+            let found: Vec<&detect::Detection> = report.detections.iter().filter(|d| d.found).collect();
+            grasps.add(s, &score, &found, &model, &cloud, report.plane.as_ref())?;
+        }
         rows.push((s, answers, score));
     }
     let mut summary = summarise(&rows, &rule, &times);
+    if a.grasps {
+        summary["grasps"] = grasps.json();
+    }
     summary["catalogue"] = json!(catalogue_path.map(|p| p.display().to_string()));
     if a.json {
         println!("{summary}");
@@ -150,6 +174,100 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         print_text(&summary, &a);
     }
     Ok(())
+}
+
+/// The grasps of the right answers, checked against the labels.
+#[derive(Default)]
+struct GraspTally {
+    gripper: Gripper,
+    /// Right answers, and those with a grasp.
+    found: usize,
+    with_grasp: usize,
+    /// First grasps whose swept volume holds no point that is not the object's.
+    clear: usize,
+    times: Vec<f64>,
+    /// Where a found object got none, or the first grasp swept another's points.
+    failures: Vec<Value>,
+}
+
+impl GraspTally {
+    /// Plan grasps for the right answers of one scene (`found`: its found detections, in the
+    /// order of the score's answers) and check the first of each against the labelled points.
+    fn add(
+        &mut self,
+        s: &SceneLabels,
+        score: &SceneScore,
+        found: &[&detect::Detection],
+        model: &Model,
+        cloud: &cloud::PointCloud,
+        plane: Option<&sqscan::cloud::plane::Plane>,
+    ) -> Result<()> {
+        let labels = match cloud.field("label").map(|f| &f.data) {
+            Some(cloud::FieldData::U32(l)) => l,
+            _ => bail!(
+                "scene {}: the cloud has no u32 label field to check grasps against",
+                s.scene
+            ),
+        };
+        let gripper = self.gripper.clone();
+        let wrong: std::collections::HashSet<usize> = score
+            .false_answers
+            .iter()
+            .map(|(k, _)| *k)
+            .chain(score.neutral.iter().map(|(k, _)| *k))
+            .collect();
+        for (k, d) in found.iter().enumerate().filter(|(k, _)| !wrong.contains(k)) {
+            // The labelled object the answer is on: the nearest centroid, as the score took it.
+            let p = d.pose.translation.vector;
+            let Some(o) = s.objects.iter().min_by(|x, y| {
+                let dx = (nalgebra::Vector3::from(x.centroid) - p).norm();
+                let dy = (nalgebra::Vector3::from(y.centroid) - p).norm();
+                dx.total_cmp(&dy)
+            }) else {
+                continue;
+            };
+            let Some(group) = o.group else { continue };
+            let parts: Vec<Part> = d
+                .parts
+                .iter()
+                .zip(&model.parts)
+                .filter_map(|(p, m)| p.placed.map(|placed| Part { placed, open: m.open }))
+                .collect();
+            let t = std::time::Instant::now();
+            let planned = plan(&parts, &cloud.points, plane, &gripper, 1);
+            self.times.push(t.elapsed().as_secs_f64() * 1e3);
+            self.found += 1;
+            let Some(first) = planned.first() else {
+                self.failures
+                    .push(json!({"scene": s.scene, "what": o.what, "answer": k, "why": "no grasp"}));
+                continue;
+            };
+            self.with_grasp += 1;
+            let mut inside: BTreeMap<u32, usize> = BTreeMap::new();
+            for (q, &l) in cloud.points.iter().zip(labels) {
+                let q = nalgebra::Point3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+                if q.coords.iter().all(|c| c.is_finite())
+                    && i64::from(l / 10) != group
+                    && sweeps_through(first, &gripper, &q)
+                {
+                    *inside.entry(l).or_default() += 1;
+                }
+            }
+            if inside.is_empty() {
+                self.clear += 1;
+            } else {
+                self.failures.push(json!({"scene": s.scene, "what": o.what, "answer": k,
+                    "why": "the first grasp sweeps other points", "points_by_label": inside}));
+            }
+        }
+        Ok(())
+    }
+
+    fn json(&self) -> Value {
+        let (median, p95) = median_p95(&self.times);
+        json!({"found": self.found, "with_grasp": self.with_grasp, "first_clear": self.clear,
+            "time_ms": {"median": median, "p95": p95}, "failures": self.failures})
+    }
 }
 
 fn reason(f: &FalseAnswer, objects: &[LabelledObject]) -> String {
@@ -312,5 +430,24 @@ fn print_text(s: &Value, a: &EvalRealArgs) {
             f["scene"].as_str().unwrap_or(""),
             f["why"].as_str().unwrap_or("")
         );
+    }
+    let g = &s["grasps"];
+    if g.is_object() {
+        println!(
+            "grasps: {} of {} found objects got one; {} first grasps swept no other point; {:.2} ms median",
+            g["with_grasp"],
+            g["found"],
+            g["first_clear"],
+            g["time_ms"]["median"].as_f64().unwrap_or(f64::NAN)
+        );
+        for f in g["failures"].as_array().into_iter().flatten() {
+            println!(
+                "grasp: {} {}: {} {}",
+                f["scene"].as_str().unwrap_or(""),
+                f["what"].as_str().unwrap_or(""),
+                f["why"].as_str().unwrap_or(""),
+                f.get("points_by_label").map(|v| v.to_string()).unwrap_or_default()
+            );
+        }
     }
 }

@@ -60,6 +60,8 @@ struct ConfigFile {
     ros2: Option<Ros2File>,
     #[serde(default)]
     watch: WatchFile,
+    #[serde(default)]
+    gripper: crate::grasp::Gripper,
 }
 
 #[derive(Debug, Clone, Deserialize, Default)]
@@ -256,6 +258,8 @@ pub struct Config {
     pub watch: Vec<String>,
     /// The frame the sweeps' points and the poses are in, as replies and recordings name it.
     pub frame_id: String,
+    /// The gripper grasps are planned for (`find` and `watch` with `"grasps"`).
+    pub gripper: crate::grasp::Gripper,
 }
 
 /// The socket path when neither the file nor `--socket` names one: under `$XDG_RUNTIME_DIR`
@@ -329,6 +333,7 @@ impl Config {
             ros2: None,
             watch: Vec::new(),
             frame_id: "base_link".into(),
+            gripper: crate::grasp::Gripper::default(),
         }
     }
 
@@ -371,6 +376,11 @@ impl Config {
             c.ros2 = Some(ros2_config(path, r)?);
         }
         c.watch = raw.watch.objects.clone();
+        raw.gripper.validate().map_err(|e| {
+            let crate::grasp::GripperError::Field { field, .. } = &e;
+            SpecError::invalid(path, format!("gripper.{field}"), e.to_string())
+        })?;
+        c.gripper = raw.gripper.clone();
         Ok(c)
     }
 

@@ -134,6 +134,14 @@ fn absurd_numbers_are_refused_naming_the_field() {
         ("[replay]\ndir = \"r\"\nspeed = inf", "replay.speed"),
         ("[acquisition]\nbackend = \"replay\"", "replay"),
         ("[acquisition]\nbackend = \"tape\"", "acquisition.backend"),
+        ("[gripper]\nfriction = -0.5", "gripper.friction"),
+        ("[gripper]\nmax_opening = 1e300", "gripper.max_opening"),
+        (
+            "[gripper]\nmax_opening = 0.02\nmin_opening = 0.03",
+            "gripper.min_opening",
+        ),
+        ("[gripper]\npalm = [0.1, 0.0, 0.05]", "gripper.palm[1]"),
+        ("[gripper]\nfinger = 0.1", "finger"),
         (
             "[replay]\ndir = \"r\"\n[hardware]\ncalibration = \"c\"\nptu = { path = \"p\", protocol = \"flir\" }\nsensor = { path = \"s\" }",
             "acquisition.backend",
@@ -149,6 +157,10 @@ fn absurd_numbers_are_refused_naming_the_field() {
     // A remote address when asked for.
     let c = parse("[server]\ntcp = \"0.0.0.0:29481\"\nallow_remote = true").unwrap();
     assert_eq!(c.tcp, Some("0.0.0.0:29481".parse().unwrap()));
+    // A gripper of its own, the keys left out at their defaults.
+    let c = parse("[gripper]\nmax_opening = 0.14\nfriction = 0.8").unwrap();
+    assert_eq!(c.gripper.max_opening, 0.14);
+    assert_eq!(c.gripper.finger_depth, crate::grasp::Gripper::default().finger_depth);
     // The ends of the ranges are accepted.
     parse("[sweep]\npause_s = 3600.0\ntimeout_s = 3600.0\n[detect]\nworkers = 256\n[server]\nmax_clients = 65536")
         .unwrap();

@@ -1,16 +1,17 @@
 //! A part's surface samples (points with their outward normals, in the shape's frame), kept
-//! between detections: they depend on the shape and the spacing alone. The scores sample at the
-//! data's spacing, the support plane check at half the part's smallest size.
+//! between detections: they depend on the shape and the spacing alone. The detector's scores
+//! sample at the data's spacing, its support plane check at half the part's smallest size, and
+//! the grasp checks at a few millimetres.
 
 use crate::geometry::Superquadric;
 use nalgebra::Vector3;
 use std::sync::{Arc, Mutex};
 
 /// Surface points with their outward normals, in the shape's frame.
-pub(super) type LocalSamples = Vec<(Vector3<f64>, Vector3<f64>)>;
+pub type LocalSamples = Vec<(Vector3<f64>, Vector3<f64>)>;
 
 /// The samples of `shape` at `spacing` (without the lid when `open`), sampled once.
-pub(super) fn local_samples(shape: &Superquadric, spacing: f64, open: bool) -> Arc<LocalSamples> {
+pub fn local_samples(shape: &Superquadric, spacing: f64, open: bool) -> Arc<LocalSamples> {
     SAMPLES.get(shape, spacing, open)
 }
 
@@ -18,12 +19,12 @@ pub(super) fn local_samples(shape: &Superquadric, spacing: f64, open: bool) -> A
 /// alone, and the spacing is most often set by the shape (a sixth of its smallest size): a
 /// daemon asked for the same objects sweep after sweep would otherwise sample the same surfaces
 /// again on every sweep, which costs as much as a tenth of a single part's detection.
-pub(super) static SAMPLES: SampleCache = SampleCache(Mutex::new(Vec::new()));
+pub static SAMPLES: SampleCache = SampleCache(Mutex::new(Vec::new()));
 
 /// Shapes at most: a few models' parts, at the spacings their scenes give.
-pub(super) const CACHED_SHAPES: usize = 32;
+pub const CACHED_SHAPES: usize = 32;
 
-pub(super) struct SampleCache(pub(super) Mutex<Vec<(SampleKey, Arc<LocalSamples>)>>);
+pub struct SampleCache(pub Mutex<Vec<(SampleKey, Arc<LocalSamples>)>>);
 
 /// A shape, a spacing and whether the part is open, to the bit.
 type SampleKey = [u64; 9];
@@ -63,7 +64,7 @@ impl SampleCache {
 }
 
 /// The samples themselves, made afresh.
-pub(super) fn sample_local(shape: &Superquadric, spacing: f64, open: bool) -> LocalSamples {
+pub fn sample_local(shape: &Superquadric, spacing: f64, open: bool) -> LocalSamples {
     // An open part's lid is no surface: nothing is expected there.
     shape
         .sample_surface(spacing)

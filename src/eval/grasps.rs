@@ -1,0 +1,291 @@
+//! Grasps judged against the simulator's truth: whether the first grasp planned for a found
+//! object holds on the true object and clears the true scene, and whether a brute-force sampler
+//! over the true object and scene finds any valid grasp at all (where none exists, returning
+//! none is right).
+
+use crate::detect::Detection;
+use crate::geometry::{Kernel, PlacedSuperquadric};
+use crate::grasp::{Grasp, Gripper, Kind, Part, Swept, plan};
+use crate::model::Model;
+use crate::sim::Scene;
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::time::Instant;
+
+/// A grasp holds on the truth where its contacts lie within this of the true surface, and the
+/// gripper clears the true table and every other true object by this (m).
+pub const TRUTH_TOLERANCE_M: f64 = 0.003;
+/// Random grasps the brute-force sampler tries at most.
+pub const SAMPLES: usize = 4000;
+/// The true scene's surfaces are sampled this far apart (m) for the clearance check.
+const SPACING: f64 = 0.002;
+
+/// What became of one found object's grasps.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// A grasp was planned.
+    pub planned: bool,
+    /// The first grasp holds on the truth (`None` when none was planned), and why not.
+    pub first_valid: Option<Result<(), &'static str>>,
+    /// The brute-force sampler found a valid grasp on the truth.
+    pub exists: bool,
+    /// Planning time (ms).
+    pub time_ms: f64,
+}
+
+/// The true scene as the checks take it.
+pub struct Truth {
+    /// The object's parts at their true poses.
+    parts: Vec<Part>,
+    /// Samples of every other object's true surface (the free parts' too).
+    others: Vec<Point3<f64>>,
+    /// Samples of the object's own true surface (without an open part's opening).
+    own: Vec<Point3<f64>>,
+    /// Heights (base z) the gripper must stay above: the table's top where the object stands
+    /// over it, the floor.
+    floors: Vec<f64>,
+}
+
+impl Truth {
+    /// The truth of `scene` around its object `object`, of which `model` is the model at
+    /// `pose`.
+    pub fn new(scene: &Scene, object: &str, model: &Model, pose: &Isometry3<f64>) -> Truth {
+        let parts: Vec<Part> = model
+            .placed_parts(pose)
+            .into_iter()
+            .zip(&model.parts)
+            .map(|(placed, m)| Part { placed, open: m.open })
+            .collect();
+        let mut others = Vec::new();
+        for o in scene.objects.iter().filter(|o| o.name != object) {
+            for placed in o.model.placed_parts(&o.pose) {
+                others.extend(placed.sample_surface(SPACING));
+            }
+        }
+        for f in &scene.free_parts {
+            others.extend(f.placed.sample_surface(SPACING));
+        }
+        let own = parts
+            .iter()
+            .flat_map(|p| {
+                crate::surface_samples::local_samples(&p.placed.shape, SPACING, p.open)
+                    .iter()
+                    .map(|(q, _)| p.placed.pose.transform_point(&Point3::from(*q)))
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let c = pose.translation.vector;
+        let mut floors = Vec::new();
+        if let Some(t) = scene.table.as_ref().filter(|t| t.contains_xy(c.x, c.y)) {
+            floors.push(t.height);
+        }
+        if scene.floor {
+            floors.push(0.0);
+        }
+        Truth {
+            parts,
+            others,
+            own,
+            floors,
+        }
+    }
+
+    /// Whether grasp `g` holds on the truth: its contacts within 3 mm of the true surface and
+    /// within the friction cone there, the swept gripper 3 mm clear of the floors and the other
+    /// objects, and its open fingers and palm clear of the object itself.
+    pub fn check(&self, g: &Grasp, gripper: &Gripper) -> Result<(), &'static str> {
+        let x = g.pose.rotation * Vector3::x();
+        let on_surface = if g.kind == Kind::Rim { 1 } else { 2 };
+        let cos = gripper.cone().cos();
+        for (k, c) in g.contacts.iter().take(on_surface).enumerate() {
+            let Some((d, n)) = self.nearest(c) else {
+                return Err("no true surface");
+            };
+            if d > TRUTH_TOLERANCE_M {
+                return Err("a contact off the true surface");
+            }
+            let along = if k == 0 { x } else { -x };
+            if n.dot(&along) < cos - 1e-9 {
+                return Err("a contact outside the friction cone");
+            }
+        }
+        let swept = Swept::new(gripper, g.opening);
+        for &h in &self.floors {
+            let floor = crate::cloud::plane::Plane {
+                normal: Vector3::z(),
+                d: -h,
+            };
+            if swept.lowest_over(&g.pose, &floor) < TRUTH_TOLERANCE_M {
+                return Err("the gripper within 3 mm of the table or floor");
+            }
+        }
+        if self.others.iter().any(|p| swept.holds(&g.pose, p, TRUTH_TOLERANCE_M)) {
+            return Err("the gripper within 3 mm of another object");
+        }
+        // The pads close until they touch: the object may stand out past the planned contacts
+        // (by the fit's error), as long as the open fingers and the palm clear it.
+        if swept.solid_hits(&g.pose, &self.own) {
+            return Err("the open gripper into the object");
+        }
+        Ok(())
+    }
+
+    /// The distance from `p` to the nearest true part's surface, and that part's outward
+    /// normal there.
+    fn nearest(&self, p: &Point3<f64>) -> Option<(f64, Vector3<f64>)> {
+        self.parts
+            .iter()
+            .map(|part| {
+                let q = part.placed.to_local(p);
+                let g = Kernel::new(&part.placed.shape).residual_grad(&q).grad;
+                let n = part.placed.pose.rotation * g.try_normalize(1e-12).unwrap_or_else(Vector3::z);
+                (part.placed.surface_distance(p).abs(), n)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+    }
+
+    /// Whether a valid grasp exists: up to [`SAMPLES`] random grasps on the true object (a
+    /// random point in a part's box, a random closing direction and approach; at an open part,
+    /// also random points of its rim), each checked as a planned one is.
+    pub fn any_valid(&self, gripper: &Gripper, seed: u64) -> bool {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        (0..SAMPLES).any(|_| {
+            let part = &self.parts[rng.random_range(0..self.parts.len())];
+            let g = if part.open && rng.random_bool(0.3) {
+                random_rim(&part.placed, gripper, &mut rng)
+            } else {
+                random_across(&part.placed, gripper, &mut rng)
+            };
+            g.is_some_and(|g| {
+                let tilt = (g.pose.rotation * Vector3::z())
+                    .dot(&-Vector3::z())
+                    .clamp(-1.0, 1.0)
+                    .acos();
+                tilt <= gripper.max_tilt && self.check(&g, gripper).is_ok()
+            })
+        })
+    }
+}
+
+/// A unit vector uniform on the sphere.
+fn random_direction(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    loop {
+        let v = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        );
+        let n = v.norm();
+        if n > 0.1 && n <= 1.0 {
+            return v / n;
+        }
+    }
+}
+
+/// The grasp of pads' centre `tcp`, closing along `x`, approaching along `z` (all in the
+/// cloud's frame).
+fn grasp_at(
+    kind: Kind,
+    tcp: Point3<f64>,
+    x: Vector3<f64>,
+    z: Vector3<f64>,
+    opening: f64,
+    contacts: [Point3<f64>; 2],
+    g: &Gripper,
+) -> Grasp {
+    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, z.cross(&x), z]));
+    let pose = Isometry3::from_parts(tcp.coords.into(), UnitQuaternion::from_rotation_matrix(&rot));
+    let back = Translation3::from(z * -g.pregrasp);
+    Grasp {
+        part: 0,
+        kind,
+        pose,
+        opening,
+        contacts,
+        pregrasp: back * pose,
+        cost: 0.0,
+    }
+}
+
+/// A random grasp across `placed`: the closing line through a random point of its box along a
+/// random direction, the pads where the line meets the surface.
+fn random_across(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng) -> Option<Grasp> {
+    let h = placed.shape.local_half_extents();
+    let local = Vector3::new(
+        rng.random_range(-h.x..=h.x),
+        rng.random_range(-h.y..=h.y),
+        rng.random_range(-h.z..=h.z),
+    );
+    let o = placed.pose.transform_point(&Point3::from(local));
+    let x = random_direction(rng);
+    let reach = 2.0 * placed.shape.bounding_radius() + 0.01;
+    let t1 = placed.ray_hit(&(o + x * reach), &-x, 2.0 * reach)?;
+    let t2 = placed.ray_hit(&(o - x * reach), &x, 2.0 * reach)?;
+    let (c1, c2) = (o + x * (reach - t1), o - x * (reach - t2));
+    let opening = (c1 - c2).norm();
+    if opening < g.min_opening || opening + 2.0 * g.clearance > g.max_opening || opening < 1e-4 {
+        return None;
+    }
+    let r = random_direction(rng);
+    let z = (r - x * x.dot(&r)).try_normalize(1e-6)?;
+    Some(grasp_at(
+        Kind::Across,
+        Point3::from(0.5 * (c1.coords + c2.coords)),
+        x,
+        z,
+        opening,
+        [c1, c2],
+        g,
+    ))
+}
+
+/// A random grasp across an open part's wall: a random point of its wall below the rim, closing
+/// along the wall's normal, approaching down along the wall.
+fn random_rim(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng) -> Option<Grasp> {
+    let shape = &placed.shape;
+    let t = rng.random_range(0.0..std::f64::consts::TAU);
+    let d = Vector3::new(t.cos(), t.sin(), 0.0);
+    let depth = rng.random_range(0.0..(g.finger_depth - g.pad_from_tip).min(2.0 * shape.a[2]));
+    let o = Vector3::new(0.0, 0.0, shape.a[2] - depth);
+    let reach = 2.0 * shape.bounding_radius() + 0.01;
+    let hit = shape.ray_hit(&(o + d * reach), &-d, 2.0 * reach)?;
+    let outer = o + d * (reach - hit);
+    let n = Kernel::new(shape).residual_grad(&outer).grad.try_normalize(1e-12)?;
+    let down = (n * n.z - Vector3::z()).try_normalize(1e-9)?;
+    let r = placed.pose.rotation;
+    let (nw, zw) = (r * n, r * down);
+    let outer_w = placed.pose.transform_point(&Point3::from(outer));
+    let inner_w = outer_w - nw * g.wall;
+    let tcp = outer_w - nw * (0.5 * g.wall);
+    Some(grasp_at(Kind::Rim, tcp, nw, zw, g.wall, [outer_w, inner_w], g))
+}
+
+/// Plan grasps for `detection` (of `model`, found in `cloud`) and judge the first against the
+/// truth; `seed` seeds the brute-force sampler.
+pub fn judge(
+    truth: &Truth,
+    detection: &Detection,
+    model: &Model,
+    cloud: &[[f32; 3]],
+    plane: Option<&crate::cloud::plane::Plane>,
+    gripper: &Gripper,
+    seed: u64,
+) -> Verdict {
+    let parts: Vec<Part> = detection
+        .parts
+        .iter()
+        .zip(&model.parts)
+        .filter_map(|(p, m)| p.placed.map(|placed| Part { placed, open: m.open }))
+        .collect();
+    let t = Instant::now();
+    let planned = plan(&parts, cloud, plane, gripper, 1);
+    let time_ms = t.elapsed().as_secs_f64() * 1e3;
+    let first_valid = planned.first().map(|g| truth.check(g, gripper));
+    Verdict {
+        planned: !planned.is_empty(),
+        exists: first_valid.is_some_and(|v| v.is_ok()) || truth.any_valid(gripper, seed),
+        first_valid,
+        time_ms,
+    }
+}

@@ -1,0 +1,150 @@
+//! The volumes a gripper sweeps for a grasp and the checks against them: the scene's points
+//! that are not the object's, the object's own model surface and the support plane.
+
+use super::gripper::Gripper;
+use crate::cloud::plane::Plane;
+use nalgebra::{Isometry3, Point3, Vector3};
+
+/// An axis-aligned box in the grasp's frame.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cuboid {
+    pub(super) lo: Vector3<f64>,
+    pub(super) hi: Vector3<f64>,
+}
+
+impl Cuboid {
+    fn holds(&self, q: &Vector3<f64>, margin: f64) -> bool {
+        (0..3).all(|k| q[k] > self.lo[k] - margin && q[k] < self.hi[k] + margin)
+    }
+
+    fn corners(&self) -> impl Iterator<Item = Vector3<f64>> + '_ {
+        (0..8).map(move |c| {
+            Vector3::new(
+                if c & 1 == 0 { self.lo.x } else { self.hi.x },
+                if c & 2 == 0 { self.lo.y } else { self.hi.y },
+                if c & 4 == 0 { self.lo.z } else { self.hi.z },
+            )
+        })
+    }
+}
+
+/// The map from the cloud's frame into the grasp's, as a matrix: a quaternion per point would
+/// cost several times as much, and the checks take thousands of points per grasp.
+fn to_grasp(pose: &Isometry3<f64>) -> impl Fn(&Point3<f64>) -> Vector3<f64> {
+    let rt = pose.rotation.to_rotation_matrix().into_inner().transpose();
+    let t = pose.translation.vector;
+    move |p| rt * (p.coords - t)
+}
+
+/// What the gripper occupies for a grasp of opening `width`, in the grasp's frame.
+#[derive(Debug, Clone)]
+pub struct Swept {
+    /// The fingers (open by the clearance on each side) and the palm, from the pre-grasp pose to
+    /// the grasp: each box stretched back along -z by the pre-grasp distance.
+    pub(super) solid: [Cuboid; 3],
+    /// Where the pads close, from the open fingers to the contacts: the object's own surface
+    /// may not reach in here beyond the contacts (it would stop the fingers early).
+    pub(super) closing: [Cuboid; 2],
+    /// Between the pads at the grasp: a point of something else here would be squeezed.
+    pub(super) gap: Cuboid,
+}
+
+/// How far past the contacts the object's surface may stand inside the closing fingers' path
+/// (m): its sampled surface and the contact line's ray hit differ by this much on a flat face.
+const CONTACT_SLACK: f64 = 0.002;
+
+impl Swept {
+    /// What `g` sweeps for a grasp of opening `width`.
+    pub fn new(g: &Gripper, width: f64) -> Swept {
+        let open = (width + 2.0 * g.clearance).min(g.max_opening).max(width);
+        let (half, half_open) = (0.5 * width, 0.5 * open);
+        let fw = 0.5 * g.finger_width;
+        let root = -(g.finger_depth - g.pad_from_tip);
+        let tip = g.pad_from_tip;
+        let back = g.pregrasp;
+        let t = g.finger_thickness;
+        let finger = |s: f64| {
+            let (a, b) = (s * half_open, s * (half_open + t));
+            Cuboid {
+                lo: Vector3::new(a.min(b), -fw, root - back),
+                hi: Vector3::new(a.max(b), fw, tip),
+            }
+        };
+        let (px, py, pz) = (0.5 * g.palm[0], 0.5 * g.palm[1], g.palm[2]);
+        let palm = Cuboid {
+            lo: Vector3::new(-px, -py, root - pz - back),
+            hi: Vector3::new(px, py, root),
+        };
+        let closing = |s: f64| {
+            let (a, b) = (s * (half + CONTACT_SLACK), s * half_open);
+            Cuboid {
+                lo: Vector3::new(a.min(b), -fw, root),
+                hi: Vector3::new(a.max(b), fw, tip),
+            }
+        };
+        Swept {
+            solid: [finger(1.0), finger(-1.0), palm],
+            closing: [closing(1.0), closing(-1.0)],
+            gap: Cuboid {
+                lo: Vector3::new(-half, -fw, root),
+                hi: Vector3::new(half, fw, tip),
+            },
+        }
+    }
+
+    /// Whether one of `others` (points that are not the object's, in the cloud's frame) lies in
+    /// the swept solid within `clearance`, or between the pads.
+    pub(super) fn hits_others(&self, pose: &Isometry3<f64>, others: &[Point3<f64>], clearance: f64) -> bool {
+        let local = to_grasp(pose);
+        others.iter().any(|p| {
+            let q = local(p);
+            self.solid.iter().any(|b| b.holds(&q, clearance)) || self.gap.holds(&q, 0.0)
+        })
+    }
+
+    /// Whether the object's own surface (`surface`, samples in the cloud's frame) lies within
+    /// `margin` of the swept solid or of the pads' path beyond the contacts.
+    pub fn hits_object(&self, pose: &Isometry3<f64>, surface: &[Point3<f64>], margin: f64) -> bool {
+        let local = to_grasp(pose);
+        surface.iter().any(|p| {
+            let q = local(p);
+            self.solid.iter().chain(&self.closing).any(|b| b.holds(&q, margin))
+        })
+    }
+
+    /// Whether one of `points` (in the cloud's frame) lies in the swept solid itself, the open
+    /// fingers and the palm from the pre-grasp pose on: what the gripper would run into before
+    /// its pads close.
+    pub fn solid_hits(&self, pose: &Isometry3<f64>, points: &[Point3<f64>]) -> bool {
+        let local = to_grasp(pose);
+        points.iter().any(|p| {
+            let q = local(p);
+            self.solid.iter().any(|b| b.holds(&q, 0.0))
+        })
+    }
+
+    /// The farthest the swept solid reaches from the pads' centre (m).
+    pub(super) fn reach(&self) -> f64 {
+        self.solid
+            .iter()
+            .flat_map(|b| b.corners().collect::<Vec<_>>())
+            .map(|c| c.norm())
+            .fold(0.0, f64::max)
+    }
+
+    /// Whether `p` (in the cloud's frame) lies within `margin` of the swept solid, or between
+    /// the pads.
+    pub fn holds(&self, pose: &Isometry3<f64>, p: &Point3<f64>, margin: f64) -> bool {
+        let q = pose.inverse_transform_point(p).coords;
+        self.solid.iter().any(|b| b.holds(&q, margin)) || self.gap.holds(&q, 0.0)
+    }
+
+    /// The least height over `plane` of the swept solid's corners (m).
+    pub fn lowest_over(&self, pose: &Isometry3<f64>, plane: &Plane) -> f64 {
+        self.solid
+            .iter()
+            .flat_map(|b| b.corners().collect::<Vec<_>>())
+            .map(|c| plane.signed_distance(&pose.transform_point(&Point3::from(c))))
+            .fold(f64::INFINITY, f64::min)
+    }
+}

@@ -1,0 +1,290 @@
+//! Grasps for a found object: where a parallel-jaw gripper can take it, from its fitted
+//! superquadrics, checked against everything else the scan saw (`docs/GRASPS.md`).
+//!
+//! A superquadric says in closed form where its surface is and which way it faces, so the
+//! candidates need no sampling of the cloud: closing lines across each part's axes (around the
+//! axis of a body of revolution) through its centre and half way to its ends, and across the
+//! wall at an open container's rim; each approached from every direction around the closing
+//! line that the arm can reach. A candidate is kept where both contacts hold within the
+//! friction cone, and the fingers and palm, swept open from the pre-grasp pose to the grasp,
+//! stay clear of every scene point that is not the object's, of the object's own model beyond
+//! the contacts and of the support plane. Candidates are checked best first, and one grasp is
+//! kept of each set that the object's symmetry makes equal.
+
+mod candidates;
+mod collide;
+mod gripper;
+#[cfg(test)]
+mod tests;
+
+pub use candidates::Kind;
+pub use collide::Swept;
+pub use gripper::{Gripper, GripperError};
+
+use crate::cloud::grid::{VoxelSet, floor_i64};
+use crate::cloud::plane::Plane;
+use crate::geometry::{PlacedKernel, PlacedSuperquadric};
+use candidates::{Candidate, Frame};
+use nalgebra::{Isometry3, Point3, Translation3, Vector3};
+use rayon::prelude::*;
+use std::collections::{HashMap, HashSet};
+
+/// One grasp, in the cloud's frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grasp {
+    /// The part grasped (an index into the model's parts).
+    pub part: usize,
+    pub kind: Kind,
+    /// The pads' centre: x the closing direction, z the approach.
+    pub pose: Isometry3<f64>,
+    /// Distance between the contacts (m).
+    pub opening: f64,
+    /// Where the pads touch the fitted surface, the +x pad's first.
+    pub contacts: [Point3<f64>; 2],
+    /// The pose the gripper moves in from, open, along z.
+    pub pregrasp: Isometry3<f64>,
+    /// Lower is better: off the centre of mass, away from straight down, near the friction
+    /// cone's edge.
+    pub cost: f64,
+}
+
+/// One part of the object to grasp: its fitted pose and whether it is an open container.
+#[derive(Debug, Clone, Copy)]
+pub struct Part {
+    pub placed: PlacedSuperquadric,
+    pub open: bool,
+}
+
+/// Scene points within this distance of the object's fitted surface (or inside it) are the
+/// object's (m): a Kinect-class sensor's noise at a metre, three sigmas.
+const OBJECT_BAND: f64 = 0.006;
+/// The scene's points are thinned to one per cube of this edge (m) before the checks: the
+/// gripper's clearance is coarser.
+const THIN: f64 = 0.003;
+/// The object's model surface is sampled this far apart (m) for the check of the gripper
+/// against it.
+const MODEL_SPACING: f64 = 0.005;
+/// The gripper keeps this much further from a compound's smaller parts (m): a handle is fitted
+/// to a few dozen points, and its pose is the least certain of the object's.
+const SMALL_PART_MARGIN: f64 = 0.008;
+/// Candidates checked at most for one object: the best several hundred of thousands are as
+/// good as any, and the checks stay within a millisecond or two.
+const MAX_CHECKED: usize = 600;
+
+/// Up to `max` grasps of the object made of `parts`, best first, checked against `scene` (the
+/// whole cloud, in the parts' frame) and the support `plane` (its normal towards the objects).
+pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: &Gripper, max: usize) -> Vec<Grasp> {
+    if parts.is_empty() || max == 0 || gripper.validate().is_err() {
+        return Vec::new();
+    }
+    let frame = frame(parts, plane);
+    let reach = parts
+        .iter()
+        .map(|p| {
+            (Point3::from(p.placed.pose.translation.vector) - frame.centre).norm() + p.placed.shape.bounding_radius()
+        })
+        .fold(0.0, f64::max)
+        + Swept::new(gripper, gripper.max_opening).reach();
+    let t0 = std::time::Instant::now();
+    let others = others(parts, scene, plane, &frame.centre, reach, gripper.clearance);
+    let t1 = std::time::Instant::now();
+    let surface = model_surface(parts);
+    let t2 = std::time::Instant::now();
+    let mut candidates: Vec<Candidate> = parts
+        .iter()
+        .enumerate()
+        .flat_map(|(i, p)| candidates::of_part(i, &p.placed, p.open, gripper, &frame))
+        .collect();
+    candidates.sort_by(|a, b| a.cost.total_cmp(&b.cost));
+    let t3 = std::time::Instant::now();
+    let mut seen: HashSet<Vec<i64>> = HashSet::new();
+    let mut swept: HashMap<u64, Swept> = HashMap::new();
+    let mut out = Vec::new();
+    let total = candidates.len();
+    // Why candidates were refused, for the debug line: the plane, the object, other points.
+    let mut refused = [0usize; 3];
+    for mut c in candidates.into_iter().take(MAX_CHECKED) {
+        if seen.contains(&c.key) || !c.settle(&parts[c.part].placed, gripper) {
+            continue;
+        }
+        let s = swept
+            .entry(c.width.to_bits())
+            .or_insert_with(|| Swept::new(gripper, c.width));
+        let why = if plane.is_some_and(|pl| s.lowest_over(&c.pose, pl) < gripper.clearance) {
+            Some(0)
+        } else if s.hits_object(&c.pose, &surface.main, 0.0)
+            || s.hits_object(&c.pose, &surface.small, SMALL_PART_MARGIN)
+        {
+            Some(1)
+        } else if s.hits_others(&c.pose, &others, gripper.clearance) {
+            Some(2)
+        } else {
+            None
+        };
+        if let Some(k) = why {
+            refused[k] += 1;
+            tracing::trace!(
+                "grasp {} of part {} at {:?} refused ({})",
+                c.kind.name(),
+                c.part,
+                c.pose.translation.vector.as_slice(),
+                ["plane", "object", "other points"][k]
+            );
+            continue;
+        }
+        seen.insert(c.key.clone());
+        let back = Translation3::from(c.pose.rotation * Vector3::new(0.0, 0.0, -gripper.pregrasp));
+        out.push(Grasp {
+            part: c.part,
+            kind: c.kind,
+            pregrasp: back * c.pose,
+            pose: c.pose,
+            opening: c.width,
+            contacts: c.contacts,
+            cost: c.cost,
+        });
+        if out.len() == max {
+            break;
+        }
+    }
+    let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
+    tracing::debug!(
+        "grasps: {} kept of {total} candidates ({} points around, {} on the model); refused for the plane {}, the object's own surface {}, other points {}; ms: points {:.2}, model {:.2}, candidates {:.2}, checks {:.2}",
+        out.len(),
+        others.len(),
+        surface.len(),
+        refused[0],
+        refused[1],
+        refused[2],
+        ms(t0, t1),
+        ms(t1, t2),
+        ms(t2, t3),
+        ms(t3, std::time::Instant::now()),
+    );
+    out
+}
+
+/// Whether `p` lies in what the gripper sweeps for grasp `g`: its fingers and palm from the
+/// pre-grasp pose to the grasp, and the space between the pads (for checks from outside, such
+/// as the evaluation against labelled points).
+pub fn sweeps_through(g: &Grasp, gripper: &Gripper, p: &Point3<f64>) -> bool {
+    Swept::new(gripper, g.opening).holds(&g.pose, p, 0.0)
+}
+
+/// The object's centre of mass (its parts' volumes as weights), its size and up.
+fn frame(parts: &[Part], plane: Option<&Plane>) -> Frame {
+    let (mut sum, mut w) = (Vector3::zeros(), 0.0);
+    for p in parts {
+        let v = p.placed.shape.box_volume().max(1e-12);
+        sum += p.placed.pose.translation.vector * v;
+        w += v;
+    }
+    let centre = Point3::from(sum / w);
+    let size = parts
+        .iter()
+        .map(|p| 2.0 * p.placed.shape.max_size())
+        .fold(0.0, f64::max);
+    let up = plane.map_or_else(Vector3::z, |pl| pl.normal);
+    let share = parts
+        .iter()
+        .map(|p| p.placed.shape.box_volume().max(1e-12) / w)
+        .collect();
+    Frame {
+        centre,
+        size,
+        up,
+        share,
+        single: parts.len() == 1,
+    }
+}
+
+/// The scene's points within `reach` of `centre` that are neither the object's (within
+/// [`OBJECT_BAND`] of a part's surface or inside one) nor the support plane's (below
+/// `clearance` over it: the plane is checked as a plane), thinned to one per [`THIN`] cube.
+fn others(
+    parts: &[Part],
+    scene: &[[f32; 3]],
+    plane: Option<&Plane>,
+    centre: &Point3<f64>,
+    reach: f64,
+    clearance: f64,
+) -> Vec<Point3<f64>> {
+    let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
+    let inv = 1.0 / THIN;
+    // The reach test in single precision, as the points are given, over the whole cloud (a
+    // Kinect frame's 307,200 points): a centimetre more reach covers its rounding. NaN fails
+    // the comparison and is skipped with the far points.
+    let reach2 = ((reach + 0.01) * (reach + 0.01)) as f32;
+    let c = [centre.x as f32, centre.y as f32, centre.z as f32];
+    // In chunks on the pool's threads, each thinned on its own: a voxel that two chunks share
+    // keeps a point from each, which costs a check and changes no answer.
+    scene
+        .par_chunks(CHUNK)
+        .flat_map_iter(|chunk| {
+            let mut cells = VoxelSet::default();
+            let mut out = Vec::new();
+            for q in chunk {
+                let (dx, dy, dz) = (q[0] - c[0], q[1] - c[1], q[2] - c[2]);
+                if !(dx * dx + dy * dy + dz * dz <= reach2) {
+                    continue;
+                }
+                let p = Point3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+                if plane.is_some_and(|pl| pl.signed_distance(&p) < clearance) {
+                    continue;
+                }
+                // Thinned before the object's test, the costly one.
+                let cell = (floor_i64(p.x * inv), floor_i64(p.y * inv), floor_i64(p.z * inv));
+                if !cells.insert(cell) {
+                    continue;
+                }
+                // Inside a part (a negative distance) or on its surface.
+                if !kernels.iter().any(|k| {
+                    k.surface_distance_near(&p, OBJECT_BAND)
+                        .is_some_and(|d| d < OBJECT_BAND)
+                }) {
+                    out.push(p);
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// Points a thread takes at a time in [`others`].
+const CHUNK: usize = 32_768;
+
+/// Samples of the object's model surface, without the opening of an open part (where there is
+/// nothing to touch): of its largest part, and of the others.
+struct ModelSurface {
+    main: Vec<Point3<f64>>,
+    small: Vec<Point3<f64>>,
+}
+
+impl ModelSurface {
+    fn len(&self) -> usize {
+        self.main.len() + self.small.len()
+    }
+}
+
+fn model_surface(parts: &[Part]) -> ModelSurface {
+    let largest = (0..parts.len())
+        .max_by(|&a, &b| {
+            let v = |i: usize| parts[i].placed.shape.box_volume();
+            v(a).total_cmp(&v(b))
+        })
+        .unwrap_or(0);
+    let mut out = ModelSurface {
+        main: Vec::new(),
+        small: Vec::new(),
+    };
+    for (i, p) in parts.iter().enumerate() {
+        let local = crate::surface_samples::local_samples(&p.placed.shape, MODEL_SPACING, p.open);
+        let to = if i == largest { &mut out.main } else { &mut out.small };
+        to.extend(
+            local
+                .iter()
+                .map(|(q, _)| p.placed.pose.transform_point(&Point3::from(*q))),
+        );
+    }
+    out
+}
