@@ -27,7 +27,16 @@ pub fn detection_reply(
 ) -> Reply {
     let mut report = report_json(&det.report, all);
     if let Some((model, gripper, n)) = grasps.filter(|g| g.2 > 0) {
-        add_grasps(&mut report, &det.report, model, &entry.sweep.cloud.points, gripper, n);
+        let cloud = &entry.sweep.cloud;
+        add_grasps(
+            &mut report,
+            &det.report,
+            model,
+            &cloud.points,
+            cloud.viewpoint_position(),
+            gripper,
+            n,
+        );
     }
     Reply::Detection(Box::new(DetectionReply {
         id: None,

@@ -215,12 +215,14 @@ pub fn report_json(r: &Report, all: bool) -> ReportJson {
 }
 
 /// Give each found detection of `json` (made by [`report_json`] from `r`) up to `max` grasps of
-/// `gripper`, checked against `cloud` (the points `r` was detected in) and `r`'s plane.
+/// `gripper`, checked against `cloud` (the points `r` was detected in, seen from `viewpoint`)
+/// and `r`'s plane.
 pub fn add_grasps(
     json: &mut ReportJson,
     r: &Report,
     model: &crate::model::Model,
     cloud: &[[f32; 3]],
+    viewpoint: Option<nalgebra::Point3<f64>>,
     gripper: &crate::grasp::Gripper,
     max: usize,
 ) {
@@ -232,17 +234,8 @@ pub fn add_grasps(
         if !d.found {
             continue;
         }
-        // The parts placed (a compound's part may not be), with their names.
-        let (parts, names): (Vec<crate::grasp::Part>, Vec<&str>) = d
-            .parts
-            .iter()
-            .zip(&model.parts)
-            .filter_map(|(p, m)| {
-                p.placed
-                    .map(|placed| (crate::grasp::Part { placed, open: m.open }, p.name.as_str()))
-            })
-            .unzip();
-        dj.grasps = crate::grasp::plan(&parts, cloud, r.plane.as_ref(), gripper, max)
+        let (parts, names): (Vec<crate::grasp::Part>, Vec<&str>) = d.grasp_parts(model).into_iter().unzip();
+        dj.grasps = crate::grasp::plan(&parts, cloud, r.plane.as_ref(), viewpoint, gripper, max)
             .iter()
             .map(|g| grasp_json(names[g.part], g))
             .collect();

@@ -37,6 +37,21 @@ pub struct Detection {
     pub short_of_coverage: Option<f64>,
 }
 
+impl Detection {
+    /// The parts placed (a compound's part may not be) as the grasp planner takes them, with
+    /// their names; `model` is the model detected.
+    pub fn grasp_parts<'a>(&'a self, model: &crate::model::Model) -> Vec<(crate::grasp::Part, &'a str)> {
+        self.parts
+            .iter()
+            .zip(&model.parts)
+            .filter_map(|(p, m)| {
+                p.placed
+                    .map(|placed| (crate::grasp::Part { placed, open: m.open }, p.name.as_str()))
+            })
+            .collect()
+    }
+}
+
 /// Milliseconds spent in each stage.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Timing {

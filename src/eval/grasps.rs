@@ -261,25 +261,26 @@ fn random_rim(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng) ->
     Some(grasp_at(Kind::Rim, tcp, nw, zw, g.wall, [outer_w, inner_w], g))
 }
 
-/// Plan grasps for `detection` (of `model`, found in `cloud`) and judge the first against the
+/// What a detection was made on: the points, the support plane found, the viewpoint.
+pub struct Scan<'a> {
+    pub cloud: &'a [[f32; 3]],
+    pub plane: Option<&'a crate::cloud::plane::Plane>,
+    pub viewpoint: Option<Point3<f64>>,
+}
+
+/// Plan grasps for `detection` (of `model`, found in `scan`) and judge the first against the
 /// truth; `seed` seeds the brute-force sampler.
 pub fn judge(
     truth: &Truth,
     detection: &Detection,
     model: &Model,
-    cloud: &[[f32; 3]],
-    plane: Option<&crate::cloud::plane::Plane>,
+    scan: &Scan<'_>,
     gripper: &Gripper,
     seed: u64,
 ) -> Verdict {
-    let parts: Vec<Part> = detection
-        .parts
-        .iter()
-        .zip(&model.parts)
-        .filter_map(|(p, m)| p.placed.map(|placed| Part { placed, open: m.open }))
-        .collect();
+    let parts: Vec<Part> = detection.grasp_parts(model).into_iter().map(|(p, _)| p).collect();
     let t = Instant::now();
-    let planned = plan(&parts, cloud, plane, gripper, 1);
+    let planned = plan(&parts, scan.cloud, scan.plane, scan.viewpoint, gripper, 1);
     let time_ms = t.elapsed().as_secs_f64() * 1e3;
     let first_valid = planned.first().map(|g| truth.check(g, gripper));
     Verdict {

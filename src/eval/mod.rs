@@ -44,8 +44,9 @@ pub struct Trial {
     pub rotation_error: f64,
     pub time_ms: f64,
     pub report: Report,
-    /// The simulated sweep's points the detection ran on.
+    /// The simulated sweep's points the detection ran on, and where it was seen from.
     pub cloud: Vec<[f32; 3]>,
+    pub viewpoint: Option<nalgebra::Point3<f64>>,
 }
 
 /// Run one trial: simulate with `noise_seed`, detect with `params` (whose seed is the search seed).
@@ -81,6 +82,7 @@ pub fn trial(
         time_ms: report.timing.total_ms,
         report,
         cloud: sweep.cloud.points,
+        viewpoint: p.viewpoint,
     }
 }
 

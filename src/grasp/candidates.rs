@@ -36,7 +36,7 @@ pub(super) struct Candidate {
     pub(super) width: f64,
     /// On the +x side first.
     pub(super) contacts: [Point3<f64>; 2],
-    /// Lower is better (see [`cost`]).
+    /// Lower is better: what `push` weighs.
     pub(super) cost: f64,
     /// Equal for grasps that the part's symmetry (and the gripper's half turn) maps onto each
     /// other.

@@ -49,6 +49,9 @@ pub struct Swept {
     pub(super) gap: Cuboid,
 }
 
+/// How far apart [`Swept::surface_points`] lie (m).
+const SURFACE_SPACING: f64 = 0.01;
+
 /// How far past the contacts the object's surface may stand inside the closing fingers' path
 /// (m): its sampled surface and the contact line's ray hit differ by this much on a flat face.
 const CONTACT_SLACK: f64 = 0.002;
@@ -121,6 +124,31 @@ impl Swept {
             let q = local(p);
             self.solid.iter().any(|b| b.holds(&q, 0.0))
         })
+    }
+
+    /// Points on the faces of the swept solid about [`SURFACE_SPACING`] apart, in the cloud's
+    /// frame for the grasp at `pose`: what [`super::unseen`] looks along the lines of sight for.
+    pub(super) fn surface_points(&self, pose: &Isometry3<f64>) -> Vec<Point3<f64>> {
+        let mut out = Vec::new();
+        for b in &self.solid {
+            let size = b.hi - b.lo;
+            let n = size.map(|v| ((v / SURFACE_SPACING).ceil() as usize).max(1));
+            for k in 0..3 {
+                let (i, j) = ((k + 1) % 3, (k + 2) % 3);
+                for side in [b.lo[k], b.hi[k]] {
+                    for a in 0..=n[i] {
+                        for c in 0..=n[j] {
+                            let mut q = Vector3::zeros();
+                            q[k] = side;
+                            q[i] = b.lo[i] + size[i] * a as f64 / n[i] as f64;
+                            q[j] = b.lo[j] + size[j] * c as f64 / n[j] as f64;
+                            out.push(pose.transform_point(&Point3::from(q)));
+                        }
+                    }
+                }
+            }
+        }
+        out
     }
 
     /// The farthest the swept solid reaches from the pads' centre (m).

@@ -42,6 +42,9 @@ pub struct Gripper {
     /// The wall thickness assumed for a grasp across the rim of an open container (m): the
     /// model is the outer surface only.
     pub wall: f64,
+    /// Treat the space the sensor could not see (behind what it saw, outside the object's
+    /// model) as occupied: grasps then keep the gripper where the sensor saw free space.
+    pub occupy_unseen: bool,
 }
 
 impl Default for Gripper {
@@ -59,6 +62,7 @@ impl Default for Gripper {
             pregrasp: 0.10,
             clearance: 0.005,
             wall: 0.004,
+            occupy_unseen: false,
         }
     }
 }

@@ -16,6 +16,7 @@ mod collide;
 mod gripper;
 #[cfg(test)]
 mod tests;
+mod unseen;
 
 pub use candidates::Kind;
 pub use collide::Swept;
@@ -72,8 +73,16 @@ const SMALL_PART_MARGIN: f64 = 0.008;
 const MAX_CHECKED: usize = 600;
 
 /// Up to `max` grasps of the object made of `parts`, best first, checked against `scene` (the
-/// whole cloud, in the parts' frame) and the support `plane` (its normal towards the objects).
-pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: &Gripper, max: usize) -> Vec<Grasp> {
+/// whole cloud, in the parts' frame, seen from `viewpoint`) and the support `plane` (its normal
+/// towards the objects).
+pub fn plan(
+    parts: &[Part],
+    scene: &[[f32; 3]],
+    plane: Option<&Plane>,
+    viewpoint: Option<Point3<f64>>,
+    gripper: &Gripper,
+    max: usize,
+) -> Vec<Grasp> {
     if parts.is_empty() || max == 0 || gripper.validate().is_err() {
         return Vec::new();
     }
@@ -89,6 +98,9 @@ pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: 
     let others = others(parts, scene, plane, &frame.centre, reach, gripper.clearance);
     let t1 = std::time::Instant::now();
     let surface = model_surface(parts);
+    let unseen = viewpoint
+        .filter(|_| gripper.occupy_unseen)
+        .map(|v| unseen::Shadows::new(scene, v, &frame.centre, reach));
     let t2 = std::time::Instant::now();
     let mut candidates: Vec<Candidate> = parts
         .iter()
@@ -97,12 +109,20 @@ pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: 
         .collect();
     candidates.sort_by(|a, b| a.cost.total_cmp(&b.cost));
     let t3 = std::time::Instant::now();
+    let world = World {
+        others,
+        surface,
+        unseen,
+        plane,
+        gripper,
+        placed: parts.iter().map(|p| p.placed).collect(),
+    };
     let mut seen: HashSet<Vec<i64>> = HashSet::new();
     let mut swept: HashMap<u64, Swept> = HashMap::new();
     let mut out = Vec::new();
     let total = candidates.len();
     // Why candidates were refused, for the debug line: the plane, the object, other points.
-    let mut refused = [0usize; 3];
+    let mut refused = [0usize; 4];
     for mut c in candidates.into_iter().take(MAX_CHECKED) {
         if seen.contains(&c.key) || !c.settle(&parts[c.part].placed, gripper) {
             continue;
@@ -110,17 +130,7 @@ pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: 
         let s = swept
             .entry(c.width.to_bits())
             .or_insert_with(|| Swept::new(gripper, c.width));
-        let why = if plane.is_some_and(|pl| s.lowest_over(&c.pose, pl) < gripper.clearance) {
-            Some(0)
-        } else if s.hits_object(&c.pose, &surface.main, 0.0)
-            || s.hits_object(&c.pose, &surface.small, SMALL_PART_MARGIN)
-        {
-            Some(1)
-        } else if s.hits_others(&c.pose, &others, gripper.clearance) {
-            Some(2)
-        } else {
-            None
-        };
+        let why = world.refusal(&c, s);
         if let Some(k) = why {
             refused[k] += 1;
             tracing::trace!(
@@ -128,7 +138,7 @@ pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: 
                 c.kind.name(),
                 c.part,
                 c.pose.translation.vector.as_slice(),
-                ["plane", "object", "other points"][k]
+                ["plane", "object", "other points", "unseen space"][k]
             );
             continue;
         }
@@ -149,19 +159,57 @@ pub fn plan(parts: &[Part], scene: &[[f32; 3]], plane: Option<&Plane>, gripper: 
     }
     let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
     tracing::debug!(
-        "grasps: {} kept of {total} candidates ({} points around, {} on the model); refused for the plane {}, the object's own surface {}, other points {}; ms: points {:.2}, model {:.2}, candidates {:.2}, checks {:.2}",
+        "grasps: {} kept of {total} candidates ({} points around, {} on the model); refused for the plane {}, the object's own surface {}, other points {}, unseen space {}; ms: points {:.2}, model {:.2}, candidates {:.2}, checks {:.2}",
         out.len(),
-        others.len(),
-        surface.len(),
+        world.others.len(),
+        world.surface.len(),
         refused[0],
         refused[1],
         refused[2],
+        refused[3],
         ms(t0, t1),
         ms(t1, t2),
         ms(t2, t3),
         ms(t3, std::time::Instant::now()),
     );
     out
+}
+
+/// What a candidate is checked against.
+struct World<'a> {
+    /// The scene's points that are not the object's, around it.
+    others: Vec<Point3<f64>>,
+    surface: ModelSurface,
+    unseen: Option<unseen::Shadows>,
+    plane: Option<&'a Plane>,
+    gripper: &'a Gripper,
+    /// The object's parts.
+    placed: Vec<PlacedSuperquadric>,
+}
+
+impl World<'_> {
+    /// Why candidate `c`, sweeping `s`, is refused, if it is: the plane (0), the object's own
+    /// surface (1), other points (2), unseen space (3).
+    fn refusal(&self, c: &Candidate, s: &Swept) -> Option<usize> {
+        let g = self.gripper;
+        if self.plane.is_some_and(|pl| s.lowest_over(&c.pose, pl) < g.clearance) {
+            Some(0)
+        } else if s.hits_object(&c.pose, &self.surface.main, 0.0)
+            || s.hits_object(&c.pose, &self.surface.small, SMALL_PART_MARGIN)
+        {
+            Some(1)
+        } else if s.hits_others(&c.pose, &self.others, g.clearance) {
+            Some(2)
+        } else if self
+            .unseen
+            .as_ref()
+            .is_some_and(|u| u.hides(&s.surface_points(&c.pose), &self.placed, g.clearance))
+        {
+            Some(3)
+        } else {
+            None
+        }
+    }
 }
 
 /// Whether `p` lies in what the gripper sweeps for grasp `g`: its fingers and palm from the

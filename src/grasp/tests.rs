@@ -90,7 +90,7 @@ fn a_lone_box_is_taken_across_its_thin_side() {
     let parts = [closed(boxed)];
     let mut scene = table_points(0.3);
     scene.extend(points_of(&boxed));
-    let grasps = plan(&parts, &scene, Some(&table()), &gripper, 5);
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 5);
     assert!(!grasps.is_empty(), "no grasp of a 60 mm box");
     assert_sound(&grasps, &parts, &gripper);
     let thin = boxed.pose.rotation * Vector3::x();
@@ -121,13 +121,13 @@ fn a_box_pressed_against_another_is_not_taken_across_the_touching_sides() {
     let parts = [closed(boxed)];
     let mut scene = table_points(0.3);
     scene.extend(points_of(&boxed));
-    let alone = plan(&parts, &scene, Some(&table()), &gripper, 20);
+    let alone = plan(&parts, &scene, Some(&table()), None, &gripper, 20);
     assert!(
         alone.iter().any(|g| closing(g).x.abs() > 0.99),
         "alone, it is taken across x"
     );
     scene.extend(points_of(&neighbour));
-    let grasps = plan(&parts, &scene, Some(&table()), &gripper, 20);
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 20);
     assert!(!grasps.is_empty(), "the box is still free across y");
     assert_sound(&grasps, &parts, &gripper);
     for g in &grasps {
@@ -151,7 +151,7 @@ fn a_mug_with_a_can_beside_it_is_not_taken_from_the_cans_side() {
     let mut scene = table_points(0.3);
     scene.extend(points_of(&mug));
     scene.extend(points_of(&can));
-    let grasps = plan(&parts, &scene, Some(&table()), &gripper, 20);
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 20);
     assert!(!grasps.is_empty(), "the mug is free from above and from +y");
     assert_sound(&grasps, &parts, &gripper);
     for g in &grasps {
@@ -175,7 +175,7 @@ fn a_bowl_too_wide_to_close_across_is_taken_at_its_rim() {
     let parts = [Part { placed, open: true }];
     let mut scene = table_points(0.3);
     scene.extend(points_of(&placed).into_iter().filter(|p| (p[2] as f64) < 0.079));
-    let grasps = plan(&parts, &scene, Some(&table()), &gripper, 5);
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 5);
     assert!(!grasps.is_empty(), "no rim grasp");
     assert_sound(&grasps, &parts, &gripper);
     // A body of revolution: every rim grasp is the same grasp.
@@ -194,7 +194,7 @@ fn a_can_gets_one_grasp_for_each_way_its_symmetry_leaves_different() {
     let parts = [closed(can)];
     let mut scene = table_points(0.3);
     scene.extend(points_of(&can));
-    let grasps = plan(&parts, &scene, Some(&table()), &gripper, 50);
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 50);
     assert!(!grasps.is_empty());
     assert_sound(&grasps, &parts, &gripper);
     // From above at the centre first (straight down, across its axis).
@@ -226,7 +226,7 @@ fn nothing_is_planned_for_absurd_settings_or_inputs() {
         ..Gripper::default()
     };
     assert!(bad.validate().is_err());
-    assert!(plan(&parts, &scene, Some(&table()), &bad, 5).is_empty());
+    assert!(plan(&parts, &scene, Some(&table()), None, &bad, 5).is_empty());
     bad = Gripper {
         min_opening: 0.1,
         ..Gripper::default()
@@ -241,7 +241,47 @@ fn nothing_is_planned_for_absurd_settings_or_inputs() {
     // Wild points in the scene are skipped, not a panic.
     let mut wild = scene.clone();
     wild.extend([[f32::NAN, 0.0, 0.0], [f32::INFINITY, 1.0, 1.0], [1e30, -1e30, 0.0]]);
-    let g = plan(&parts, &wild, Some(&table()), &Gripper::default(), 5);
+    let g = plan(&parts, &wild, Some(&table()), None, &Gripper::default(), 5);
     assert!(!g.is_empty());
-    assert!(plan(&[], &wild, None, &Gripper::default(), 5).is_empty());
+    assert!(plan(&[], &wild, None, None, &Gripper::default(), 5).is_empty());
+}
+
+#[test]
+fn asked_to_occupy_unseen_space_no_finger_goes_behind_the_box() {
+    // Seen from far along -x and above: the sensor sees the box's front and top, and the table
+    // but for the box's shadow behind it.
+    let viewpoint = Point3::new(-1.0, 0.0, 0.6);
+    let boxed = standing(cuboid([0.03, 0.035, 0.05]), 0.0, 0.0, 0.0);
+    let kernel = crate::geometry::Kernel::new(&boxed.shape);
+    let mut scene: Vec<[f32; 3]> = table_points(0.3)
+        .into_iter()
+        .filter(|p| !((-0.031..0.2).contains(&p[0]) && p[1].abs() < 0.036))
+        .collect();
+    for p in boxed.sample_surface(0.003) {
+        let n = boxed.pose.rotation * kernel.residual_grad(&boxed.to_local(&p)).grad;
+        if n.dot(&(viewpoint - p)) > 0.0 && p.z > 0.001 {
+            scene.push([p.x as f32, p.y as f32, p.z as f32]);
+        }
+    }
+    let parts = [closed(boxed)];
+    let free = plan(&parts, &scene, Some(&table()), Some(viewpoint), &Gripper::default(), 50);
+    assert!(
+        free.iter().any(|g| closing(g).x.abs() > 0.99),
+        "the unseen space free, the box is taken along the line of sight too"
+    );
+    let careful = Gripper {
+        occupy_unseen: true,
+        ..Gripper::default()
+    };
+    let grasps = plan(&parts, &scene, Some(&table()), Some(viewpoint), &careful, 50);
+    assert!(!grasps.is_empty(), "the box is still free across the line of sight");
+    assert_sound(&grasps, &parts, &careful);
+    for g in &grasps {
+        // A finger behind the box along the line of sight would be where nothing was seen.
+        assert!(
+            closing(g).x.abs() < 0.5,
+            "closing {} along the line of sight",
+            closing(g)
+        );
+    }
 }

@@ -146,7 +146,15 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     let report = fastest_of(a.repeat, || detect::detect(&cloud.points, &model, &params), a.all)?;
     let mut json = detect::output::report_json(&report, a.all);
     if a.grasps > 0 {
-        detect::output::add_grasps(&mut json, &report, &model, &cloud.points, &gripper, a.grasps);
+        detect::output::add_grasps(
+            &mut json,
+            &report,
+            &model,
+            &cloud.points,
+            params.viewpoint,
+            &gripper,
+            a.grasps,
+        );
     }
     println!("{}", serde_json::to_string(&json)?);
     if let Some(out) = &a.out {

@@ -113,15 +113,12 @@ pub fn eval(a: EvalArgs, models_dir: &Path) -> Result<()> {
         let mut t = eval::trial(&scene, &model, truth, &symmetry, seed, &params);
         let cloud = std::mem::take(&mut t.cloud);
         if let (Some(world), true, Some(d)) = (&truth_world, t.correct, t.report.detections.first()) {
-            verdicts.push(grasps::judge(
-                world,
-                d,
-                &model,
-                &cloud,
-                t.report.plane.as_ref(),
-                &gripper,
-                seed,
-            ));
+            let scan = grasps::Scan {
+                cloud: &cloud,
+                plane: t.report.plane.as_ref(),
+                viewpoint: t.viewpoint,
+            };
+            verdicts.push(grasps::judge(world, d, &model, &scan, &gripper, seed));
         }
         trials.push(t);
         if progress {

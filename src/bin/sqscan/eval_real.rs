@@ -158,8 +158,7 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
             .collect();
         let score = score_scene(s, &rule, &answers);
         if a.grasps {
-            let found: Vec<&detect::Detection> = report.detections.iter().filter(|d| d.found).collect();
-            grasps.add(s, &score, &found, &model, &cloud, report.plane.as_ref())?;
+            grasps.add(s, &score, &report, &model, &cloud, params.viewpoint)?;
         }
         rows.push((s, answers, score));
     }
@@ -191,17 +190,19 @@ struct GraspTally {
 }
 
 impl GraspTally {
-    /// Plan grasps for the right answers of one scene (`found`: its found detections, in the
+    /// Plan grasps for the right answers of one scene (`report`'s found detections, in the
     /// order of the score's answers) and check the first of each against the labelled points.
     fn add(
         &mut self,
         s: &SceneLabels,
         score: &SceneScore,
-        found: &[&detect::Detection],
+        report: &detect::Report,
         model: &Model,
         cloud: &cloud::PointCloud,
-        plane: Option<&sqscan::cloud::plane::Plane>,
+        viewpoint: Option<nalgebra::Point3<f64>>,
     ) -> Result<()> {
+        let found: Vec<&detect::Detection> = report.detections.iter().filter(|d| d.found).collect();
+        let plane = report.plane.as_ref();
         let labels = match cloud.field("label").map(|f| &f.data) {
             Some(cloud::FieldData::U32(l)) => l,
             _ => bail!(
@@ -227,14 +228,9 @@ impl GraspTally {
                 continue;
             };
             let Some(group) = o.group else { continue };
-            let parts: Vec<Part> = d
-                .parts
-                .iter()
-                .zip(&model.parts)
-                .filter_map(|(p, m)| p.placed.map(|placed| Part { placed, open: m.open }))
-                .collect();
+            let parts: Vec<Part> = d.grasp_parts(model).into_iter().map(|(p, _)| p).collect();
             let t = std::time::Instant::now();
-            let planned = plan(&parts, &cloud.points, plane, &gripper, 1);
+            let planned = plan(&parts, &cloud.points, plane, viewpoint, &gripper, 1);
             self.times.push(t.elapsed().as_secs_f64() * 1e3);
             self.found += 1;
             let Some(first) = planned.first() else {
