@@ -5,10 +5,10 @@
 
 use crate::detect::Detection;
 use crate::geometry::{Kernel, PlacedSuperquadric};
-use crate::grasp::{Grasp, Gripper, Kind, Part, Swept, plan};
+use crate::grasp::{Grasp, Gripper, Kind, Part, Swept, grasp_pose, line_hits, plan};
 use crate::model::Model;
 use crate::sim::Scene;
-use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::time::Instant;
@@ -183,31 +183,6 @@ fn random_direction(rng: &mut ChaCha8Rng) -> Vector3<f64> {
     }
 }
 
-/// The grasp of pads' centre `tcp`, closing along `x`, approaching along `z` (all in the
-/// cloud's frame).
-fn grasp_at(
-    kind: Kind,
-    tcp: Point3<f64>,
-    x: Vector3<f64>,
-    z: Vector3<f64>,
-    opening: f64,
-    contacts: [Point3<f64>; 2],
-    g: &Gripper,
-) -> Grasp {
-    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, z.cross(&x), z]));
-    let pose = Isometry3::from_parts(tcp.coords.into(), UnitQuaternion::from_rotation_matrix(&rot));
-    let back = Translation3::from(z * -g.pregrasp);
-    Grasp {
-        part: 0,
-        kind,
-        pose,
-        opening,
-        contacts,
-        pregrasp: back * pose,
-        cost: 0.0,
-    }
-}
-
 /// A random grasp across `placed`: the closing line through a random point of its box along a
 /// random direction, the pads where the line meets the surface.
 fn random_across(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng) -> Option<Grasp> {
@@ -219,46 +194,30 @@ fn random_across(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng)
     );
     let o = placed.pose.transform_point(&Point3::from(local));
     let x = random_direction(rng);
-    let reach = 2.0 * placed.shape.bounding_radius() + 0.01;
-    let t1 = placed.ray_hit(&(o + x * reach), &-x, 2.0 * reach)?;
-    let t2 = placed.ray_hit(&(o - x * reach), &x, 2.0 * reach)?;
-    let (c1, c2) = (o + x * (reach - t1), o - x * (reach - t2));
+    let (c1, c2) = line_hits(placed, &o, &x)?;
     let opening = (c1 - c2).norm();
     if opening < g.min_opening || opening + 2.0 * g.clearance > g.max_opening || opening < 1e-4 {
         return None;
     }
     let r = random_direction(rng);
     let z = (r - x * x.dot(&r)).try_normalize(1e-6)?;
-    Some(grasp_at(
-        Kind::Across,
-        Point3::from(0.5 * (c1.coords + c2.coords)),
-        x,
-        z,
+    let tcp = Point3::from(0.5 * (c1.coords + c2.coords));
+    Some(Grasp::new(
+        (0, Kind::Across),
+        grasp_pose(&tcp, &x, &z),
         opening,
         [c1, c2],
+        0.0,
         g,
     ))
 }
 
-/// A random grasp across an open part's wall: a random point of its wall below the rim, closing
-/// along the wall's normal, approaching down along the wall.
+/// A random grasp across an open part's wall: a random point of its wall below the rim, as the
+/// planner's rim grasps are made.
 fn random_rim(placed: &PlacedSuperquadric, g: &Gripper, rng: &mut ChaCha8Rng) -> Option<Grasp> {
-    let shape = &placed.shape;
-    let t = rng.random_range(0.0..std::f64::consts::TAU);
-    let d = Vector3::new(t.cos(), t.sin(), 0.0);
-    let depth = rng.random_range(0.0..(g.finger_depth - g.pad_from_tip).min(2.0 * shape.a[2]));
-    let o = Vector3::new(0.0, 0.0, shape.a[2] - depth);
-    let reach = 2.0 * shape.bounding_radius() + 0.01;
-    let hit = shape.ray_hit(&(o + d * reach), &-d, 2.0 * reach)?;
-    let outer = o + d * (reach - hit);
-    let n = Kernel::new(shape).residual_grad(&outer).grad.try_normalize(1e-12)?;
-    let down = (n * n.z - Vector3::z()).try_normalize(1e-9)?;
-    let r = placed.pose.rotation;
-    let (nw, zw) = (r * n, r * down);
-    let outer_w = placed.pose.transform_point(&Point3::from(outer));
-    let inner_w = outer_w - nw * g.wall;
-    let tcp = outer_w - nw * (0.5 * g.wall);
-    Some(grasp_at(Kind::Rim, tcp, nw, zw, g.wall, [outer_w, inner_w], g))
+    let angle = rng.random_range(0.0..std::f64::consts::TAU);
+    let depth = rng.random_range(0.0..(g.finger_depth - g.pad_from_tip).min(2.0 * placed.shape.a[2]));
+    Grasp::at_rim(placed, angle, depth, g)
 }
 
 /// What a detection was made on: the points, the support plane found, the viewpoint.

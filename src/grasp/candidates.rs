@@ -3,7 +3,7 @@
 //! contacts on the fitted surface, checked against the friction cone, and its cost.
 
 use super::gripper::Gripper;
-use crate::geometry::{Kernel, PlacedSuperquadric};
+use crate::geometry::{Kernel, PlacedSuperquadric, Superquadric};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use std::f64::consts::{FRAC_PI_2, PI};
 
@@ -61,7 +61,6 @@ impl Candidate {
             self.pose.rotation * Vector3::z(),
         );
         let centre = Point3::from(self.pose.translation.vector);
-        let reach = 2.0 * placed.shape.bounding_radius() + 0.01;
         let (root, tip) = (-(g.finger_depth - g.pad_from_tip), g.pad_from_tip);
         // The outermost point on either side, as its offset along x and the point.
         let mut ends: [Option<(f64, Point3<f64>)>; 2] = [None, None];
@@ -69,12 +68,10 @@ impl Candidate {
             let v = g.finger_width * (i as f64 / (PAD_LINES.0 - 1) as f64 - 0.5);
             for j in 0..PAD_LINES.1 {
                 let w = root + (tip - root) * j as f64 / (PAD_LINES.1 - 1) as f64;
-                let o = centre + y * v + z * w;
-                for (k, s) in [1.0, -1.0].into_iter().enumerate() {
-                    let Some(t) = placed.ray_hit(&(o + x * (s * reach)), &(x * -s), 2.0 * reach) else {
-                        continue;
-                    };
-                    let p = o + x * (s * (reach - t));
+                let Some(hits) = line_hits(placed, &(centre + y * v + z * w), &x) else {
+                    continue;
+                };
+                for (k, (s, p)) in [(1.0, hits.0), (-1.0, hits.1)].into_iter().enumerate() {
                     let out = s * (p - centre).dot(&x);
                     if ends[k].is_none_or(|(best, _)| out > best) {
                         ends[k] = Some((out, p));
@@ -162,13 +159,22 @@ pub(super) fn of_part(
     out
 }
 
-/// The first point where the line `o + t dir` (local frame) meets the part, coming from far
+/// The first point where the line `o + t dir` (local frame) meets the shape, coming from far
 /// along `-dir`.
-fn hit(placed: &PlacedSuperquadric, o: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
-    let reach = 2.0 * placed.shape.bounding_radius() + 0.01;
+fn hit(shape: &Superquadric, o: &Vector3<f64>, dir: &Vector3<f64>) -> Option<Vector3<f64>> {
+    let reach = 2.0 * shape.bounding_radius() + 0.01;
     let start = o - dir * reach;
-    let t = placed.shape.ray_hit(&start, dir, 2.0 * reach)?;
+    let t = shape.ray_hit(&start, dir, 2.0 * reach)?;
     (t > 0.0).then(|| start + dir * t)
+}
+
+/// Where the line through `o` along `x` (in the cloud's frame) meets the part: on its +x side
+/// and on its -x side.
+pub fn line_hits(placed: &PlacedSuperquadric, o: &Point3<f64>, x: &Vector3<f64>) -> Option<(Point3<f64>, Point3<f64>)> {
+    let (lo, lx) = (placed.to_local(o), placed.pose.inverse_transform_vector(x));
+    let (c1, c2) = (hit(&placed.shape, &lo, &-lx)?, hit(&placed.shape, &lo, &lx)?);
+    let world = |c: Vector3<f64>| placed.pose.transform_point(&Point3::from(c));
+    Some((world(c1), world(c2)))
 }
 
 /// The outward unit normal at a local surface point.
@@ -221,7 +227,7 @@ fn across(index: usize, placed: &PlacedSuperquadric, open: bool, g: &Gripper, fr
                 let line = along * (f * reach);
                 // An object deeper than the fingers along the approach is taken at its near
                 // end: the pads move back towards the palm until the near face is within reach.
-                let Some(near) = hit(placed, &line, &z) else {
+                let Some(near) = hit(shape, &line, &z) else {
                     continue;
                 };
                 // Further back too: a round part taken from the side along a chord is wider
@@ -233,7 +239,7 @@ fn across(index: usize, placed: &PlacedSuperquadric, open: bool, g: &Gripper, fr
                         continue;
                     }
                     let o = line - z * back;
-                    let (Some(c1), Some(c2)) = (hit(placed, &o, &-u), hit(placed, &o, &u)) else {
+                    let (Some(c1), Some(c2)) = (hit(shape, &o, &-u), hit(shape, &o, &u)) else {
                         continue;
                     };
                     let width = (c1 - c2).norm();
@@ -280,20 +286,9 @@ fn rim(index: usize, placed: &PlacedSuperquadric, g: &Gripper, frame: &Frame, ou
         return;
     }
     let depth = (0.5 * (g.finger_depth - g.pad_from_tip)).min(shape.a[2]);
-    let z_c = shape.a[2] - depth;
     for j in 0..RIM_POINTS {
-        let t = 2.0 * PI * j as f64 / RIM_POINTS as f64;
-        let d = Vector3::new(t.cos(), t.sin(), 0.0);
-        let Some(outer) = hit(placed, &Vector3::new(0.0, 0.0, z_c), &-d) else {
-            continue;
-        };
-        let Some(n) = normal(&kernel, &outer) else {
-            continue;
-        };
-        // The pads lie along the wall, so the approach follows it down: a flared bowl's wall
-        // leans out by its taper, and a gripper coming straight down would meet it above the
-        // pads.
-        let Some(down) = (n * n.z - Vector3::z()).try_normalize(1e-9) else {
+        let angle = 2.0 * PI * j as f64 / RIM_POINTS as f64;
+        let Some((outer, n, down)) = rim_contact(shape, &kernel, angle, depth) else {
             continue;
         };
         let inner = outer - n * g.wall;
@@ -311,6 +306,31 @@ fn rim(index: usize, placed: &PlacedSuperquadric, g: &Gripper, frame: &Frame, ou
             out,
         );
     }
+}
+
+/// Where a grasp across an open part's wall at `angle` around its axis, the pads `depth` below
+/// its rim, touches the outer wall (local frame): the contact, the wall's outward normal there
+/// (the closing direction) and the approach. The pads lie along the wall, so the approach
+/// follows it down: a flared bowl's wall leans out by its taper, and a gripper coming straight
+/// down would meet it above the pads.
+pub(super) fn rim_contact(
+    shape: &Superquadric,
+    kernel: &Kernel,
+    angle: f64,
+    depth: f64,
+) -> Option<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> {
+    let d = Vector3::new(angle.cos(), angle.sin(), 0.0);
+    let outer = hit(shape, &Vector3::new(0.0, 0.0, shape.a[2] - depth), &-d)?;
+    let n = normal(kernel, &outer)?;
+    let down = (n * n.z - Vector3::z()).try_normalize(1e-9)?;
+    Some((outer, n, down))
+}
+
+/// The pose of a grasp whose pads' centre is `tcp`, closing along `x` and approaching along `z`
+/// (unit and orthogonal).
+pub fn grasp_pose(tcp: &Point3<f64>, x: &Vector3<f64>, z: &Vector3<f64>) -> Isometry3<f64> {
+    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[*x, z.cross(x), *z]));
+    Isometry3::from_parts(tcp.coords.into(), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
 /// Add the candidate with pads' centre `tcp`, closing along `x` and approaching along `z`
@@ -334,10 +354,8 @@ fn push(
     if tilt > g.max_tilt + 1e-9 {
         return;
     }
-    let yw = zw.cross(&xw);
-    let rot = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[xw, yw, zw]));
     let centre = placed.pose.transform_point(&Point3::from(*tcp));
-    let pose = Isometry3::from_parts(centre.coords.into(), UnitQuaternion::from_rotation_matrix(&rot));
+    let pose = grasp_pose(&centre, &xw, &zw);
     let off_centre = (centre - frame.centre).norm() / frame.size.max(1e-3);
     let small = 1.0 - frame.share.get(index).copied().unwrap_or(1.0);
     let cost = W_CENTRE * off_centre + W_TILT * tilt / FRAC_PI_2 + W_FRICTION * friction / g.cone() + W_PART * small;

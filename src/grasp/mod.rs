@@ -18,7 +18,7 @@ mod gripper;
 mod tests;
 mod unseen;
 
-pub use candidates::Kind;
+pub use candidates::{Kind, grasp_pose, line_hits};
 pub use collide::Swept;
 pub use gripper::{Gripper, GripperError};
 
@@ -47,6 +47,50 @@ pub struct Grasp {
     /// Lower is better: off the centre of mass, away from straight down, near the friction
     /// cone's edge.
     pub cost: f64,
+}
+
+impl Grasp {
+    /// The grasp of part `part` of `kind` at `pose`, its pre-grasp pose the gripper's
+    /// pre-grasp distance back along the approach.
+    pub fn new(
+        (part, kind): (usize, Kind),
+        pose: Isometry3<f64>,
+        opening: f64,
+        contacts: [Point3<f64>; 2],
+        cost: f64,
+        gripper: &Gripper,
+    ) -> Grasp {
+        let back = Translation3::from(pose.rotation * Vector3::new(0.0, 0.0, -gripper.pregrasp));
+        Grasp {
+            part,
+            kind,
+            pregrasp: back * pose,
+            pose,
+            opening,
+            contacts,
+            cost,
+        }
+    }
+
+    /// A rim grasp of the open part `placed` at `angle` around its axis, the pads `depth` below
+    /// its rim, as the planner makes them (at twelve angles and half the fingers' reach).
+    pub fn at_rim(placed: &PlacedSuperquadric, angle: f64, depth: f64, gripper: &Gripper) -> Option<Grasp> {
+        let kernel = crate::geometry::Kernel::new(&placed.shape);
+        let (outer, n, down) = candidates::rim_contact(&placed.shape, &kernel, angle, depth)?;
+        let r = placed.pose.rotation;
+        let (nw, zw) = (r * n, r * down);
+        let outer = placed.pose.transform_point(&Point3::from(outer));
+        let tcp = outer - nw * (0.5 * gripper.wall);
+        let pose = candidates::grasp_pose(&tcp, &nw, &zw);
+        Some(Grasp::new(
+            (0, Kind::Rim),
+            pose,
+            gripper.wall,
+            [outer, outer - nw * gripper.wall],
+            0.0,
+            gripper,
+        ))
+    }
 }
 
 /// One part of the object to grasp: its fitted pose and whether it is an open container.
@@ -97,7 +141,7 @@ pub fn plan(
     let t0 = std::time::Instant::now();
     let others = others(parts, scene, plane, &frame.centre, reach, gripper.clearance);
     let t1 = std::time::Instant::now();
-    let surface = model_surface(parts);
+    let surface = model_surface(parts, &frame.share);
     let unseen = viewpoint
         .filter(|_| gripper.occupy_unseen)
         .map(|v| unseen::Shadows::new(scene, v, &frame.centre, reach));
@@ -115,7 +159,7 @@ pub fn plan(
         unseen,
         plane,
         gripper,
-        placed: parts.iter().map(|p| p.placed).collect(),
+        parts,
     };
     let mut seen: HashSet<Vec<i64>> = HashSet::new();
     let mut swept: HashMap<u64, Swept> = HashMap::new();
@@ -143,16 +187,14 @@ pub fn plan(
             continue;
         }
         seen.insert(c.key.clone());
-        let back = Translation3::from(c.pose.rotation * Vector3::new(0.0, 0.0, -gripper.pregrasp));
-        out.push(Grasp {
-            part: c.part,
-            kind: c.kind,
-            pregrasp: back * c.pose,
-            pose: c.pose,
-            opening: c.width,
-            contacts: c.contacts,
-            cost: c.cost,
-        });
+        out.push(Grasp::new(
+            (c.part, c.kind),
+            c.pose,
+            c.width,
+            c.contacts,
+            c.cost,
+            gripper,
+        ));
         if out.len() == max {
             break;
         }
@@ -183,8 +225,7 @@ struct World<'a> {
     unseen: Option<unseen::Shadows>,
     plane: Option<&'a Plane>,
     gripper: &'a Gripper,
-    /// The object's parts.
-    placed: Vec<PlacedSuperquadric>,
+    parts: &'a [Part],
 }
 
 impl World<'_> {
@@ -200,23 +241,15 @@ impl World<'_> {
             Some(1)
         } else if s.hits_others(&c.pose, &self.others, g.clearance) {
             Some(2)
-        } else if self
-            .unseen
-            .as_ref()
-            .is_some_and(|u| u.hides(&s.surface_points(&c.pose), &self.placed, g.clearance))
-        {
+        } else if self.unseen.as_ref().is_some_and(|u| {
+            let outside = |p: &Point3<f64>| self.parts.iter().all(|q| q.placed.surface_distance(p) > g.clearance);
+            u.hides(&s.surface_points(&c.pose), outside, g.clearance)
+        }) {
             Some(3)
         } else {
             None
         }
     }
-}
-
-/// Whether `p` lies in what the gripper sweeps for grasp `g`: its fingers and palm from the
-/// pre-grasp pose to the grasp, and the space between the pads (for checks from outside, such
-/// as the evaluation against labelled points).
-pub fn sweeps_through(g: &Grasp, gripper: &Gripper, p: &Point3<f64>) -> bool {
-    Swept::new(gripper, g.opening).holds(&g.pose, p, 0.0)
 }
 
 /// The object's centre of mass (its parts' volumes as weights), its size and up.
@@ -314,12 +347,9 @@ impl ModelSurface {
     }
 }
 
-fn model_surface(parts: &[Part]) -> ModelSurface {
+fn model_surface(parts: &[Part], share: &[f64]) -> ModelSurface {
     let largest = (0..parts.len())
-        .max_by(|&a, &b| {
-            let v = |i: usize| parts[i].placed.shape.box_volume();
-            v(a).total_cmp(&v(b))
-        })
+        .max_by(|&a, &b| share[a].total_cmp(&share[b]))
         .unwrap_or(0);
     let mut out = ModelSurface {
         main: Vec::new(),

@@ -2,7 +2,6 @@
 //! from the viewpoint. With `occupy_unseen`, a gripper that would pass through such space
 //! outside the object's model is refused: something the sensor could not see may stand there.
 
-use crate::geometry::PlacedSuperquadric;
 use nalgebra::{Point3, Vector3};
 use std::collections::HashMap;
 
@@ -45,12 +44,12 @@ impl Shadows {
     }
 
     /// Whether one of `points` lies more than `margin` behind what the sensor measured in its
-    /// direction, and more than `margin` outside the object's `parts`.
-    pub(super) fn hides(&self, points: &[Point3<f64>], parts: &[PlacedSuperquadric], margin: f64) -> bool {
+    /// direction, where `outside` (outside the object) holds.
+    pub(super) fn hides(&self, points: &[Point3<f64>], outside: impl Fn(&Point3<f64>) -> bool, margin: f64) -> bool {
         points.iter().any(|p| {
             let d = p - self.viewpoint;
             let behind = self.nearest.get(&cell(&d)).is_some_and(|&r| d.norm() > r + margin);
-            behind && parts.iter().all(|part| part.surface_distance(p) > margin)
+            behind && outside(p)
         })
     }
 }

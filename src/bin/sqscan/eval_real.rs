@@ -13,7 +13,7 @@ use sqscan::eval::median_p95;
 use sqscan::eval::real::{
     Answer, Catalogue, FalseAnswer, LabelledObject, Rule, SceneLabels, SceneScore, Target, read_labels, score_scene,
 };
-use sqscan::grasp::{Gripper, Part, plan, sweeps_through};
+use sqscan::grasp::{Gripper, Part, Swept, plan};
 use sqscan::model::Model;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -239,12 +239,13 @@ impl GraspTally {
                 continue;
             };
             self.with_grasp += 1;
+            let swept = Swept::new(&gripper, first.opening);
             let mut inside: BTreeMap<u32, usize> = BTreeMap::new();
             for (q, &l) in cloud.points.iter().zip(labels) {
                 let q = nalgebra::Point3::new(q[0] as f64, q[1] as f64, q[2] as f64);
                 if q.coords.iter().all(|c| c.is_finite())
                     && i64::from(l / 10) != group
-                    && sweeps_through(first, &gripper, &q)
+                    && swept.holds(&first.pose, &q, 0.0)
                 {
                     *inside.entry(l).or_default() += 1;
                 }
