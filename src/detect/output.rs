@@ -86,7 +86,8 @@ pub struct GraspJson {
     pub pose: PoseJson,
     /// Distance between the contacts (m).
     pub opening_m: f64,
-    /// Where the pads touch the fitted surface, the +x pad's first.
+    /// Where the pads touch the object (the fitted surface, or the measured one where the
+    /// sensor saw it under the pads), the +x pad's first.
     pub contacts: [[f64; 3]; 2],
     /// Where the gripper comes from, open, along the approach.
     pub pregrasp: PoseJson,

@@ -102,6 +102,16 @@ impl PlacedKernel {
         PlacedSuperquadric::distance_from(&self.kernel.residual_grad(&self.to_local(p)))
     }
 
+    /// [`Self::surface_distance`] and the direction of the residual's gradient there in the
+    /// frame (the outward normal of the level surface through `p`; zero where it vanishes).
+    pub fn surface_distance_normal(&self, p: &Point3<f64>) -> (f64, Vector3<f64>) {
+        let rg = self.kernel.residual_grad(&self.to_local(p));
+        let n = (self.rotation * rg.grad)
+            .try_normalize(1e-12)
+            .unwrap_or_else(Vector3::zeros);
+        (PlacedSuperquadric::distance_from(&rg), n)
+    }
+
     /// The residual and its Jacobian with respect to the pose perturbation (see
     /// [`PlacedSuperquadric::residual_pose_jacobian`]).
     #[inline]

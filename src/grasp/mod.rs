@@ -8,9 +8,11 @@
 //! line that the arm can reach. A candidate is kept where both contacts hold within the
 //! friction cone, and the fingers and palm, swept open from the pre-grasp pose to the grasp,
 //! stay clear of every scene point that is not the object's, of the object's own model beyond
-//! the contacts and of the support plane. Candidates are checked best first, and one grasp is
-//! kept of each set that the object's symmetry makes equal.
+//! the contacts and of the support plane. Candidates are checked best first; one that passes on
+//! the fit has its pads closed on the object's measured points ([`align`]) and is checked again
+//! there. One grasp is kept of each set that the object's symmetry makes equal.
 
+mod align;
 mod candidates;
 mod collide;
 mod gripper;
@@ -40,7 +42,8 @@ pub struct Grasp {
     pub pose: Isometry3<f64>,
     /// Distance between the contacts (m).
     pub opening: f64,
-    /// Where the pads touch the fitted surface, the +x pad's first.
+    /// Where the pads touch the object, the +x pad's first: on the fitted surface, moved to
+    /// the measured one where the sensor saw it under the pads.
     pub contacts: [Point3<f64>; 2],
     /// The pose the gripper moves in from, open, along z.
     pub pregrasp: Isometry3<f64>,
@@ -139,7 +142,9 @@ pub fn plan(
         .fold(0.0, f64::max)
         + Swept::new(gripper, gripper.max_opening).reach();
     let t0 = std::time::Instant::now();
-    let others = others(parts, scene, plane, &frame.centre, reach, gripper.clearance);
+    let (others, own) = around(parts, scene, plane, &frame.centre, reach, gripper.clearance);
+    let own = align::Seen::new(own);
+    let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
     let t1 = std::time::Instant::now();
     let surface = model_surface(parts, &frame.share);
     let unseen = viewpoint
@@ -155,60 +160,28 @@ pub fn plan(
     let t3 = std::time::Instant::now();
     let world = World {
         others,
+        own,
+        kernels,
         surface,
         unseen,
         plane,
         gripper,
         parts,
     };
-    let mut seen: HashSet<Vec<i64>> = HashSet::new();
-    let mut swept: HashMap<u64, Swept> = HashMap::new();
-    let mut out = Vec::new();
     let total = candidates.len();
-    // Why candidates were refused, for the debug line: the plane, the object, other points.
-    let mut refused = [0usize; 4];
-    for mut c in candidates.into_iter().take(MAX_CHECKED) {
-        if seen.contains(&c.key) || !c.settle(&parts[c.part].placed, gripper) {
-            continue;
-        }
-        let s = swept
-            .entry(c.width.to_bits())
-            .or_insert_with(|| Swept::new(gripper, c.width));
-        let why = world.refusal(&c, s);
-        if let Some(k) = why {
-            refused[k] += 1;
-            tracing::trace!(
-                "grasp {} of part {} at {:?} refused ({})",
-                c.kind.name(),
-                c.part,
-                c.pose.translation.vector.as_slice(),
-                ["plane", "object", "other points", "unseen space"][k]
-            );
-            continue;
-        }
-        seen.insert(c.key.clone());
-        out.push(Grasp::new(
-            (c.part, c.kind),
-            c.pose,
-            c.width,
-            c.contacts,
-            c.cost,
-            gripper,
-        ));
-        if out.len() == max {
-            break;
-        }
-    }
+    let (out, refused) = world.choose(candidates, max);
     let ms = |a: std::time::Instant, b: std::time::Instant| (b - a).as_secs_f64() * 1e3;
     tracing::debug!(
-        "grasps: {} kept of {total} candidates ({} points around, {} on the model); refused for the plane {}, the object's own surface {}, other points {}, unseen space {}; ms: points {:.2}, model {:.2}, candidates {:.2}, checks {:.2}",
+        "grasps: {} kept of {total} candidates ({} points around, {} of the object's, {} on the model); refused for the plane {}, the object's own surface {}, other points {}, unseen space {}, the measured surface {}; ms: points {:.2}, model {:.2}, candidates {:.2}, checks {:.2}",
         out.len(),
         world.others.len(),
+        world.own.len(),
         world.surface.len(),
         refused[0],
         refused[1],
         refused[2],
         refused[3],
+        refused[4],
         ms(t0, t1),
         ms(t1, t2),
         ms(t2, t3),
@@ -221,6 +194,9 @@ pub fn plan(
 struct World<'a> {
     /// The scene's points that are not the object's, around it.
     others: Vec<Point3<f64>>,
+    /// The object's own measured points, and its parts prepared to measure them against.
+    own: align::Seen,
+    kernels: Vec<PlacedKernel>,
     surface: ModelSurface,
     unseen: Option<unseen::Shadows>,
     plane: Option<&'a Plane>,
@@ -229,14 +205,79 @@ struct World<'a> {
 }
 
 impl World<'_> {
+    /// Up to `max` of `candidates` (best first) that pass the checks, one for each set the
+    /// symmetry makes equal, and how many were refused for each reason of [`Self::refusal`] and
+    /// (4) for the opening out of range once the pads closed on the measured surface.
+    fn choose(&self, candidates: Vec<Candidate>, max: usize) -> (Vec<Grasp>, [usize; 5]) {
+        let (parts, gripper) = (self.parts, self.gripper);
+        let mut seen: HashSet<Vec<i64>> = HashSet::new();
+        let mut swept: HashMap<u64, Swept> = HashMap::new();
+        let mut out = Vec::new();
+        let mut refused = [0usize; 5];
+        for mut c in candidates.into_iter().take(MAX_CHECKED) {
+            if seen.contains(&c.key) || !c.settle(&parts[c.part].placed, gripper) {
+                continue;
+            }
+            // Checked on the fit first: most candidates are refused there, and closing the pads
+            // on the measured points costs more than the checks. What passes is checked again
+            // where the pads close, against everything but the object's own model: the pads
+            // moved with the object as it was seen, and the model around them moved with it.
+            let mut check = |c: &Candidate, model: bool| {
+                let s = swept
+                    .entry(c.width.to_bits())
+                    .or_insert_with(|| Swept::new(gripper, c.width));
+                self.refusal(c, s, model)
+            };
+            let why = check(&c, true).or_else(|| {
+                let part = (&parts[c.part].placed, &self.kernels[c.part]);
+                if c.close_on(part, &self.own, gripper, OBJECT_BAND) {
+                    check(&c, false)
+                } else {
+                    Some(4)
+                }
+            });
+            if let Some(k) = why {
+                refused[k] += 1;
+                tracing::trace!(
+                    "grasp {} of part {} at {:?} refused ({})",
+                    c.kind.name(),
+                    c.part,
+                    c.pose.translation.vector.as_slice(),
+                    [
+                        "plane",
+                        "object",
+                        "other points",
+                        "unseen space",
+                        "the measured surface"
+                    ][k]
+                );
+                continue;
+            }
+            seen.insert(c.key.clone());
+            out.push(Grasp::new(
+                (c.part, c.kind),
+                c.pose,
+                c.width,
+                c.contacts,
+                c.cost,
+                gripper,
+            ));
+            if out.len() == max {
+                break;
+            }
+        }
+        (out, refused)
+    }
+
     /// Why candidate `c`, sweeping `s`, is refused, if it is: the plane (0), the object's own
-    /// surface (1), other points (2), unseen space (3).
-    fn refusal(&self, c: &Candidate, s: &Swept) -> Option<usize> {
+    /// surface (1, checked with `model`), other points (2), unseen space (3).
+    fn refusal(&self, c: &Candidate, s: &Swept, model: bool) -> Option<usize> {
         let g = self.gripper;
         if self.plane.is_some_and(|pl| s.lowest_over(&c.pose, pl) < g.clearance) {
             Some(0)
-        } else if s.hits_object(&c.pose, &self.surface.main, 0.0)
-            || s.hits_object(&c.pose, &self.surface.small, SMALL_PART_MARGIN)
+        } else if model
+            && (s.hits_object(&c.pose, &self.surface.main, 0.0)
+                || s.hits_object(&c.pose, &self.surface.small, SMALL_PART_MARGIN))
         {
             Some(1)
         } else if s.hits_others(&c.pose, &self.others, g.clearance) {
@@ -279,17 +320,18 @@ fn frame(parts: &[Part], plane: Option<&Plane>) -> Frame {
     }
 }
 
-/// The scene's points within `reach` of `centre` that are neither the object's (within
-/// [`OBJECT_BAND`] of a part's surface or inside one) nor the support plane's (below
-/// `clearance` over it: the plane is checked as a plane), thinned to one per [`THIN`] cube.
-fn others(
+/// The scene's points within `reach` of `centre` that are not the support plane's (below
+/// `clearance` over it: the plane is checked as a plane), thinned to one per [`THIN`] cube:
+/// those that are not the object's, and those that are (within [`OBJECT_BAND`] of a part's
+/// surface or inside one).
+fn around(
     parts: &[Part],
     scene: &[[f32; 3]],
     plane: Option<&Plane>,
     centre: &Point3<f64>,
     reach: f64,
     clearance: f64,
-) -> Vec<Point3<f64>> {
+) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
     let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
     let inv = 1.0 / THIN;
     // The reach test in single precision, as the points are given, over the whole cloud (a
@@ -301,9 +343,9 @@ fn others(
     // keeps a point from each, which costs a check and changes no answer.
     scene
         .par_chunks(CHUNK)
-        .flat_map_iter(|chunk| {
+        .map(|chunk| {
             let mut cells = VoxelSet::default();
-            let mut out = Vec::new();
+            let (mut out, mut own) = (Vec::new(), Vec::new());
             for q in chunk {
                 let (dx, dy, dz) = (q[0] - c[0], q[1] - c[1], q[2] - c[2]);
                 if !(dx * dx + dy * dy + dz * dz <= reach2) {
@@ -319,19 +361,28 @@ fn others(
                     continue;
                 }
                 // Inside a part (a negative distance) or on its surface.
-                if !kernels.iter().any(|k| {
+                if kernels.iter().any(|k| {
                     k.surface_distance_near(&p, OBJECT_BAND)
                         .is_some_and(|d| d < OBJECT_BAND)
                 }) {
+                    own.push(p);
+                } else {
                     out.push(p);
                 }
             }
-            out
+            (out, own)
         })
-        .collect()
+        .reduce(
+            || (Vec::new(), Vec::new()),
+            |(mut a, mut b), (c, d)| {
+                a.extend(c);
+                b.extend(d);
+                (a, b)
+            },
+        )
 }
 
-/// Points a thread takes at a time in [`others`].
+/// Points a thread takes at a time in [`around`].
 const CHUNK: usize = 32_768;
 
 /// Samples of the object's model surface, without the opening of an open part (where there is
