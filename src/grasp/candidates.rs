@@ -108,8 +108,10 @@ impl Candidate {
 }
 
 /// Lines across a pad's face along which [`Candidate::settle`] measures the part: across the
-/// finger's width and along its depth.
-const PAD_LINES: (usize, usize) = (2, 4);
+/// finger's width (its edges and its middle: a round part stands out furthest under the middle,
+/// and measured at the edges alone its contacts would lie on a chord, inside its surface) and
+/// along its depth.
+const PAD_LINES: (usize, usize) = (3, 4);
 
 /// Closing directions tried across a body of revolution's axis, over half a turn.
 const ROUND_DIRECTIONS: usize = 6;

@@ -346,3 +346,35 @@ fn the_pads_close_on_the_bowls_rim_that_was_seen_not_on_its_fit_4_mm_off() {
         off * 1e3
     );
 }
+
+#[test]
+fn a_can_is_taken_from_above_as_deep_as_the_fingers_reach() {
+    let gripper = Gripper::default();
+    // 80 mm tall: from above, the pads reach 30 mm down its side with the palm 5 mm over its top.
+    let can = standing(cylinder(0.03, 0.04), 0.0, 0.0, 0.0);
+    let parts = [closed(can)];
+    let mut scene = table_points(0.3);
+    scene.extend(points_of(&can));
+    let grasps = plan(&parts, &scene, Some(&table()), None, &gripper, 50);
+    assert_sound(&grasps, &parts, &gripper);
+    // Measured at the pads' edges alone, the contacts lay on a chord inside the can, and its
+    // widest section stood in the closing fingers' path: only a shallower grasp came back.
+    let palm_over_top = grasps
+        .iter()
+        .filter(|g| approach(g).z < -0.99)
+        .map(|g| g.pose.translation.z + (gripper.finger_depth - gripper.pad_from_tip) - 2.0 * can.shape.a[2])
+        .min_by(f64::total_cmp)
+        .expect("a grasp from above");
+    assert!(
+        (palm_over_top - gripper.clearance).abs() < 0.0015,
+        "the palm {:.1} mm over the top",
+        palm_over_top * 1e3
+    );
+    for g in grasps.iter().filter(|g| approach(g).z < -0.99) {
+        assert!(
+            (g.opening - 0.06).abs() < 0.0015,
+            "opening {} across a 60 mm can",
+            g.opening
+        );
+    }
+}
