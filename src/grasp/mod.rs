@@ -142,9 +142,9 @@ pub fn plan(
         .fold(0.0, f64::max)
         + Swept::new(gripper, gripper.max_opening).reach();
     let t0 = std::time::Instant::now();
-    let (others, own) = around(parts, scene, plane, &frame.centre, reach, gripper.clearance);
-    let own = align::Seen::new(own);
     let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
+    let (others, own) = around(&kernels, scene, plane, &frame.centre, reach, gripper.clearance);
+    let own = align::Seen::new(own);
     let t1 = std::time::Instant::now();
     let surface = model_surface(parts, &frame.share);
     let unseen = viewpoint
@@ -325,14 +325,13 @@ fn frame(parts: &[Part], plane: Option<&Plane>) -> Frame {
 /// those that are not the object's, and those that are (within [`OBJECT_BAND`] of a part's
 /// surface or inside one).
 fn around(
-    parts: &[Part],
+    kernels: &[PlacedKernel],
     scene: &[[f32; 3]],
     plane: Option<&Plane>,
     centre: &Point3<f64>,
     reach: f64,
     clearance: f64,
 ) -> (Vec<Point3<f64>>, Vec<Point3<f64>>) {
-    let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
     let inv = 1.0 / THIN;
     // The reach test in single precision, as the points are given, over the whole cloud (a
     // Kinect frame's 307,200 points): a centimetre more reach covers its rounding. NaN fails
