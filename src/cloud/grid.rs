@@ -101,6 +101,17 @@ impl Grid {
         })
     }
 
+    /// Whether `f` holds for one of the points in the cells that the box `centre ± half` meets
+    /// (stops at the first): the caller tests each point against its own shape in the box.
+    pub fn any_in_box(
+        &self,
+        centre: &Point3<f64>,
+        half: &nalgebra::Vector3<f64>,
+        mut f: impl FnMut(usize) -> bool,
+    ) -> bool {
+        self.visit_box(centre, half, |row| row.iter().any(|&i| f(i as usize)))
+    }
+
     /// The points of the cells of the box `centre +- radius`, a row of cells at a time, until
     /// `f` returns true (then true).
     #[inline]
@@ -228,6 +239,78 @@ pub(crate) fn floor_i64(v: f64) -> i64 {
     if (t as f64) > v { t - 1 } else { t }
 }
 
+/// A set of voxel keys within a box of the lattice, kept as bits in blocks of 8 x 8 x 8 voxels,
+/// each allocated when a key first enters it. A scan's points enter voxels all over the box,
+/// and a hash set's lookups then mostly miss the cache; a block holds a neighbourhood in 64
+/// bytes. Keys outside the box, and every key of a box too large for the
+/// blocks' index, go to a hash set.
+pub struct VoxelBits {
+    lo: [i64; 3],
+    /// Blocks along each side of the box (0: the box is too large, all keys go to `overflow`).
+    blocks: usize,
+    /// Per block of the box, 0 or 1 + its place in `bits`.
+    index: Vec<u32>,
+    bits: Vec<[u64; 8]>,
+    overflow: VoxelSet,
+}
+
+/// The most blocks [`VoxelBits`] indexes (a 4 MiB index): a box of 512 voxels a side.
+const MAX_BLOCKS: usize = 1 << 20;
+
+impl VoxelBits {
+    /// An empty set over the voxels `lo..=hi`.
+    pub fn new(lo: (i64, i64, i64), hi: (i64, i64, i64)) -> VoxelBits {
+        let side = [hi.0 - lo.0, hi.1 - lo.1, hi.2 - lo.2]
+            .iter()
+            .map(|&d| d.saturating_add(1).clamp(1, i64::from(u32::MAX)) as usize)
+            .max()
+            .unwrap_or(1);
+        let blocks = side.div_ceil(8);
+        let fits = blocks.checked_pow(3).is_some_and(|n| n <= MAX_BLOCKS);
+        VoxelBits {
+            lo: [lo.0, lo.1, lo.2],
+            blocks: if fits { blocks } else { 0 },
+            index: if fits {
+                vec![0; blocks * blocks * blocks]
+            } else {
+                Vec::new()
+            },
+            bits: Vec::new(),
+            overflow: VoxelSet::default(),
+        }
+    }
+
+    /// Adds `key`; whether it was not in the set.
+    #[inline]
+    pub fn insert(&mut self, key: (i64, i64, i64)) -> bool {
+        let side = (self.blocks * 8) as i64;
+        let rel = [
+            key.0.wrapping_sub(self.lo[0]),
+            key.1.wrapping_sub(self.lo[1]),
+            key.2.wrapping_sub(self.lo[2]),
+        ];
+        if !rel.iter().all(|&r| (0..side).contains(&r)) {
+            return self.overflow.insert(key);
+        }
+        let [x, y, z] = rel.map(|r| r as usize);
+        let n = self.blocks;
+        let block = ((z >> 3) * n + (y >> 3)) * n + (x >> 3);
+        let slot = match self.index[block] {
+            0 => {
+                self.bits.push([0; 8]);
+                self.index[block] = self.bits.len() as u32;
+                self.bits.len() - 1
+            }
+            s => s as usize - 1,
+        };
+        let bit = ((z & 7) << 6) | ((y & 7) << 3) | (x & 7);
+        let (word, mask) = (&mut self.bits[slot][bit >> 6], 1u64 << (bit & 63));
+        let new = *word & mask == 0;
+        *word |= mask;
+        new
+    }
+}
+
 /// A set of voxel keys.
 pub type VoxelSet = std::collections::HashSet<(i64, i64, i64), std::hash::BuildHasherDefault<VoxelHasher>>;
 
@@ -323,6 +406,33 @@ mod tests {
             });
             let want: Vec<usize> = grid.within(&pts, &c, r).into_iter().filter(|&i| inside(i)).collect();
             assert_eq!(got, want);
+        }
+    }
+
+    /// The bit blocks say what a hash set says of every key: inside the box, across its
+    /// blocks' edges, outside it (either side, far off), and for a box too large to index.
+    #[test]
+    fn voxel_bits_agree_with_a_hash_set() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+        for (lo, hi) in [
+            ((-20, 5, -3), (20, 30, 9)),
+            ((0, 0, 0), (0, 0, 0)),
+            ((-1 << 40, 0, 0), (1 << 40, 1, 1)),
+        ] {
+            let mut bits = VoxelBits::new(lo, hi);
+            let mut set = VoxelSet::default();
+            for _ in 0..20_000 {
+                let key = if rng.random_range(0..10) == 0 {
+                    (rng.random_range(i64::MIN..i64::MAX), rng.random_range(-40..40), 7)
+                } else {
+                    (
+                        rng.random_range(-25..25),
+                        rng.random_range(0..35),
+                        rng.random_range(-5..12),
+                    )
+                };
+                assert_eq!(bits.insert(key), set.insert(key), "{key:?} in {lo:?}..{hi:?}");
+            }
         }
     }
 

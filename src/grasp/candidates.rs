@@ -64,9 +64,13 @@ impl Candidate {
         let (root, tip) = (-(g.finger_depth - g.pad_from_tip), g.pad_from_tip);
         // The outermost point on either side, as its offset along x and the point.
         let mut ends: [Option<(f64, Point3<f64>)>; 2] = [None, None];
-        for i in 0..PAD_LINES.0 {
+        // The middle line first, and each line from the fingertips back: a round part is
+        // widest under the middle, and a part too wide for the opening is refused as soon as
+        // the lines so far show it (the width only grows line by line).
+        let (middle, lines) = (PAD_LINES.0 / 2, PAD_LINES.0);
+        for i in (0..lines).map(|i| (i + middle) % lines) {
             let v = g.finger_width * (i as f64 / (PAD_LINES.0 - 1) as f64 - 0.5);
-            for j in 0..PAD_LINES.1 {
+            for j in (0..PAD_LINES.1).rev() {
                 let w = root + (tip - root) * j as f64 / (PAD_LINES.1 - 1) as f64;
                 let Some(hits) = line_hits(placed, &(centre + y * v + z * w), &x) else {
                     continue;
@@ -76,6 +80,11 @@ impl Candidate {
                     if ends[k].is_none_or(|(best, _)| out > best) {
                         ends[k] = Some((out, p));
                     }
+                }
+                if let [Some((a, _)), Some((b, _))] = ends
+                    && a + b + 2.0 * g.clearance > g.max_opening
+                {
+                    return false;
                 }
             }
         }
@@ -220,6 +229,10 @@ fn across(index: usize, placed: &PlacedSuperquadric, open: bool, g: &Gripper, fr
         for k in 0..APPROACHES {
             let phi = 2.0 * PI * k as f64 / APPROACHES as f64;
             let z = along * phi.cos() + side * phi.sin();
+            // An approach the arm cannot take needs no contacts (the line hits are the cost).
+            if tilt(placed, &z, frame) > g.max_tilt + 1e-9 {
+                continue;
+            }
             let offsets: &[f64] = if reach > 2.0 * g.finger_width && z.dot(&along).abs() < 0.5 {
                 &[0.0, 0.5, -0.5]
             } else {
@@ -335,6 +348,11 @@ pub fn grasp_pose(tcp: &Point3<f64>, x: &Vector3<f64>, z: &Vector3<f64>) -> Isom
     Isometry3::from_parts(tcp.coords.into(), UnitQuaternion::from_rotation_matrix(&rot))
 }
 
+/// How far (rad) the approach `z` (local to the part) leans from straight down.
+fn tilt(placed: &PlacedSuperquadric, z: &Vector3<f64>, frame: &Frame) -> f64 {
+    (placed.pose.rotation * z).dot(&-frame.up).clamp(-1.0, 1.0).acos()
+}
+
 /// Add the candidate with pads' centre `tcp`, closing along `x` and approaching along `z`
 /// (local to the part), where the arm can reach that approach.
 #[allow(clippy::too_many_arguments)]
@@ -352,7 +370,7 @@ fn push(
 ) {
     let r = placed.pose.rotation;
     let (xw, zw) = (r * x, r * z);
-    let tilt = zw.dot(&-frame.up).clamp(-1.0, 1.0).acos();
+    let tilt = tilt(placed, z, frame);
     if tilt > g.max_tilt + 1e-9 {
         return;
     }

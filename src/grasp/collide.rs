@@ -2,6 +2,7 @@
 //! that are not the object's, the object's own model surface and the support plane.
 
 use super::gripper::Gripper;
+use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
 use nalgebra::{Isometry3, Point3, Vector3};
 
@@ -15,6 +16,15 @@ pub(super) struct Cuboid {
 impl Cuboid {
     fn holds(&self, q: &Vector3<f64>, margin: f64) -> bool {
         (0..3).all(|k| q[k] > self.lo[k] - margin && q[k] < self.hi[k] + margin)
+    }
+
+    /// The box `centre ± half` in the cloud's frame that holds this one, widened by `margin`,
+    /// for the grasp at `pose`.
+    fn bounds(&self, pose: &Isometry3<f64>, margin: f64) -> (Point3<f64>, Vector3<f64>) {
+        let centre = pose.transform_point(&Point3::from(0.5 * (self.lo + self.hi)));
+        let half = 0.5 * (self.hi - self.lo) + Vector3::repeat(margin);
+        let r = pose.rotation.to_rotation_matrix().into_inner().abs();
+        (centre, r * half)
     }
 
     fn corners(&self) -> impl Iterator<Item = Vector3<f64>> + '_ {
@@ -97,11 +107,22 @@ impl Swept {
 
     /// Whether one of `others` (points that are not the object's, in the cloud's frame) lies in
     /// the swept solid within `clearance`, or between the pads.
-    pub(super) fn hits_others(&self, pose: &Isometry3<f64>, others: &[Point3<f64>], clearance: f64) -> bool {
+    /// `grid` holds `others`: only the points in the cells each box's bounds meet are tested.
+    pub(super) fn hits_others(
+        &self,
+        pose: &Isometry3<f64>,
+        others: &[Point3<f64>],
+        grid: &Grid,
+        clearance: f64,
+    ) -> bool {
+        if others.is_empty() {
+            return false;
+        }
         let local = to_grasp(pose);
-        others.iter().any(|p| {
-            let q = local(p);
-            self.solid.iter().any(|b| b.holds(&q, clearance)) || self.gap.holds(&q, 0.0)
+        let boxes = self.solid.iter().map(|b| (b, clearance)).chain([(&self.gap, 0.0)]);
+        boxes.into_iter().any(|(b, margin)| {
+            let (centre, half) = b.bounds(pose, margin);
+            grid.any_in_box(&centre, &half, |i| b.holds(&local(&others[i]), margin))
         })
     }
 
@@ -174,5 +195,53 @@ impl Swept {
             .flat_map(|b| b.corners().collect::<Vec<_>>())
             .map(|c| plane.signed_distance(&pose.transform_point(&Point3::from(c))))
             .fold(f64::INFINITY, f64::min)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{RngExt, SeedableRng};
+
+    /// Read through the grid, the points another object leaves in the swept gripper are the
+    /// ones a scan of every point finds, for grasps turned every way.
+    #[test]
+    fn the_gridded_check_of_other_points_matches_a_scan_of_all() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let g = Gripper::default();
+        let swept = Swept::new(&g, 0.05);
+        let (mut hits, mut misses) = (0, 0);
+        for _ in 0..300 {
+            let pose = Isometry3::new(
+                Vector3::new(rng.random_range(-0.1..0.1), rng.random_range(-0.1..0.1), 0.0),
+                Vector3::new(
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                    rng.random_range(-3.0..3.0),
+                ),
+            );
+            let n = rng.random_range(0..40);
+            let points: Vec<Point3<f64>> = (0..n)
+                .map(|_| {
+                    Point3::new(
+                        rng.random_range(-0.2..0.2),
+                        rng.random_range(-0.2..0.2),
+                        rng.random_range(-0.2..0.2),
+                    )
+                })
+                .collect();
+            let grid = Grid::new(&points, 0.015);
+            let local = to_grasp(&pose);
+            let scan = points.iter().any(|p| {
+                let q = local(p);
+                swept.solid.iter().any(|b| b.holds(&q, g.clearance)) || swept.gap.holds(&q, 0.0)
+            });
+            assert_eq!(swept.hits_others(&pose, &points, &grid, g.clearance), scan);
+            if scan { hits += 1 } else { misses += 1 }
+        }
+        assert!(
+            hits > 30 && misses > 30,
+            "{hits} hits, {misses} misses: the cases must cover both"
+        );
     }
 }

@@ -24,7 +24,7 @@ pub use candidates::{Kind, grasp_pose, line_hits};
 pub use collide::Swept;
 pub use gripper::{Gripper, GripperError};
 
-use crate::cloud::grid::{VoxelSet, floor_i64};
+use crate::cloud::grid::{Grid, VoxelBits, floor_i64};
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedKernel, PlacedSuperquadric};
 use candidates::{Candidate, Frame};
@@ -109,6 +109,9 @@ const OBJECT_BAND: f64 = 0.006;
 /// The scene's points are thinned to one per cube of this edge (m) before the checks: the
 /// gripper's clearance is coarser.
 const THIN: f64 = 0.003;
+/// The cell (m) of the grid of the points around the object that are not its own: about a
+/// finger's width, so a finger's box meets a few dozen cells.
+const OTHERS_CELL: f64 = 0.015;
 /// The object's model surface is sampled this far apart (m) for the check of the gripper
 /// against it.
 const MODEL_SPACING: f64 = 0.005;
@@ -145,6 +148,7 @@ pub fn plan(
     let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
     let (others, own) = around(&kernels, scene, plane, &frame.centre, reach, gripper.clearance);
     let own = align::Seen::new(own);
+    let others_grid = Grid::new(&others, OTHERS_CELL);
     let t1 = std::time::Instant::now();
     let surface = model_surface(parts, &frame.share);
     let unseen = viewpoint
@@ -160,6 +164,7 @@ pub fn plan(
     let t3 = std::time::Instant::now();
     let world = World {
         others,
+        others_grid,
         own,
         kernels,
         surface,
@@ -194,6 +199,9 @@ pub fn plan(
 struct World<'a> {
     /// The scene's points that are not the object's, around it.
     others: Vec<Point3<f64>>,
+    /// `others` in cells of [`OTHERS_CELL`]: a grasp checks those in the cells its gripper's
+    /// boxes meet, not every point around the object.
+    others_grid: Grid,
     /// The object's own measured points, and its parts prepared to measure them against.
     own: align::Seen,
     kernels: Vec<PlacedKernel>,
@@ -280,7 +288,7 @@ impl World<'_> {
                 || s.hits_object(&c.pose, &self.surface.small, SMALL_PART_MARGIN))
         {
             Some(1)
-        } else if s.hits_others(&c.pose, &self.others, g.clearance) {
+        } else if s.hits_others(&c.pose, &self.others, &self.others_grid, g.clearance) {
             Some(2)
         } else if self.unseen.as_ref().is_some_and(|u| {
             let outside = |p: &Point3<f64>| self.parts.iter().all(|q| q.placed.surface_distance(p) > g.clearance);
@@ -338,12 +346,19 @@ fn around(
     // the comparison and is skipped with the far points.
     let reach2 = ((reach + 0.01) * (reach + 0.01)) as f32;
     let c = [centre.x as f32, centre.y as f32, centre.z as f32];
+    // The voxels a point within reach can lie in.
+    let r = reach + 0.02;
+    let corner = |s: f64| {
+        let v = centre.coords.add_scalar(s * r) * inv;
+        (floor_i64(v.x), floor_i64(v.y), floor_i64(v.z))
+    };
+    let (lo, hi) = (corner(-1.0), corner(1.0));
     // In chunks on the pool's threads, each thinned on its own: a voxel that two chunks share
     // keeps a point from each, which costs a check and changes no answer.
     scene
         .par_chunks(CHUNK)
         .map(|chunk| {
-            let mut cells = VoxelSet::default();
+            let mut cells = VoxelBits::new(lo, hi);
             let (mut out, mut own) = (Vec::new(), Vec::new());
             for q in chunk {
                 let (dx, dy, dz) = (q[0] - c[0], q[1] - c[1], q[2] - c[2]);

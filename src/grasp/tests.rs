@@ -164,7 +164,8 @@ fn a_mug_with_a_can_beside_it_is_not_taken_from_the_cans_side() {
             .iter()
             .map(|p| Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
             .collect();
-        assert!(!swept.hits_others(&g.pose, &can_points, gripper.clearance));
+        let grid = crate::cloud::grid::Grid::new(&can_points, OTHERS_CELL);
+        assert!(!swept.hits_others(&g.pose, &can_points, &grid, gripper.clearance));
         // Closing along y would put a finger into the 6 mm gap.
         assert!(closing(g).y.abs() < 0.9, "closing {} towards the can", closing(g));
     }
