@@ -248,7 +248,8 @@ pub struct VoxelBits {
     lo: [i64; 3],
     /// Blocks along each side of the box (0: the box is too large, all keys go to `overflow`).
     blocks: usize,
-    /// Per block of the box, 0 or 1 + its place in `bits`.
+    /// Per block of the box, 0 or 1 + its place in `bits`; allocated at the first key in the
+    /// box (a set made for each chunk of a scan is mostly never entered).
     index: Vec<u32>,
     bits: Vec<[u64; 8]>,
     overflow: VoxelSet,
@@ -270,11 +271,7 @@ impl VoxelBits {
         VoxelBits {
             lo: [lo.0, lo.1, lo.2],
             blocks: if fits { blocks } else { 0 },
-            index: if fits {
-                vec![0; blocks * blocks * blocks]
-            } else {
-                Vec::new()
-            },
+            index: Vec::new(),
             bits: Vec::new(),
             overflow: VoxelSet::default(),
         }
@@ -294,6 +291,9 @@ impl VoxelBits {
         }
         let [x, y, z] = rel.map(|r| r as usize);
         let n = self.blocks;
+        if self.index.is_empty() {
+            self.index = vec![0; n * n * n];
+        }
         let block = ((z >> 3) * n + (y >> 3)) * n + (x >> 3);
         let slot = match self.index[block] {
             0 => {

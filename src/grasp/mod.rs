@@ -148,7 +148,6 @@ pub fn plan(
     let kernels: Vec<PlacedKernel> = parts.iter().map(|p| PlacedKernel::new(&p.placed)).collect();
     let (others, own) = around(&kernels, scene, plane, &frame.centre, reach, gripper.clearance);
     let own = align::Seen::new(own);
-    let others_grid = Grid::new(&others, OTHERS_CELL);
     let t1 = std::time::Instant::now();
     let surface = model_surface(parts, &frame.share);
     let unseen = viewpoint
@@ -164,7 +163,7 @@ pub fn plan(
     let t3 = std::time::Instant::now();
     let world = World {
         others,
-        others_grid,
+        others_grid: std::cell::OnceCell::new(),
         own,
         kernels,
         surface,
@@ -200,8 +199,9 @@ struct World<'a> {
     /// The scene's points that are not the object's, around it.
     others: Vec<Point3<f64>>,
     /// `others` in cells of [`OTHERS_CELL`]: a grasp checks those in the cells its gripper's
-    /// boxes meet, not every point around the object.
-    others_grid: Grid,
+    /// boxes meet, not every point around the object. Built for the first candidate that gets
+    /// as far as that check.
+    others_grid: std::cell::OnceCell<Grid>,
     /// The object's own measured points, and its parts prepared to measure them against.
     own: align::Seen,
     kernels: Vec<PlacedKernel>,
@@ -288,7 +288,12 @@ impl World<'_> {
                 || s.hits_object(&c.pose, &self.surface.small, SMALL_PART_MARGIN))
         {
             Some(1)
-        } else if s.hits_others(&c.pose, &self.others, &self.others_grid, g.clearance) {
+        } else if s.hits_others(
+            &c.pose,
+            &self.others,
+            self.others_grid.get_or_init(|| Grid::new(&self.others, OTHERS_CELL)),
+            g.clearance,
+        ) {
             Some(2)
         } else if self.unseen.as_ref().is_some_and(|u| {
             let outside = |p: &Point3<f64>| self.parts.iter().all(|q| q.placed.surface_distance(p) > g.clearance);
