@@ -236,14 +236,15 @@ pub fn voxel_subsample(points: &[Point3<f64>], voxel: f64) -> Vec<usize> {
 #[inline(always)]
 pub(crate) fn floor_i64(v: f64) -> i64 {
     let t = v as i64;
-    if (t as f64) > v { t - 1 } else { t }
+    // Saturating: below i64's range the cast gave its least value already.
+    if (t as f64) > v { t.saturating_sub(1) } else { t }
 }
 
 /// A set of voxel keys within a box of the lattice, kept as bits in blocks of 8 x 8 x 8 voxels,
 /// each allocated when a key first enters it. A scan's points enter voxels all over the box,
 /// and a hash set's lookups then mostly miss the cache; a block holds a neighbourhood in 64
-/// bytes. Keys outside the box, and every key of a box too large for the
-/// blocks' index, go to a hash set.
+/// bytes. Keys outside the cube of whole blocks that holds the box, and every key of a box too
+/// large for the blocks' index, go to a hash set.
 pub struct VoxelBits {
     lo: [i64; 3],
     /// Blocks along each side of the box (0: the box is too large, all keys go to `overflow`).
@@ -255,17 +256,21 @@ pub struct VoxelBits {
     overflow: VoxelSet,
 }
 
-/// The most blocks [`VoxelBits`] indexes (a 4 MiB index): a box of 512 voxels a side.
+/// The most blocks [`VoxelBits`] indexes (a 4 MiB index): a cube of about 800 voxels a side.
 const MAX_BLOCKS: usize = 1 << 20;
 
 impl VoxelBits {
     /// An empty set over the voxels `lo..=hi`.
     pub fn new(lo: (i64, i64, i64), hi: (i64, i64, i64)) -> VoxelBits {
-        let side = [hi.0 - lo.0, hi.1 - lo.1, hi.2 - lo.2]
-            .iter()
-            .map(|&d| d.saturating_add(1).clamp(1, i64::from(u32::MAX)) as usize)
-            .max()
-            .unwrap_or(1);
+        let side = [
+            hi.0.saturating_sub(lo.0),
+            hi.1.saturating_sub(lo.1),
+            hi.2.saturating_sub(lo.2),
+        ]
+        .iter()
+        .map(|&d| d.saturating_add(1).clamp(1, i64::from(u32::MAX)) as usize)
+        .max()
+        .unwrap_or(1);
         let blocks = side.div_ceil(8);
         let fits = blocks.checked_pow(3).is_some_and(|n| n <= MAX_BLOCKS);
         VoxelBits {
@@ -418,6 +423,7 @@ mod tests {
             ((-20, 5, -3), (20, 30, 9)),
             ((0, 0, 0), (0, 0, 0)),
             ((-1 << 40, 0, 0), (1 << 40, 1, 1)),
+            ((i64::MIN + 5, 0, 0), (i64::MAX - 5, 1, 1)),
         ] {
             let mut bits = VoxelBits::new(lo, hi);
             let mut set = VoxelSet::default();

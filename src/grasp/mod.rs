@@ -371,6 +371,11 @@ fn around(
                     continue;
                 }
                 let p = Point3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+                // An infinite point passes the reach test of an object whose reach is itself
+                // beyond f32's range; the grids take finite points only.
+                if !p.coords.iter().all(|v| v.is_finite()) {
+                    continue;
+                }
                 if plane.is_some_and(|pl| pl.signed_distance(&p) < clearance) {
                     continue;
                 }

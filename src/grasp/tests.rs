@@ -379,3 +379,24 @@ fn a_can_is_taken_from_above_as_deep_as_the_fingers_reach() {
         );
     }
 }
+
+/// A compound whose parts lie absurdly far apart, with infinite points in the cloud: its reach
+/// is beyond single precision, so the infinite points pass the reach test, and its voxels'
+/// bounds lie at the ends of i64's range. The near part is planned for, the infinite points
+/// kept out of the grids (which take finite points), and a debug build does not overflow
+/// reckoning the voxels.
+#[test]
+fn a_reach_beyond_single_precision_with_infinite_points_is_planned_without_overflow() {
+    let gripper = Gripper::default();
+    let can = standing(cylinder(0.03, 0.04), 0.0, 0.0, 0.0);
+    let far = standing(cylinder(0.03, 0.04), 1e20, 0.0, 0.0);
+    let mut scene = table_points(0.05);
+    scene.extend(points_of(&can));
+    scene.extend([
+        [f32::INFINITY, 0.0, 0.05],
+        [f32::NEG_INFINITY, f32::INFINITY, 0.05],
+        [f32::NAN, 0.0, 0.0],
+    ]);
+    let grasps = plan(&[closed(can), closed(far)], &scene, Some(&table()), None, &gripper, 5);
+    assert!(!grasps.is_empty(), "the near can is free to take");
+}
