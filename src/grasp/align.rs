@@ -93,9 +93,7 @@ fn median(v: &mut [f64]) -> Option<f64> {
     if v.len() < MIN_POINTS {
         return None;
     }
-    let mid = v.len() / 2;
-    let (_, m, _) = v.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*m)
+    crate::numeric::median(v)
 }
 
 impl Candidate {
