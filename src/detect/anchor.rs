@@ -4,12 +4,12 @@
 //! (`compound`).
 
 use super::prepare::Prepared;
-use super::refine::{self, Coarse, Refine, Refined};
+use super::refine::{self, Coarse, Refine, Refined, refine_fits};
 use super::report::{Detection, PartResult, PoseText, VotesText};
-use super::search::search_part;
+use super::search::{distinct, region_fits};
 use super::space::Hypothesis;
 use super::verify::{Scores, paper_criteria, rank_sums, score, votes};
-use super::{Params, accept, select};
+use super::{Params, accept, rest, select};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use crate::model::Model;
 use crate::numeric::stream_seed;
@@ -87,15 +87,33 @@ pub fn search(
     } else {
         Refine::Deferred
     };
-    search_part(
-        &prep.space(),
-        &model.parts[anchor.part].shape,
+    let space = prep.space();
+    let shape = &model.parts[anchor.part].shape;
+    let seed = stream_seed(params.seed, anchor.part as u64 + 1000 * round);
+    let check = &prep.checks[anchor.part];
+    let mut fits = region_fits(
+        &space,
+        shape,
         &all_seeds,
         anchor.hypotheses,
         &prep.settings,
+        check,
+        seed,
+    );
+    // Resting starts: the best few in the first round, more in the second (which runs only when
+    // the first found nothing acceptable); the ones the first round had are known by then.
+    let kept = if round == 0 {
+        rest::FIRST_ROUND
+    } else {
+        rest::LATER_ROUNDS
+    };
+    fits.extend(rest::resting_fits(&space, shape, stream_seed(seed, u64::MAX), kept));
+    refine_fits(
+        &space,
+        &distinct(fits, known),
+        &prep.settings,
         model.parts[anchor.part].open,
-        &prep.checks[anchor.part],
-        stream_seed(params.seed, anchor.part as u64 + 1000 * round),
+        check,
         known,
         refine,
     )

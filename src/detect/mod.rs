@@ -6,8 +6,9 @@
 //!    plane ([`plane`](crate::cloud::plane)), which also gives the noise estimate, and subsample
 //!    and grid the rest ([`grid`](crate::cloud::grid)) -> `Prepared`;
 //! 2. `anchor`: the largest part searched over the whole scene by the hierarchical search
-//!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), the best of
-//!    each hypothesis refined on a denser subsample), its hypotheses scored and ranked by the
+//!    ([`search`]: RANSAC trials on subsampled points with LM pose fits ([`fit`]), with poses
+//!    resting on the support plane that its seen walls place ([`rest`]), the best of each
+//!    hypothesis refined on a denser subsample), its hypotheses scored and ranked by the
 //!    paper's voting over M, S and I ([`verify`]) -> `Anchors`;
 //! 3. `compound`: every other part placed where the model puts it against an already-found part
 //!    (at every spin about that part's axis) and searched by a few RANSAC trials in the shell its
@@ -37,6 +38,7 @@ mod plane_check;
 mod prepare;
 mod refine;
 mod report;
+mod rest;
 mod rigid;
 mod search;
 mod select;

@@ -302,11 +302,17 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
 /// for model `name` with the default parameters seen from the sweep's viewpoint.
 #[cfg(test)]
 pub(super) fn simulated(scene: &str, sim_seed: u64, name: &str) -> (Model, Params, Prepared) {
+    let models = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("models");
+    simulated_model(scene, sim_seed, Model::load(name, &models).unwrap())
+}
+
+/// [`simulated`] for a model given whole.
+#[cfg(test)]
+pub(super) fn simulated_model(scene: &str, sim_seed: u64, model: Model) -> (Model, Params, Prepared) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
     let models = root.join("models");
     let scene = crate::sim::Scene::from_file(&root.join(format!("scenes/{scene}.toml")), &models).unwrap();
     let sweep = crate::sim::simulate(&scene, sim_seed);
-    let model = Model::load(name, &models).unwrap();
     let params = Params {
         viewpoint: sweep.cloud.viewpoint_position(),
         ..Params::default()

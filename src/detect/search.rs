@@ -11,13 +11,12 @@
 //! and only the best continues. Hypotheses that meet in the coarse rounds of
 //! the refinement are refined, scored and voted on once.
 //!
-//! [`search_part`] runs the m hypotheses of one part in parallel, each over its own compact region
-//! of the scene and from its own random stream, and keeps the distinct refined ones that are
-//! possible against the support plane.
+//! [`region_fits`] runs the m hypotheses of one part in parallel, each over its own compact region
+//! of the scene and from its own random stream; [`distinct`] keeps the fits that are not copies,
+//! for [`refine_fits`](super::refine::refine_fits).
 
 use super::fit::{Fit, fit_pose_tol, measure_of_fit};
 use super::plane_check::PlaneCheck;
-use super::refine::{Refine, Refined, refine_fits};
 use super::space::{MIN_SAMPLE, SearchSettings, SearchSpace, consensus, refine_band, same_pose, sample_radius};
 use crate::geometry::{NearBatch, PlacedKernel, PlacedSuperquadric, Superquadric};
 use crate::numeric::stream_seed;
@@ -331,26 +330,6 @@ fn rms_distance(placed: &PlacedSuperquadric, points: &[Point3<f64>], reach: f64)
     }
     batch.finish();
     ((sum + (points.len() - near) as f64 * reach * reach) / points.len() as f64).sqrt()
-}
-
-/// `m` hypotheses of one part from the given seed points, in parallel, each from its own stream.
-/// Trials that land where a `known` hypothesis (of an earlier round) already is are not refined
-/// again: a further round pays only for the places the earlier ones did not reach.
-#[allow(clippy::too_many_arguments)]
-pub fn search_part(
-    space: &SearchSpace<'_>,
-    shape: &Superquadric,
-    seeds: &[usize],
-    m: usize,
-    settings: &SearchSettings,
-    open: bool,
-    check: &PlaneCheck,
-    seed: u64,
-    known: &[PlacedSuperquadric],
-    refine: Refine,
-) -> Refined {
-    let fits = region_fits(space, shape, seeds, m, settings, check, seed);
-    refine_fits(space, &distinct(fits, known), settings, open, check, known, refine)
 }
 
 /// The best trial fit (with its consensus) of each of `m` compact regions of the seed points,
