@@ -16,7 +16,7 @@
 
 use super::fit::{Fit, measure_of_fit};
 use super::space::{SearchSpace, consensus, inliers_in, refine_band};
-use crate::cloud::plane::Plane;
+use crate::cloud::plane::{Plane, orthonormal_basis};
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector2, Vector3};
 use rand::{RngExt, SeedableRng};
@@ -50,9 +50,7 @@ struct PlaneFrame {
 impl PlaneFrame {
     fn new(plane: &Plane) -> PlaneFrame {
         let n = plane.normal.normalize();
-        let helper = if n.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
-        let u = n.cross(&helper).normalize();
-        let v = n.cross(&u);
+        let (u, v) = orthonormal_basis(&n);
         PlaneFrame {
             origin: Point3::from(-plane.d * n),
             u,
@@ -77,8 +75,8 @@ impl PlaneFrame {
     }
 }
 
-/// One way of resting: which local axis points up (and which way), the centre's height over the
-/// plane, and the two local axes lying in it.
+/// One way of resting: which local axis points up (and which way), and the two local axes lying
+/// in the plane. The centre's height over the plane is the half-size along the axis up.
 #[derive(Debug, Clone, Copy)]
 struct Rest {
     up: usize,
@@ -160,16 +158,22 @@ pub fn resting_fits(space: &SearchSpace<'_>, shape: &Superquadric, seed: u64, ke
     let viewpoint = space.viewpoint.map(|p| frame.project(&p).0);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut poses: Vec<Isometry3<f64>> = Vec::new();
+    let projected: Vec<WallPoint> = space
+        .sub
+        .iter()
+        .map(|p| {
+            let (at, height) = frame.project(p);
+            WallPoint { at, height }
+        })
+        .collect();
     for rest in rests(shape) {
         let top = 2.0 * rest.height(shape);
         // The wall between the table's residue and the top's edge.
         let margin = (3.0 * noise).max(0.1 * top).max(0.003);
-        let wall: Vec<WallPoint> = space
-            .sub
+        let wall: Vec<WallPoint> = projected
             .iter()
-            .map(|p| frame.project(p))
-            .filter(|&(_, h)| h > margin && h < top - margin)
-            .map(|(at, height)| WallPoint { at, height })
+            .filter(|w| w.height > margin && w.height < top - margin)
+            .copied()
             .collect();
         if wall.len() < MIN_WALL_POINTS {
             continue;
@@ -374,9 +378,8 @@ fn circles(
 ) -> Vec<Vector2<f64>> {
     let h = rest.height(shape);
     let radius = |w: &WallPoint| {
-        let z = rest.sign * (w.height - h);
-        let t = z / shape.a[2];
-        0.5 * (shape.a[0] * (shape.kx * t + 1.0) + shape.a[1] * (shape.ky * t + 1.0))
+        let side = shape.taper(&Vector3::new(shape.a[0], shape.a[1], rest.sign * (w.height - h)));
+        0.5 * (side.x + side.y)
     };
     let mut found: Vec<(usize, Vector2<f64>)> = Vec::new();
     for _ in 0..PAIRS {
