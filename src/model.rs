@@ -26,6 +26,8 @@ pub struct ModelFile {
     pub name: Option<String>,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub held: bool,
     #[serde(default)]
     pub part: Vec<PartFile>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -128,6 +130,10 @@ pub struct Model {
     pub description: String,
     pub parts: Vec<Part>,
     pub connections: Vec<Connection>,
+    /// The model is of a part of a larger object, which may hold it off whatever it lies on
+    /// (the paper's mallet shaft searched alone, held above the table by the head): it need not
+    /// rest on anything. A whole object does not float.
+    pub held: bool,
     /// Where the model was read from (for messages and provenance).
     pub source: PathBuf,
 }
@@ -196,6 +202,7 @@ impl Model {
             description: file.description,
             parts,
             connections,
+            held: file.held,
             source: path.to_owned(),
         })
     }

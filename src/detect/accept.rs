@@ -21,6 +21,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// on a ring a few millimetres proud of the middle; lids and can tops are flat or domed.
 pub const MIN_BASE_RECESS: f64 = 0.0015;
 
+/// Points of a level surface around the base of an object raised above the support plane that
+/// let it rest there: the top of a box, a book or a tin it stands on, seen beside its foot. An
+/// object does not float; a model lifted off the table onto the upper part of a larger
+/// object's walls (a thin box's model on a thick box lying flat, its top on the thick box's top)
+/// has nothing level under it, only the larger object's walls going on down.
+pub const MIN_RESTING_ON: f64 = 10.0;
+
 /// Turn part placements into a detection: the object pose, the acceptance test, the confidence.
 pub fn assess(
     model: &Model,
@@ -38,6 +45,10 @@ pub fn assess(
     let mut continued = 0usize;
     let mut faces = f64::INFINITY;
     let mut base_recess: Option<f64> = None;
+    // The lowest part's height over the support plane and what it may rest on there; the
+    // object rests on the plane when any of its parts does.
+    let mut lowest: Option<(f64, usize)> = None;
+    let mut on_plane = false;
     for (p, r) in model.parts.iter().zip(&parts) {
         // Weight a part's coverage by its surface size.
         let w = p.shape.a[0] * p.shape.a[1] + p.shape.a[1] * p.shape.a[2] + p.shape.a[0] * p.shape.a[2];
@@ -49,6 +60,11 @@ pub fn assess(
             shell += r.scores.shell_points;
             continued += r.scores.continued_points;
             faces = faces.min(r.scores.faces);
+            match r.scores.raised {
+                Some((h, n)) if lowest.is_none_or(|(l, _)| h < l) => lowest = Some((h, n)),
+                Some(_) => {}
+                None => on_plane = true,
+            }
             if let Some(b) = r.scores.base_recess {
                 base_recess = Some(base_recess.map_or(b, |x: f64| x.min(b)));
             }
@@ -78,6 +94,9 @@ pub fn assess(
     // middle raised inside a foot ring) tells it from a closed can or a lidded canister.
     if let Some(b) = base_recess {
         margins.push((b - MIN_BASE_RECESS) / MIN_BASE_RECESS);
+    }
+    if let Some((_, n)) = lowest.filter(|_| !on_plane && !model.held) {
+        margins.push((n as f64 - MIN_RESTING_ON) / MIN_RESTING_ON);
     }
     margins.extend(connection_margins(model, &connection_errors, acc));
     let t = pose.translation.vector;
@@ -128,12 +147,14 @@ pub fn connections_hold(model: &Model, connection_errors: &[(f64, f64)], acc: &A
 }
 
 /// Each measure's margin to its threshold in units of its scale (negative: the test fails):
-/// `acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) connections..] [..]`.
+/// `acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) (resting,) connections..] [..]`.
 struct Margins<'a>(&'a [f64]);
 
 impl fmt::Display for Margins<'_> {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str("acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) connections..] [")?;
+        f.write_str(
+            "acceptance margins [coverage, interior, shell, rms, faces, continued, (base,) (resting,) connections..] [",
+        )?;
         for (k, m) in self.0.iter().enumerate() {
             if k > 0 {
                 f.write_str(", ")?;

@@ -192,6 +192,7 @@ mod tests {
                         continued_points: 12,
                         faces: 2.5,
                         base_recess: None,
+                        raised: Some((0.056, 240)),
                     },
                 },
                 PartResult {
@@ -208,7 +209,7 @@ mod tests {
             d.to_string(),
             "found true conf 0.939 pos (0.900 0.200 0.770) z (0.00 0.00 1.00) A 2.6 deg D 0.004 \
              | body pos (0.900 0.200 0.770) z (0.00 0.00 1.00) \
-             M 0.0741 S 893 I 7 cov 1.00 rms 0.0014 surf 969 inside 22 shell 40 continued 12 faces 2.50 base - | handle -"
+             M 0.0741 S 893 I 7 cov 1.00 rms 0.0014 surf 969 inside 22 shell 40 continued 12 faces 2.50 base - raised 56.0 mm on 240 | handle -"
         );
     }
 }

@@ -5,6 +5,7 @@ use super::plane_check::approximation_tolerance;
 use super::space::SearchSpace;
 use crate::cloud::plane::Plane;
 use crate::geometry::PlacedSuperquadric;
+use crate::surface_samples::LocalSamples;
 use nalgebra::{Point3, Vector3};
 
 /// The radius (m) of the patch around a point that tells a surface parallel to the support
@@ -28,6 +29,10 @@ pub(super) struct Support {
     /// [`PLANE_RESIDUE`] times the removal band at the part, at most the approximation
     /// tolerance of its shape.
     plane: Option<(Plane, f64)>,
+    /// The lowest of the part's surface samples along the support plane's normal, its height
+    /// over the plane, and how far above its support it may stand, where that height is more:
+    /// the part is raised off the plane.
+    raised: Option<(f64, f64, f64)>,
 }
 
 /// Below this many times the plane removal's band (three noise sigmas) over the support plane a
@@ -37,8 +42,22 @@ pub(super) struct Support {
 /// removal's band 3.9 mm), and counted against it.
 const PLANE_RESIDUE: f64 = 2.0;
 
+/// A surface a raised part may rest on faces up within this angle of the support plane's
+/// normal (its cosine): the top of a box or a book, and of a lying can within a fifth of its
+/// radius of the line it is highest along.
+const LEVEL_COS: f64 = 0.9;
+
+/// Points in a [`SUPPORT_PATCH`] that give a surface's direction.
+const MIN_PATCH: usize = 6;
+
 impl Support {
-    pub(super) fn new(space: &SearchSpace<'_>, placed: &PlacedSuperquadric, band: f64) -> Support {
+    pub(super) fn new(
+        space: &SearchSpace<'_>,
+        placed: &PlacedSuperquadric,
+        band: f64,
+        noise_band: f64,
+        samples: &LocalSamples,
+    ) -> Support {
         let base = space.plane.and_then(|plane| {
             let n = plane.normal;
             let r = placed.pose.rotation.to_rotation_matrix();
@@ -55,7 +74,29 @@ impl Support {
         // lowest wall must still answer for what lies around it.
         let residue = (PLANE_RESIDUE * 3.0 * space.noise.at(&centre)).min(approximation_tolerance(&placed.shape));
         let plane = space.plane.map(|p| (p, residue));
-        Support { base, band, plane }
+        // The base above is the corner of the box round the shape, which lies below a round
+        // section's lowest point (by up to 40 % of the radius, turned 45 degrees): what the
+        // part rests on is measured at the lowest surface sample.
+        // A learned model can be short of its object by a few per cent of a size (the sensor
+        // loses the edges of what it shows the learner): fitted to the object's top, it stands
+        // that much off the plane. A tenth of its height, as the plane check's tolerance, is
+        // allowed before it must rest on something else.
+        let raised = space.plane.and_then(|plane| {
+            let n_local = placed.pose.rotation.inverse() * plane.normal;
+            let (lowest, highest) = samples
+                .iter()
+                .map(|(q, _)| n_local.dot(q))
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
+            let allowed = band.max(noise_band + 0.1 * (highest - lowest));
+            let lowest = plane.normal.dot(&placed.pose.translation.vector) + lowest;
+            (lowest + plane.d > allowed).then_some((lowest, lowest + plane.d, allowed))
+        });
+        Support {
+            base,
+            band,
+            plane,
+            raised,
+        }
     }
 
     /// Whether a point lies on the surface the part may rest on: at the base's height, on a
@@ -83,6 +124,34 @@ impl Support {
         });
         5 * level >= 4 * all
     }
+
+    /// How high (m) the part's lowest point lies above the support plane, where that is more than
+    /// the band: it stands on something else, or floats.
+    pub(super) fn raised(&self) -> Option<f64> {
+        self.raised.map(|(_, h, _)| h)
+    }
+
+    /// Whether `p` lies on a surface a raised part may rest on: at its base's height (or as far
+    /// below it as the part may stand off its support), above the
+    /// table's residue, its neighbours within [`SUPPORT_PATCH`] on a surface facing up. (The
+    /// patch test of [`Support::holds`] passes at the foot of a wall, where the plane's removal
+    /// cut the neighbours below: a larger box's wall next to a model lifted onto its upper
+    /// part.) Never for a part on the support plane.
+    pub(super) fn rests_on(&self, space: &SearchSpace<'_>, p: &Point3<f64>) -> bool {
+        let (Some((lowest, _, allowed)), Some((plane, residue))) = (self.raised, &self.plane) else {
+            return false;
+        };
+        let n = plane.normal;
+        let below = lowest - n.dot(&p.coords);
+        if below > allowed || below < -self.band || plane.signed_distance(p) < *residue {
+            return false;
+        }
+        let mut near: Vec<Vector3<f64>> = Vec::new();
+        space
+            .grid
+            .for_each_within(space.points, p, SUPPORT_PATCH, |k| near.push(space.points[k].coords));
+        near.len() >= MIN_PATCH && crate::numeric::least_spread_direction(&near).dot(&n).abs() >= LEVEL_COS
+    }
 }
 
 #[cfg(test)]
@@ -93,8 +162,12 @@ mod tests {
     use super::{PLANE_RESIDUE, approximation_tolerance};
     use crate::cloud::grid::Grid;
     use crate::cloud::plane::orthonormal_basis;
+    use crate::detect::accept::MIN_RESTING_ON;
+    use crate::detect::prepare::simulated_model;
+    use crate::geometry::PlacedSuperquadric;
     use crate::model::Model;
     use nalgebra::Point3;
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
     use std::sync::Arc;
 
     /// The plane removal leaves the table's noise tail just above its band. Along the foot of a
@@ -161,5 +234,46 @@ mod tests {
             after <= before + 3,
             "shell points {before} without the ring, {after} with it"
         );
+    }
+
+    /// `scenes/stacked/flat_under_others.toml`'s table top (m) in the base frame.
+    const TABLE: f64 = 0.72;
+
+    fn model(name: &str, a: [f64; 3]) -> Model {
+        let text = format!("name = \"{name}\"\n[[part]]\nname = \"body\"\na = {a:?}\ne1 = 0.1\ne2 = 0.1\n");
+        Model::from_toml_str(&text, std::path::Path::new("test.toml")).unwrap()
+    }
+
+    /// What a placement of a box model rests on, as [`score`] measures it.
+    fn raised(scene_seed: u64, m: &Model, at: [f64; 3], yaw_deg: f64) -> Option<(f64, usize)> {
+        let (model, params, prep) = simulated_model("stacked/flat_under_others", scene_seed, m.clone());
+        let pose = Isometry3::from_parts(
+            Translation3::new(at[0], at[1], TABLE + at[2]),
+            UnitQuaternion::from_euler_angles(0.0, 0.0, yaw_deg.to_radians()),
+        );
+        let placed = PlacedSuperquadric::new(model.parts[0].shape, pose);
+        score(&prep.space(), &placed, 0.0, params.gamma, &prep.samples[0]).raised
+    }
+
+    /// A whole object does not float. A thin box's model laid on the top of a thicker box lying
+    /// flat (its top on the thicker box's top, its walls on the upper part of the thicker box's
+    /// walls) stands off the table with nothing level at its foot: only the thicker box's walls,
+    /// going on down. The box standing on the flat box rests on that box's top, seen round its
+    /// foot.
+    #[test]
+    fn a_thin_box_model_on_a_thick_box_floats_and_a_box_on_a_box_rests() {
+        // The flat box is 56 mm tall; the thin model 36 mm, its top on the flat box's top.
+        let thin = model("thin", [0.13, 0.09, 0.018]);
+        let on_it = model("on_it", [0.09, 0.07, 0.04]);
+        for seed in 1..=3 {
+            let (h, n) = raised(seed, &thin, [0.85, -0.16, 0.038], 25.0).expect("the thin model is raised");
+            assert!((h - 0.02).abs() < 0.003, "seed {seed}: {h} m over the table");
+            assert!((n as f64) < MIN_RESTING_ON, "seed {seed}: {n} points to rest on");
+            let (h, n) = raised(seed, &on_it, [0.87, -0.15, 0.096], -10.0).expect("the box on top is raised");
+            assert!((h - 0.056).abs() < 0.003, "seed {seed}: {h} m over the table");
+            assert!(n as f64 >= 3.0 * MIN_RESTING_ON, "seed {seed}: {n} points to rest on");
+            // On the table, nothing is asked of it.
+            assert_eq!(raised(seed, &thin, [0.3, 0.4, 0.018], 0.0), None);
+        }
     }
 }

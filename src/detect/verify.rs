@@ -66,6 +66,10 @@ pub struct Scores {
     /// base, lies below the ring round it (see [`BaseCap`]); minus infinity when too little of the
     /// top was seen. `None` for anything else.
     pub base_recess: Option<f64>,
+    /// For a part whose lowest point lies above the support plane by more than its base band:
+    /// that height (m), and the points of a level surface around its base at that height, on
+    /// which it may rest. `None` for a part on the plane, or without one.
+    pub raised: Option<(f64, usize)>,
 }
 
 impl Scores {
@@ -94,7 +98,7 @@ impl fmt::Display for Scores {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(
             f,
-            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} continued {} faces {:.2} base {}",
+            "M {:.4} S {} I {} cov {:.2} rms {:.4} surf {} inside {} shell {} continued {} faces {:.2} base {} raised {}",
             self.m,
             self.s,
             self.i,
@@ -107,6 +111,10 @@ impl fmt::Display for Scores {
             self.faces,
             match self.base_recess {
                 Some(r) => format!("{:.1} mm", r * 1e3),
+                None => "-".to_string(),
+            },
+            match self.raised {
+                Some((h, n)) => format!("{:.1} mm on {n}", h * 1e3),
                 None => "-".to_string(),
             }
         )
@@ -162,6 +170,8 @@ struct Tally {
     tolerated: Vec<Point3<f64>>,
     /// An open container's inner wall, seen through its opening.
     inner_wall: Vec<Point3<f64>>,
+    /// Points of a level surface at the base's height of a raised part: what it rests on.
+    resting_on: usize,
 }
 
 impl Tally {
@@ -179,6 +189,7 @@ impl Tally {
             base: BaseCap::new(shape, band),
             tolerated: Vec::new(),
             inner_wall: Vec::new(),
+            resting_on: 0,
         }
     }
 
@@ -209,6 +220,9 @@ impl Tally {
         let d = PlacedSuperquadric::distance_from(rg);
         // The raised middle of a vessel's base lies inside the model's end, which is flat.
         let in_base = on_rim && self.base.add(q);
+        if d > -tolerance - band && around.support.rests_on(space, p) {
+            self.resting_on += 1;
+        }
         if around.opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
             // On the lid of an open container, where there is nothing to see: a closed lookalike
             // (a canister for a mug) shows itself here. Counted as the interior of a closed part.
@@ -301,6 +315,7 @@ impl Tally {
             continued_points,
             faces,
             base_recess: on_rim.then(|| self.base.recess()),
+            raised: around.support.raised().map(|h| (h, self.resting_on)),
         }
     }
 }
@@ -451,7 +466,13 @@ impl Around {
             kernel,
             reach,
             search: radius.max(shape.bounding_radius() + wide),
-            support: Support::new(space, placed, band + approximation_tolerance(shape)),
+            support: Support::new(
+                space,
+                placed,
+                band + approximation_tolerance(shape),
+                band,
+                &samples.local,
+            ),
         }
     }
 }

@@ -101,6 +101,7 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     let file = ModelFile {
         name: Some(name.into()),
         description: format!("Learned from {}", prov.input),
+        held: false,
         part,
         connection,
     };
