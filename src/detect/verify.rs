@@ -68,7 +68,8 @@ pub struct Scores {
     pub base_recess: Option<f64>,
     /// For a part whose lowest point lies above the support plane by more than its base band:
     /// that height (m), and the points of a level surface around its base at that height, on
-    /// which it may rest. `None` for a part on the plane, or without one.
+    /// which it may rest (counted up to [`RESTING_COUNTED`]). `None` for a part on the plane, or
+    /// without one.
     pub raised: Option<(f64, usize)>,
 }
 
@@ -148,6 +149,10 @@ pub fn score(
 }
 }
 
+/// Points a raised part may rest on are counted up to this many: three times what the acceptance
+/// test asks (`accept::MIN_RESTING_ON`), a margin of 2.
+const RESTING_COUNTED: usize = 30;
+
 /// The points around a hypothesis, sorted by where they lie against its surface.
 struct Tally {
     /// The paper's S and I: points within its radius near the surface and inside.
@@ -220,7 +225,9 @@ impl Tally {
         let d = PlacedSuperquadric::distance_from(rg);
         // The raised middle of a vessel's base lies inside the model's end, which is flat.
         let in_base = on_rim && self.base.add(q);
-        if d > -tolerance - band && around.support.rests_on(space, p) {
+        // Enough to rest on is enough: counting stops where the margin could no longer be the
+        // least of a detection's (each point costs a neighbourhood's plane).
+        if self.resting_on < RESTING_COUNTED && d > -tolerance - band && around.support.rests_on(space, p) {
             self.resting_on += 1;
         }
         if around.opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
