@@ -498,4 +498,23 @@ mod tests {
         let model = Model::from_toml_str(&good, Path::new("good.toml")).unwrap();
         assert_eq!((model.parts.len(), model.connections.len()), (2, 1));
     }
+
+    /// A part of an object that the rest of it may hold up says so; a whole object is the
+    /// default, and a `held` that is not a boolean is refused by name.
+    #[test]
+    fn held_is_false_unless_the_file_says_true() {
+        let whole = Model::from_toml_str(PART, Path::new("whole.toml")).unwrap();
+        assert!(!whole.held);
+        let held = Model::from_toml_str(
+            &format!(
+                "held = true
+{PART}"
+            ),
+            Path::new("held.toml"),
+        )
+        .unwrap();
+        assert!(held.held);
+        let err = Model::from_toml_str(&format!("held = \"yes\"\n{PART}"), Path::new("bad.toml")).unwrap_err();
+        assert!(err.to_string().contains("held"), "{err}");
+    }
 }

@@ -146,10 +146,12 @@ impl Support {
         if below > allowed || below < -self.band || plane.signed_distance(p) < *residue {
             return false;
         }
+        // The patch's plane from the search's subsample: a tenth of the points give it as well,
+        // at a tenth of the cost.
         let mut near: Vec<Vector3<f64>> = Vec::new();
         space
-            .grid
-            .for_each_within(space.points, p, SUPPORT_PATCH, |k| near.push(space.points[k].coords));
+            .sub_grid
+            .for_each_within(space.sub, p, SUPPORT_PATCH, |k| near.push(space.sub[k].coords));
         near.len() >= MIN_PATCH && crate::numeric::least_spread_direction(&near).dot(&n).abs() >= LEVEL_COS
     }
 }
