@@ -43,8 +43,8 @@ pub(super) struct Support {
 const PLANE_RESIDUE: f64 = 2.0;
 
 /// A surface a raised part may rest on faces up within this angle of the support plane's
-/// normal (its cosine, 26 degrees): the top of a box or a book, and of a lying can within 0.44
-/// of its radius to either side of the line it is highest along.
+/// normal (its cosine): the top of a box or a book, and of a lying can within a fifth of its
+/// radius of the line it is highest along.
 const LEVEL_COS: f64 = 0.9;
 
 /// Points in a [`SUPPORT_PATCH`] that give a surface's direction.
@@ -89,7 +89,7 @@ impl Support {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), h| (lo.min(h), hi.max(h)));
             let allowed = band.max(noise_band + 0.1 * (highest - lowest));
             let lowest = plane.normal.dot(&placed.pose.translation.vector) + lowest;
-            (lowest.is_finite() && lowest + plane.d > allowed).then_some((lowest, lowest + plane.d, allowed))
+            (lowest + plane.d > allowed).then_some((lowest, lowest + plane.d, allowed))
         });
         Support {
             base,
@@ -125,10 +125,8 @@ impl Support {
         5 * level >= 4 * all
     }
 
-    /// How high (m) the part's lowest surface sample lies above the support plane, where that is
-    /// more than the part may stand off its support (the larger of the base band and the noise
-    /// band plus a tenth of the part's height along the plane's normal): it stands on something
-    /// else, or floats.
+    /// How high (m) the part's lowest point lies above the support plane, where that is more than
+    /// the band: it stands on something else, or floats.
     pub(super) fn raised(&self) -> Option<f64> {
         self.raised.map(|(_, h, _)| h)
     }
@@ -148,19 +146,12 @@ impl Support {
         if below > allowed || below < -self.band || plane.signed_distance(p) < *residue {
             return false;
         }
-        // The patch's plane from the refinement's subsample (a twelfth of the smallest size
-        // apart) where it holds enough points, at a fraction of the cost of the whole cloud's;
-        // from the whole cloud where a large part's subsample is too sparse for the patch.
+        // The patch's plane from the search's subsample: a tenth of the points give it as well,
+        // at a tenth of the cost.
         let mut near: Vec<Vector3<f64>> = Vec::new();
         space
-            .mid_grid
-            .for_each_within(space.mid, p, SUPPORT_PATCH, |k| near.push(space.mid[k].coords));
-        if near.len() < MIN_PATCH {
-            near.clear();
-            space
-                .grid
-                .for_each_within(space.points, p, SUPPORT_PATCH, |k| near.push(space.points[k].coords));
-        }
+            .sub_grid
+            .for_each_within(space.sub, p, SUPPORT_PATCH, |k| near.push(space.sub[k].coords));
         near.len() >= MIN_PATCH && crate::numeric::least_spread_direction(&near).dot(&n).abs() >= LEVEL_COS
     }
 }

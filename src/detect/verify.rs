@@ -66,9 +66,8 @@ pub struct Scores {
     /// base, lies below the ring round it (see [`BaseCap`]); minus infinity when too little of the
     /// top was seen. `None` for anything else.
     pub base_recess: Option<f64>,
-    /// For a part whose lowest point lies above the support plane by more than it may stand off
-    /// its support (see `Support::raised`): that height (m), and the points outside its surface
-    /// band of a level surface around its base at that height, on
+    /// For a part whose lowest point lies above the support plane by more than its base band:
+    /// that height (m), and the points of a level surface around its base at that height, on
     /// which it may rest (counted up to [`RESTING_COUNTED`]). `None` for a part on the plane, or
     /// without one.
     pub raised: Option<(f64, usize)>,
@@ -228,9 +227,7 @@ impl Tally {
         let in_base = on_rim && self.base.add(q);
         // Enough to rest on is enough: counting stops where the margin could no longer be the
         // least of a detection's (each point costs a neighbourhood's plane).
-        // Outside the surface band only: an open container's inside bottom faces up at its base's
-        // height too, and is its own.
-        if self.resting_on < RESTING_COUNTED && d > band && around.support.rests_on(space, p) {
+        if self.resting_on < RESTING_COUNTED && d > -tolerance - band && around.support.rests_on(space, p) {
             self.resting_on += 1;
         }
         if around.opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {

@@ -466,9 +466,10 @@ const LEARNED_GITTIS_BOX: &str =
     "name = \"gittis_box\"\n[[part]]\nname = \"body\"\na = [0.0232, 0.0614, 0.1059]\ne1 = 0.1\ne2 = 0.1\n";
 
 /// In mOSD test44 the Vitalis box (object 4) stands on the biscuit tin (object 2). The gittis
-/// box's model, taller than the Vitalis box, fits it with its top on the Vitalis box's top and
-/// its foot 3 cm down inside the tin: standing on nothing. A whole object rests on the table or
-/// on something level at its foot, and the model is not found there at any search seed 0-7.
+/// box's model, taller than the Vitalis box, was found on it at every search seed 0-7, its top
+/// on the Vitalis box's top and its foot 3 cm down inside the tin: standing on nothing. A whole
+/// object rests on the table or on something level at its foot, and the model is not found
+/// there now.
 #[test]
 fn the_gittis_box_is_not_found_on_the_box_standing_on_the_tin() {
     let cloud = read_cloud(&data("test44.pcd")).unwrap();
