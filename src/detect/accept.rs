@@ -45,9 +45,9 @@ pub fn assess(
     let mut continued = 0usize;
     let mut faces = f64::INFINITY;
     let mut base_recess: Option<f64> = None;
-    // The lowest part's height over the support plane and what it may rest on there; the
-    // object rests on the plane when any of its parts does.
-    let mut lowest: Option<(f64, usize)> = None;
+    // What the raised parts may rest on (the most any of them has); the object rests on the
+    // plane when any of its parts does.
+    let mut resting_on: Option<usize> = None;
     let mut on_plane = false;
     for (p, r) in model.parts.iter().zip(&parts) {
         // Weight a part's coverage by its surface size.
@@ -61,8 +61,7 @@ pub fn assess(
             continued += r.scores.continued_points;
             faces = faces.min(r.scores.faces);
             match r.scores.raised {
-                Some((h, n)) if lowest.is_none_or(|(l, _)| h < l) => lowest = Some((h, n)),
-                Some(_) => {}
+                Some((_, n)) => resting_on = Some(resting_on.map_or(n, |m: usize| m.max(n))),
                 None => on_plane = true,
             }
             if let Some(b) = r.scores.base_recess {
@@ -95,7 +94,7 @@ pub fn assess(
     if let Some(b) = base_recess {
         margins.push((b - MIN_BASE_RECESS) / MIN_BASE_RECESS);
     }
-    if let Some((_, n)) = lowest.filter(|_| !on_plane && !model.held) {
+    if let Some(n) = resting_on.filter(|_| !on_plane && !model.held) {
         margins.push((n as f64 - MIN_RESTING_ON) / MIN_RESTING_ON);
     }
     margins.extend(connection_margins(model, &connection_errors, acc));
@@ -405,5 +404,68 @@ mod tests {
                 assert!(!passed && out.len() == 12 && out[0].1.found);
             });
         }
+    }
+
+    /// The resting margin, from the parts' measures alone: a raised single part with nothing to
+    /// rest on is refused, unless its model is held up by the rest of its object; a compound
+    /// rests where any of its parts rests, on the plane or on what it stands on.
+    #[test]
+    fn an_object_rests_where_any_part_rests_and_a_held_part_need_not() {
+        use super::super::verify::Scores;
+        let part = "[[part]]\nname = \"{}\"\na = [0.03, 0.03, 0.05]\ne1 = 0.1\ne2 = 1.0\n";
+        let one = |held: bool| {
+            let text = format!("held = {held}\n{}", part.replace("{}", "body"));
+            Model::from_toml_str(&text, std::path::Path::new("one.toml")).unwrap()
+        };
+        let two = {
+            let text = format!(
+                "{}{}pose = {{ position = [0.0, 0.0, 0.2] }}\n[[connection]]\nparts = [\"body\", \"top\"]\nangle_deg = 0.0\ndistance = 0.2\n",
+                part.replace("{}", "body"),
+                part.replace("{}", "top")
+            );
+            Model::from_toml_str(&text, std::path::Path::new("two.toml")).unwrap()
+        };
+        let measured = |raised: Option<(f64, usize)>| Scores {
+            coverage: 1.0,
+            rms: 0.0005,
+            surface_points: 1000,
+            faces: f64::INFINITY,
+            raised,
+            ..Scores::default()
+        };
+        let parts = |model: &Model, raised: &[Option<(f64, usize)>]| -> Vec<PartResult> {
+            model
+                .parts
+                .iter()
+                .zip(raised)
+                .map(|(p, &r)| PartResult {
+                    name: p.name.clone(),
+                    placed: Some(crate::geometry::PlacedSuperquadric::new(p.shape, p.pose_in_object)),
+                    scores: measured(r),
+                })
+                .collect()
+        };
+        let found = |model: &Model, raised: &[Option<(f64, usize)>]| {
+            let errors = vec![(0.0, 0.0); model.connections.len()];
+            assess(
+                model,
+                parts(model, raised),
+                errors,
+                &RangeNoise::uniform(0.002),
+                &Acceptance::default(),
+            )
+            .found
+        };
+        assert!(found(&one(false), &[None]), "on the plane");
+        assert!(!found(&one(false), &[Some((0.05, 0))]), "floating");
+        assert!(!found(&one(false), &[Some((0.05, 9))]), "too little under it");
+        assert!(found(&one(false), &[Some((0.05, 10))]), "on something");
+        assert!(found(&one(true), &[Some((0.05, 0))]), "held");
+        assert!(found(&two, &[None, Some((0.2, 0))]), "one part on the plane");
+        assert!(
+            found(&two, &[Some((0.05, 30)), Some((0.2, 0))]),
+            "one part on something"
+        );
+        assert!(!found(&two, &[Some((0.05, 0)), Some((0.2, 0))]), "both floating");
     }
 }

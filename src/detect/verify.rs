@@ -66,8 +66,9 @@ pub struct Scores {
     /// base, lies below the ring round it (see [`BaseCap`]); minus infinity when too little of the
     /// top was seen. `None` for anything else.
     pub base_recess: Option<f64>,
-    /// For a part whose lowest point lies above the support plane by more than its base band:
-    /// that height (m), and the points of a level surface around its base at that height, on
+    /// For a part whose lowest point lies above the support plane by more than it may stand off
+    /// its support (see `Support::raised`): that height (m), and the points of a level surface
+    /// around its base at that height (not inside an open container standing upright), on
     /// which it may rest (counted up to [`RESTING_COUNTED`]). `None` for a part on the plane, or
     /// without one.
     pub raised: Option<(f64, usize)>,
@@ -227,7 +228,16 @@ impl Tally {
         let in_base = on_rim && self.base.add(q);
         // Enough to rest on is enough: counting stops where the margin could no longer be the
         // least of a detection's (each point costs a neighbourhood's plane).
-        if self.resting_on < RESTING_COUNTED && d > -tolerance - band && around.support.rests_on(space, p) {
+        // Not what lies inside an open container standing upright: its inside bottom faces up at
+        // its base's height too, and is its own. What lies just outside its flaring foot counts
+        // (the top of the pot a bowl stands on), and so does what a closed part's too-long model
+        // reaches into by its tolerance.
+        let own_inside = around.opening_up && d < 0.0;
+        if self.resting_on < RESTING_COUNTED
+            && d > -tolerance - band
+            && !own_inside
+            && around.support.rests_on(space, p)
+        {
             self.resting_on += 1;
         }
         if around.opening_up && d.abs() < band && on_lid(shape, q, &rg.grad) {
