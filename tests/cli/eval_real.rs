@@ -284,6 +284,17 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
     assert_eq!(r["recall"]["all"], json!({"found": 1, "of": 1}), "{r}");
     assert_eq!(r["false_answers"], 0, "{r}");
 
+    // With grasps: the box (the only object with a label group to check the sweep against)
+    // gets one, and its gripper sweeps none of the other labelled points.
+    let r = eval_identity(&file, &dir, "learned_box", "learned_box", &["--grasps"]);
+    let g = &r["grasps"];
+    assert_eq!(
+        (&g["found"], &g["with_grasp"], &g["first_clear"]),
+        (&json!(1), &json!(1), &json!(1)),
+        "{r}"
+    );
+    assert!(g["time_ms"]["median"].as_f64().is_some_and(|t| t > 0.0), "{r}");
+
     // Learned from the box's view in the second scene (its group 4): that answer is neutral,
     // and nothing is left to find.
     let r = eval_identity(

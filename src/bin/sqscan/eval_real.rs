@@ -133,6 +133,11 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         },
         ..GraspTally::default()
     };
+    // The planning's time per detection is what a running daemon pays: the model's surface
+    // samples are taken once, not with the first scene's grasps.
+    if a.grasps {
+        sqscan::grasp::warm(&model);
+    }
     for s in &scenes {
         let path = a.clouds.join(format!("{}.pcd", s.scene));
         let cloud = cloud::read_cloud(&path).with_context(|| format!("scene {}", s.scene))?;
