@@ -61,7 +61,7 @@ pub fn assess(
             continued += r.scores.continued_points;
             faces = faces.min(r.scores.faces);
             match r.scores.raised {
-                Some((_, n)) => resting_on = Some(resting_on.map_or(n, |m: usize| m.max(n))),
+                Some((_, n)) => resting_on = resting_on.max(Some(n)),
                 None => on_plane = true,
             }
             if let Some(b) = r.scores.base_recess {

@@ -298,7 +298,8 @@ mod tests {
         let sim = crate::sim::Scene::from_file(&root.join("scenes/stacked/bowl_on_pot.toml"), &models).unwrap();
         let sweep = crate::sim::simulate(&sim, 1);
         let bowl = Model::load("white_bowl", &models).unwrap();
-        let on_pot = Point3::new(0.80, 0.18, TABLE + 0.1);
+        let table = sim.table.as_ref().expect("the scene has a table").height;
+        let on_pot = Point3::new(0.80, 0.18, table + 0.1);
         for seed in 0..8 {
             let params = Params {
                 seed,

@@ -127,8 +127,16 @@ const MAX_CHECKED: usize = 600;
 /// first plan for a model would pay for them (2-4 ms for a catalogue object's part).
 pub fn warm(model: &crate::model::Model) {
     for p in &model.parts {
-        crate::surface_samples::local_samples(&p.shape, MODEL_SPACING, p.open);
+        model_samples(&p.shape, p.open);
     }
+}
+
+/// A part's surface samples for the checks of the gripper against it (kept between plans).
+fn model_samples(
+    shape: &crate::geometry::Superquadric,
+    open: bool,
+) -> std::sync::Arc<crate::surface_samples::LocalSamples> {
+    crate::surface_samples::local_samples(shape, MODEL_SPACING, open)
 }
 
 /// Up to `max` grasps of the object made of `parts`, best first, checked against `scene` (the
@@ -440,7 +448,7 @@ fn model_surface(parts: &[Part], share: &[f64]) -> ModelSurface {
         small: Vec::new(),
     };
     for (i, p) in parts.iter().enumerate() {
-        let local = crate::surface_samples::local_samples(&p.placed.shape, MODEL_SPACING, p.open);
+        let local = model_samples(&p.placed.shape, p.open);
         let to = if i == largest { &mut out.main } else { &mut out.small };
         to.extend(
             local
