@@ -82,7 +82,7 @@ pub fn learn_parts(
                 .copied()
                 .collect();
             let free = others_near(points, &learned.segmentation.object, 0.4);
-            let first = fit_superquadric(&rest, &free, learned.segmentation.plane.as_ref(), params)?;
+            let first = fit_superquadric(&rest, &free, learned.rests_on().as_ref(), params)?;
             let mut found = learned.parts.clone();
             found[0] = first;
             let again = largest(&unexplained_by(&found, &object));

@@ -24,6 +24,7 @@ mod model_file;
 mod params;
 mod prism;
 mod profile;
+mod raised;
 mod residual;
 mod robust;
 mod seen;
@@ -44,13 +45,25 @@ use stages::fit_superquadric;
 pub use compound::learn_parts;
 pub use model_file::{Provenance, model_pose, model_toml};
 pub use params::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
+pub use raised::{RaisedSupport, raised_support};
 pub use seen::seen_extent;
 pub use segment::{AT_REACH, Segmentation, segment, segment_at, segment_box, support_below};
+
+impl Learned {
+    /// The plane the object rests on in the fits: the surface it stands on where it is raised,
+    /// else the support plane.
+    pub fn rests_on(&self) -> Option<crate::cloud::plane::Plane> {
+        self.support.map(|r| r.plane).or(self.segmentation.plane)
+    }
+}
 
 /// Everything [`learn`] found.
 #[derive(Debug, Clone)]
 pub struct Learned {
     pub segmentation: Segmentation,
+    /// The surface the object stands on where it is raised off the support plane (another
+    /// object's top): the fits rest it there instead of on the plane.
+    pub support: Option<RaisedSupport>,
     pub parts: Vec<Recovered>,
     /// Points of the object (before subsampling).
     pub object_points: usize,
@@ -84,18 +97,31 @@ pub fn learn_segmented(
     params: &LearnParams,
 ) -> Result<Learned, LearnError> {
     let object: Vec<Point3<f64>> = segmentation.object.iter().map(|&i| points[i]).collect();
+    let support = segmentation
+        .plane
+        .as_ref()
+        .and_then(|pl| raised_support(points, &segmentation.object, pl));
+    if let Some(r) = &support {
+        tracing::debug!(
+            "stands on a level surface {:.1} mm over the plane ({} points beside its foot): fitted resting there",
+            1e3 * r.height,
+            r.points
+        );
+    }
+    let plane = support.map(|r| r.plane).or(segmentation.plane);
     let mut free = others_near(points, &segmentation.object, 0.4);
-    if let Some(pl) = &segmentation.plane {
+    if let Some(pl) = &plane {
         // An open container's inside bottom lies in the plane band and went with the table; the
         // sensor saw it through the opening, so rays to it are not free space.
         let hull = footprint(&object, &pl.normal);
         let (u, v) = crate::cloud::plane::orthonormal_basis(&pl.normal);
         free.retain(|p| !inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))));
     }
-    let rec = fit_superquadric(&object, &free, segmentation.plane.as_ref(), params)?;
+    let rec = fit_superquadric(&object, &free, plane.as_ref(), params)?;
     Ok(Learned {
         object_points: object.len(),
         segmentation,
+        support,
         parts: vec![rec],
     })
 }

@@ -33,6 +33,13 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
             None => "none".into(),
         }
     ));
+    if let Some(r) = &learned.support {
+        comments.push(format!(
+            "stands on a level surface {:.1} mm over the plane ({} points beside its foot), where it was fitted resting",
+            1e3 * r.height,
+            r.points
+        ));
+    }
     for (i, r) in learned.parts.iter().enumerate() {
         let t = r.placed.pose.translation.vector;
         comments.push(format!(

@@ -423,3 +423,77 @@ fn a_box_a_lying_can_and_a_flat_tin_are_learned_from_one_view() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A spray tin (66 mm across, 190 mm tall) standing on a book 30 mm thick, simulated and learned
+/// with `--label`: it rests on the book's top round its foot, and comes back its own height, not
+/// the book's more (`support` in the JSON: the book's top, 30 mm over the table).
+#[test]
+fn a_tin_standing_on_a_book_is_learned_its_own_height() {
+    use std::process::Command;
+    let bin = env!("CARGO_BIN_EXE_sqscan");
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    let dir = std::env::temp_dir().join(format!("sqscan-learn-on-book-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let rig = std::fs::read_to_string(root.join("scenes/stacked/mug_on_book.toml")).unwrap();
+    let rig = &rig[..rig.find("[[object]]").unwrap()];
+    let scene = dir.join("tin_on_book.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "{rig}[[object]]\nname = \"book\"\nmodel = \"book\"\npose = {{ position = [0.82, 0.0, 0.0], rpy_deg = [0.0, 0.0, 20.0] }}\n\n\
+             [[object]]\nname = \"tin\"\nmodel = \"spray_tin\"\npose = {{ position = [0.82, 0.0, 0.030] }}\n"
+        ),
+    )
+    .unwrap();
+    let o = Command::new(bin)
+        .arg("simulate")
+        .arg("--models-dir")
+        .arg(root.join("models"))
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.join("sweep"))
+        .args(["--seed", "1"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The simulator labels object k (from 0) 20 + 10 k: the tin is object 3.
+    let o = Command::new(bin)
+        .args(["learn", "--label", "3", "--name", "tin", "--out"])
+        .arg(dir.join("tin.toml"))
+        .arg("--cloud")
+        .arg(dir.join("sweep/cloud.pcd"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let plane: Vec<f64> = r["plane"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let support: Vec<f64> = r["support"]
+        .as_array()
+        .expect("a support")
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    // Parallel planes: the support's offset from the table's is the book's thickness.
+    assert!(
+        (plane[3] - support[3] - 0.03).abs() < 0.003,
+        "plane {plane:?}, support {support:?}"
+    );
+    let a: Vec<f64> = r["parts"][0]["a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    for (got, want) in a.iter().zip([0.033, 0.033, 0.095]) {
+        assert!((got - want).abs() < 0.1 * want, "a {a:?}");
+    }
+    let text = std::fs::read_to_string(dir.join("tin.toml")).unwrap();
+    assert!(text.contains("stands on a level surface"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

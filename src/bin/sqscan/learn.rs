@@ -356,6 +356,7 @@ fn summary(model: &Model, out: &Path, learned: &learn::Learned, points: &[Point3
         "out": out.display().to_string(),
         "object_points": learned.object_points,
         "plane": learned.segmentation.plane.map(|p| p.coefficients()),
+        "support": learned.support.map(|r| r.plane.coefficients()),
         "model_pose": sqscan::pose::PoseJson::from(&learn::model_pose(learned)),
         "parts": parts,
     })
