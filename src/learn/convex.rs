@@ -188,7 +188,7 @@ pub(super) fn object_at(
         regions.len(),
         regions.iter().map(|r| r.len()).take(12).collect::<Vec<_>>()
     );
-    merge_belonging(points, object, regions, up, false)
+    merge_belonging(points, object, regions, up, true)
 }
 
 /// `object` with those of `regions` that belong to it, seen along `up`, as [`object_at`] tells

@@ -58,14 +58,14 @@ pub struct LearnArgs {
     /// table is fitted to the points labelled 1-9
     #[arg(long, value_name = "N", conflicts_with_all = ["at", "within", "segmented"])]
     label: Option<u32>,
-    /// Learn the object shown by a point "x,y,z" of the cloud's frame: the connected points off
-    /// the supporting plane nearest to it (within 5 cm), cut from what touches it where the two
-    /// meet in a concave crease
+    /// Learn the object shown by a point "x,y,z" of the cloud's frame: the connected points clear
+    /// of the supporting plane (over twice its noise band) nearest to it (within 5 cm), cut from
+    /// what touches it where the two meet in a concave crease
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_point, allow_hyphen_values = true,
           conflicts_with_all = ["within", "segmented"])]
     at: Option<Point3<f64>>,
-    /// Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its
-    /// opposite corners, in the cloud's frame)
+    /// Learn the points clear of the supporting plane (over twice its noise band) inside the box
+    /// "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud's frame)
     #[arg(id = "within", long = "box", value_name = "MIN,MAX", value_parser = parse_box,
           allow_hyphen_values = true, conflicts_with = "segmented")]
     within: Option<(Point3<f64>, Point3<f64>)>,
