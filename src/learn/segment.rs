@@ -3,7 +3,7 @@
 
 use super::params::LearnParams;
 use crate::cloud::grid::voxel_subsample;
-use crate::cloud::plane::{Plane, remove_dominant_plane};
+use crate::cloud::plane::{Plane, RangeScale, remove_dominant_plane};
 use nalgebra::{Point3, Vector3};
 use std::collections::{HashMap, VecDeque};
 
@@ -107,8 +107,9 @@ pub fn segment_at(points: &[Point3<f64>], params: &LearnParams, at: &Point3<f64>
     }
 }
 
-/// The object's points in an axis-aligned box of the cloud's frame (`min`, `max` corners), off
-/// the supporting plane.
+/// The object's points in an axis-aligned box of the cloud's frame (`min`, `max` corners), over
+/// the supporting plane's residue (with the residue's pieces within their outline, as
+/// [`segment_at`] takes them).
 pub fn segment_box(points: &[Point3<f64>], params: &LearnParams, min: &Point3<f64>, max: &Point3<f64>) -> Segmentation {
     let (plane, kept, residue) = above_the_residue(points, params);
     let in_box = |i: &usize| (0..3).all(|k| points[*i][k] >= min[k] && points[*i][k] <= max[k]);
@@ -121,16 +122,26 @@ pub fn segment_box(points: &[Point3<f64>], params: &LearnParams, min: &Point3<f6
 /// The supporting plane (given or found) and the indices of the points off it, on the objects'
 /// side.
 fn off_the_plane(points: &[Point3<f64>], params: &LearnParams) -> (Option<Plane>, Vec<usize>) {
+    let (plane, kept, _) = off_the_plane_with_band(points, params);
+    (plane, kept)
+}
+
+/// [`off_the_plane`], with the removal's band and how it scales with the range (`None` for a
+/// given plane: [`GIVEN_PLANE_BAND`]).
+fn off_the_plane_with_band(
+    points: &[Point3<f64>],
+    params: &LearnParams,
+) -> (Option<Plane>, Vec<usize>, Option<(f64, RangeScale)>) {
     match params.plane {
         Some(pl) => {
             let kept = (0..points.len())
                 .filter(|&i| pl.signed_distance(&points[i]) > GIVEN_PLANE_BAND)
                 .collect();
-            (Some(pl), kept)
+            (Some(pl), kept, None)
         }
         None => {
             let r = remove_dominant_plane(points, false, params.viewpoint);
-            (r.plane, r.kept)
+            (r.plane, r.kept, Some((r.band, r.range_scale)))
         }
     }
 }
@@ -145,19 +156,7 @@ const PLANE_RESIDUE: f64 = 2.0;
 /// [`off_the_plane`], split at [`PLANE_RESIDUE`] bands (at their range) over the plane: the
 /// points above it, and the residue below it.
 fn above_the_residue(points: &[Point3<f64>], params: &LearnParams) -> (Option<Plane>, Vec<usize>, Vec<usize>) {
-    let (plane, kept, band) = match params.plane {
-        Some(pl) => {
-            let kept = (0..points.len())
-                .filter(|&i| pl.signed_distance(&points[i]) > GIVEN_PLANE_BAND)
-                .collect();
-            (Some(pl), kept, None)
-        }
-        None => {
-            let r = remove_dominant_plane(points, false, params.viewpoint);
-            let band = (r.band, r.range_scale);
-            (r.plane, r.kept, Some(band))
-        }
-    };
+    let (plane, kept, band) = off_the_plane_with_band(points, params);
     let Some(pl) = plane else {
         return (plane, kept, Vec::new());
     };

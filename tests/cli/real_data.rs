@@ -599,8 +599,8 @@ fn at_leaves_the_tables_residue_at_the_tall_tins_foot() {
 /// In mOSD learn39 the printed mug (object 4, 3386 points) stands upright; its labelled centroid
 /// lies on its near wall. Local convexity splits the mug into its outside (about 2200 points)
 /// and its inside seen through the opening (about 1100), which rises to the same rim; `--at`
-/// took the outside alone, whether the mug was open then hung on a few dozen points of the
-/// table at its foot, and it was learned once as a closed 100 x 67 x 37 mm box. The inside,
+/// took the outside alone (2307 points), and whether the mug came out open hung on a few dozen
+/// points of the table at its foot (without them, a closed 100 x 67 x 37 mm box). The inside,
 /// level with the rim and within its circle, is the mug's: it comes out open, 76 mm across and
 /// 98 mm tall, as from its labels.
 #[test]
