@@ -79,8 +79,8 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l name -d 'Name of
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l parts -d 'Superquadric parts (1, 2 or 3)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l out -d 'Model file to write [default: MODELS_DIR/NAME.toml, unless that is the package\'s /usr/share/sqscan/models]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l label -d 'Use the points labelled as object N (mOSD labels: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l at -d 'Learn the object shown by a point "x,y,z" of the cloud\'s frame: the connected points off the supporting plane nearest to it (within 5 cm), cut from what touches it where the two meet in a concave crease' -r
-complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l box -d 'Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud\'s frame)' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l at -d 'Learn the object shown by a point "x,y,z" of the cloud\'s frame: the connected points clear of the supporting plane (over twice its noise band) nearest to it (within 5 cm), cut from what touches it where the two meet in a concave crease' -r
+complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l box -d 'Learn the points clear of the supporting plane (over twice its noise band) inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud\'s frame)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l viewpoint -d 'Sensor position "x,y,z" [default: the file\'s VIEWPOINT, else the origin]' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l up -d 'Up direction "x,y,z" when there is no supporting plane in the cloud' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r

@@ -87,8 +87,8 @@ _arguments "${_arguments_options[@]}" : \
 '--parts=[Superquadric parts (1, 2 or 3)]:PARTS:_default' \
 '--out=[Model file to write \[default\: MODELS_DIR/NAME.toml, unless that is the package'\''s /usr/share/sqscan/models\]]:FILE.toml:_files' \
 '(--at --box --segmented)--label=[Use the points labelled as object N (mOSD labels\: label >= 20 and label / 10 == N); the table is fitted to the points labelled 1-9]:N:_default' \
-'(--box --segmented)--at=[Learn the object shown by a point "x,y,z" of the cloud'\''s frame\: the connected points off the supporting plane nearest to it (within 5 cm), cut from what touches it where the two meet in a concave crease]:X,Y,Z:_default' \
-'(--segmented)--box=[Learn the points off the supporting plane inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud'\''s frame)]:MIN,MAX:_default' \
+'(--box --segmented)--at=[Learn the object shown by a point "x,y,z" of the cloud'\''s frame\: the connected points clear of the supporting plane (over twice its noise band) nearest to it (within 5 cm), cut from what touches it where the two meet in a concave crease]:X,Y,Z:_default' \
+'(--segmented)--box=[Learn the points clear of the supporting plane (over twice its noise band) inside the box "x0,y0,z0,x1,y1,z1" (its opposite corners, in the cloud'\''s frame)]:MIN,MAX:_default' \
 '--viewpoint=[Sensor position "x,y,z" \[default\: the file'\''s VIEWPOINT, else the origin\]]:X,Y,Z:_default' \
 '--up=[Up direction "x,y,z" when there is no supporting plane in the cloud]:X,Y,Z:_default' \
 '--max-range=[Ignore points farther than this from the viewpoint (m)]:M:_default' \

@@ -13,3 +13,4 @@ mod learn;
 mod models;
 mod ptu_cli;
 mod real_data;
+mod real_learn_at;
