@@ -38,7 +38,7 @@ mod tests;
 mod wall_circle;
 
 use nalgebra::Point3;
-use seen::{footprint, inside_convex};
+use seen::Outline;
 use segment::others_near;
 use stages::fit_superquadric;
 
@@ -113,9 +113,8 @@ pub fn learn_segmented(
     if let Some(pl) = &plane {
         // An open container's inside bottom lies in the plane band and went with the table; the
         // sensor saw it through the opening, so rays to it are not free space.
-        let hull = footprint(&object, &pl.normal);
-        let (u, v) = crate::cloud::plane::orthonormal_basis(&pl.normal);
-        free.retain(|p| !inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))));
+        let outline = Outline::of(&object, &pl.normal);
+        free.retain(|p| !outline.holds(p));
     }
     let rec = fit_superquadric(&object, &free, plane.as_ref(), params)?;
     Ok(Learned {

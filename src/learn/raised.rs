@@ -3,7 +3,7 @@
 //! down to the table, its model takes the tin's height as its own (the mOSD floral canister on the
 //! biscuit tin came out 171 mm tall for 104).
 
-use super::seen::{footprint, inside_convex};
+use super::seen::Outline;
 use crate::cloud::grid::Grid;
 use crate::cloud::plane::Plane;
 use crate::numeric::{least_spread_direction, median};
@@ -111,12 +111,8 @@ pub fn raised_support(points: &[Point3<f64>], object: &[usize], plane: &Plane) -
     if least_spread_direction(&coords).dot(&n).abs() < LEVEL_COS {
         return None;
     }
-    let hull = footprint(&level, &n);
-    let (u, v) = crate::cloud::plane::orthonormal_basis(&n);
-    let inside = foot
-        .iter()
-        .filter(|p| inside_convex(&hull, (p.coords.dot(&u), p.coords.dot(&v))))
-        .count();
+    let outline = Outline::of(&level, &n);
+    let inside = foot.iter().filter(|p| outline.holds(p)).count();
     if (inside as f64) < MIN_FOOT_INSIDE * foot.len() as f64 {
         return None;
     }

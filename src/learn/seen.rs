@@ -381,6 +381,30 @@ pub fn footprint(points: &[Point3<f64>], normal: &Vector3<f64>) -> Vec<(f64, f64
     hull2d(points.iter().map(|p| (p.coords.dot(&u), p.coords.dot(&v))).collect())
 }
 
+/// A point set's outline seen along a normal (its [`footprint`]), to ask which points lie within
+/// it.
+pub struct Outline {
+    hull: Vec<(f64, f64)>,
+    u: Vector3<f64>,
+    v: Vector3<f64>,
+}
+
+impl Outline {
+    pub fn of(points: &[Point3<f64>], normal: &Vector3<f64>) -> Outline {
+        let (u, v) = crate::cloud::plane::orthonormal_basis(normal);
+        Outline {
+            hull: footprint(points, normal),
+            u,
+            v,
+        }
+    }
+
+    /// Whether `p`, seen along the normal, lies within the outline.
+    pub fn holds(&self, p: &Point3<f64>) -> bool {
+        inside_convex(&self.hull, (p.coords.dot(&self.u), p.coords.dot(&self.v)))
+    }
+}
+
 /// The convex hull of 2-D points, counter-clockwise (Andrew's monotone chain).
 pub fn hull2d(mut pts: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     pts.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));

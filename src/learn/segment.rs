@@ -182,9 +182,8 @@ fn with_residue_under(
 ) -> Vec<usize> {
     let Some(pl) = plane else { return object };
     let own: Vec<Point3<f64>> = object.iter().map(|&i| points[i]).collect();
-    let hull = super::seen::footprint(&own, &pl.normal);
-    let (u, v) = crate::cloud::plane::orthonormal_basis(&pl.normal);
-    let inside = |i: &usize| super::seen::inside_convex(&hull, (points[*i].coords.dot(&u), points[*i].coords.dot(&v)));
+    let outline = super::seen::Outline::of(&own, &pl.normal);
+    let inside = |i: &usize| outline.holds(&points[*i]);
     for c in clusters(points, residue, voxel) {
         if c.iter().filter(|i| inside(i)).count() as f64 >= 0.8 * c.len() as f64 {
             object.extend(c);

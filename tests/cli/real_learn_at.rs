@@ -24,6 +24,22 @@ fn learn_at(file: &str, at: &str) -> serde_json::Value {
     serde_json::from_slice(&out.stdout).unwrap()
 }
 
+/// The report took about as many points as the object's labels (within 5 %).
+fn assert_takes(report: &serde_json::Value, labelled: f64) {
+    let n = report["object_points"].as_u64().unwrap() as f64;
+    assert!((n - labelled).abs() < 0.05 * labelled, "{report}");
+}
+
+/// The full sizes (2 a, m) of the report's first part, in its axes' order.
+fn full_sizes(report: &serde_json::Value) -> Vec<f64> {
+    report["parts"][0]["a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| 2.0 * a.as_f64().unwrap())
+        .collect()
+}
+
 /// In mOSD learn2 the gittis box (object 2, 13134 points) and the Toppas box (object 3, 10859)
 /// touch: one connected cluster of 24285 points, which `--at` took whole. They meet in a
 /// concave crease, and the point each one's labelled centroid gives now takes that object
@@ -31,21 +47,14 @@ fn learn_at(file: &str, at: &str) -> serde_json::Value {
 #[test]
 fn at_takes_the_box_shown_apart_from_the_box_it_touches() {
     let gittis = learn_at("learn2.pcd", "-0.0776,0.0351,0.6255");
-    let n = gittis["object_points"].as_u64().unwrap() as f64;
-    assert!((n - 13134.0).abs() < 0.05 * 13134.0, "{gittis}");
-    let mut full: Vec<f64> = gittis["parts"][0]["a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|a| 2.0 * a.as_f64().unwrap())
-        .collect();
+    assert_takes(&gittis, 13134.0);
+    let mut full = full_sizes(&gittis);
     full.sort_by(f64::total_cmp);
     for (got, want) in full.iter().zip([0.048, 0.125, 0.214]) {
         assert!((got - want).abs() < 0.1 * want, "sizes {full:?}");
     }
     let toppas = learn_at("learn2.pcd", "-0.0533,-0.0907,0.6915");
-    let n = toppas["object_points"].as_u64().unwrap() as f64;
-    assert!((n - 10859.0).abs() < 0.05 * 10859.0, "{toppas}");
+    assert_takes(&toppas, 10859.0);
 }
 
 /// In mOSD learn34 the white bowl (object 4, 9654 points) is seen as its near wall and, beyond
@@ -56,15 +65,8 @@ fn at_takes_the_box_shown_apart_from_the_box_it_touches() {
 #[test]
 fn at_takes_the_bowls_inside_beyond_its_wall() {
     let bowl = learn_at("learn34.pcd", "0.0593,0.1654,0.7216");
-    let n = bowl["object_points"].as_u64().unwrap() as f64;
-    assert!((n - 9654.0).abs() < 0.05 * 9654.0, "{bowl}");
-    let part = &bowl["parts"][0];
-    let a: Vec<f64> = part["a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|a| 2.0 * a.as_f64().unwrap())
-        .collect();
+    assert_takes(&bowl, 9654.0);
+    let a = full_sizes(&bowl);
     for (got, want) in a.iter().zip([0.130, 0.130, 0.095]) {
         assert!((got - want).abs() < 0.1 * want, "sizes {a:?}");
     }
@@ -79,16 +81,11 @@ fn at_takes_the_bowls_inside_beyond_its_wall() {
 #[test]
 fn at_leaves_the_tables_residue_at_the_tall_tins_foot() {
     let tin = learn_at("learn43.pcd", "0.1117,0.133,0.6133");
-    let n = tin["object_points"].as_u64().unwrap() as f64;
-    assert!((n - 13394.0).abs() < 0.05 * 13394.0, "{tin}");
+    assert_takes(&tin, 13394.0);
     let part = &tin["parts"][0];
     assert_eq!(part["open"], false, "{tin}");
     assert!(part["e2"].as_f64().unwrap() > 0.8, "{tin}");
-    let tallest = part["a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .fold(0.0f64, |m, a| m.max(2.0 * a.as_f64().unwrap()));
+    let tallest = full_sizes(&tin).into_iter().fold(0.0f64, f64::max);
     assert!((tallest - 0.203).abs() < 0.1 * 0.203, "{tin}");
 }
 
@@ -102,16 +99,10 @@ fn at_leaves_the_tables_residue_at_the_tall_tins_foot() {
 #[test]
 fn at_takes_the_mugs_inside_beyond_its_rim() {
     let mug = learn_at("learn39.pcd", "-0.0795,0.0839,0.8192");
-    let n = mug["object_points"].as_u64().unwrap() as f64;
-    assert!((n - 3386.0).abs() < 0.05 * 3386.0, "{mug}");
+    assert_takes(&mug, 3386.0);
     let part = &mug["parts"][0];
     assert_eq!(part["open"], true, "{mug}");
-    let a: Vec<f64> = part["a"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|a| 2.0 * a.as_f64().unwrap())
-        .collect();
+    let a = full_sizes(&mug);
     for (got, want) in a.iter().zip([0.076, 0.076, 0.098]) {
         assert!((got - want).abs() < 0.1 * want, "sizes {a:?}");
     }
