@@ -99,5 +99,8 @@ pub fn learn_parts(
         r.open = false;
         learned.parts.push(r);
     }
+    if parts > 1 {
+        learned.sizes = super::sizes_seen(points, &learned, params);
+    }
     Ok(learned)
 }

@@ -16,6 +16,7 @@
 //! 4. [`model_toml`] (`model_file.rs`): the result as a model file that `sqscan detect` takes as
 //!    it is.
 
+mod allows;
 mod compound;
 mod convex;
 mod family;
@@ -42,6 +43,7 @@ use seen::Outline;
 use segment::others_near;
 use stages::fit_superquadric;
 
+pub use allows::{REACH, SizeSeen};
 pub use compound::learn_parts;
 pub use model_file::{Provenance, model_pose, model_toml};
 pub use params::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
@@ -65,6 +67,8 @@ pub struct Learned {
     /// object's top): the fits rest it there instead of on the plane.
     pub support: Option<RaisedSupport>,
     pub parts: Vec<Recovered>,
+    /// Each part's sizes as the view shows them and as far as the scene lets them grow.
+    pub sizes: Vec<[SizeSeen; 3]>,
     /// Points of the object (before subsampling).
     pub object_points: usize,
 }
@@ -109,18 +113,66 @@ pub fn learn_segmented(
         );
     }
     let plane = support.map(|r| r.plane).or(segmentation.plane);
-    let mut free = others_near(points, &segmentation.object, 0.4);
-    if let Some(pl) = &plane {
-        // An open container's inside bottom lies in the plane band and went with the table; the
-        // sensor saw it through the opening, so rays to it are not free space.
-        let outline = Outline::of(&object, &pl.normal);
-        free.retain(|p| !outline.holds(p));
-    }
+    let free = free_points(points, &segmentation.object, &object, plane.as_ref());
     let rec = fit_superquadric(&object, &free, plane.as_ref(), params)?;
-    Ok(Learned {
+    let mut learned = Learned {
         object_points: object.len(),
         segmentation,
         support,
         parts: vec![rec],
-    })
+        sizes: Vec::new(),
+    };
+    learned.sizes = sizes_seen(points, &learned, params);
+    Ok(learned)
+}
+
+/// The scene points near the object whose rays are free space for its fit.
+fn free_points(
+    points: &[Point3<f64>],
+    indices: &[usize],
+    object: &[Point3<f64>],
+    plane: Option<&crate::cloud::plane::Plane>,
+) -> Vec<Point3<f64>> {
+    let mut free = others_near(points, indices, 0.4);
+    if let Some(pl) = plane {
+        // An open container's inside bottom lies in the plane band and went with the table; the
+        // sensor saw it through the opening, so rays to it are not free space.
+        let outline = Outline::of(object, &pl.normal);
+        free.retain(|p| !outline.holds(p));
+    }
+    free
+}
+
+/// Each part's sizes as the view shows them and as far as the scene lets them grow
+/// ([`allows::view_allows`]).
+fn sizes_seen(points: &[Point3<f64>], learned: &Learned, params: &LearnParams) -> Vec<[SizeSeen; 3]> {
+    let indices = &learned.segmentation.object;
+    let object: Vec<Point3<f64>> = indices.iter().map(|&i| points[i]).collect();
+    let plane = learned.rests_on();
+    let free = free_points(points, indices, &object, plane.as_ref());
+    let sizes: Vec<[SizeSeen; 3]> = learned
+        .parts
+        .iter()
+        .map(|r| allows::view_allows(&r.placed, &object, &free, plane.as_ref(), params))
+        .collect();
+    for (i, s) in sizes.iter().enumerate() {
+        tracing::debug!(
+            "part {i} sizes {:.1} x {:.1} x {:.1} mm, seen {:.1} x {:.1} x {:.1}, the scene allows up to {} x {} x {}",
+            1e3 * s[0].size,
+            1e3 * s[1].size,
+            1e3 * s[2].size,
+            1e3 * s[0].seen,
+            1e3 * s[1].seen,
+            1e3 * s[2].seen,
+            at_most(&s[0]),
+            at_most(&s[1]),
+            at_most(&s[2]),
+        );
+    }
+    sizes
+}
+
+/// A size's bound in millimetres, or `-` when nothing in view stops it.
+fn at_most(s: &SizeSeen) -> String {
+    s.at_most.map_or_else(|| "-".to_string(), |m| format!("{:.1}", 1e3 * m))
 }

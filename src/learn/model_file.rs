@@ -54,6 +54,8 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
             t.z
         ));
     }
+    let written = written_shapes(learned);
+    comments.extend(sizes_comments(learned, &written));
     if !prov.command.is_empty() {
         comments.push(format!("command: {}", prov.command));
     }
@@ -66,7 +68,6 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
             ));
         }
     }
-    let written = written_shapes(learned);
     // The object frame is the first part's frame; further parts are posed in it and connected
     // to it (the detector votes on the angle between the z axes and the centre distance).
     let base = object_frame(learned, &written);
@@ -114,6 +115,32 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
     };
     file.to_toml(&comments)
         .expect("a model file of numbers and strings serializes")
+}
+
+/// For each part, what the view fixes of its sizes ([`super::allows`]), in the written shapes (a
+/// body of revolution's two sizes made one: each bound moves with its size).
+fn sizes_comments(learned: &Learned, written: &[Superquadric]) -> Vec<String> {
+    learned
+        .sizes
+        .iter()
+        .zip(written)
+        .enumerate()
+        .map(|(i, (s, shape))| {
+            let e = super::allows::extents(shape);
+            let list = |f: &dyn Fn(usize) -> String| (0..3).map(f).collect::<Vec<_>>().join(", ");
+            format!(
+                "part {i} extents along its x, y, z: {} mm; the points span {} (1-99 %); the scene allows up to {} \
+                 (a side grown until it would cross space the sensor saw through, take in the seen surface or sink \
+                 into the support; - where nothing in view stops it within {:.0} mm)",
+                list(&|k| format!("{:.1}", 1e3 * e[k])),
+                list(&|k| format!("{:.1}", 1e3 * s[k].seen)),
+                list(&|k| s[k]
+                    .at_most
+                    .map_or_else(|| "-".into(), |m| format!("{:.1}", 1e3 * (m - s[k].size + e[k])))),
+                1e3 * super::REACH
+            )
+        })
+        .collect()
 }
 
 /// `x` rounded to `decimals` places: a model file carries what one view can tell (0.1 mm, a

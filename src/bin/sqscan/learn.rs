@@ -338,14 +338,20 @@ fn summary(model: &Model, out: &Path, learned: &learn::Learned, points: &[Point3
     let parts: Vec<serde_json::Value> = learned
         .parts
         .iter()
-        .map(|r| {
+        .enumerate()
+        .map(|(i, r)| {
             let s = &r.placed.shape;
+            let sizes = learned.sizes.get(i);
             json!({
                 "a": s.a, "e1": s.e1, "e2": s.e2, "kx": s.kx, "ky": s.ky, "open": r.open,
                 "pose": sqscan::pose::PoseJson::from(&r.placed.pose),
                 // What the data shows of each size: a seen extent well below 2 a is a size the
                 // fit inferred (a hidden back or foot).
                 "seen_extent_m": learn::seen_extent(&r.placed, &object),
+                // The shape's extents (taper included) and the largest the scene allows each to
+                // grow to (null: nothing in view stops it within learn::REACH).
+                "extent_m": sizes.map(|z| z.map(|z| z.size)),
+                "allowed_extent_m": sizes.map(|z| z.map(|z| z.at_most)),
                 "rms_m": r.rms, "median_abs_m": r.median_abs, "inlier_share": r.inlier_share,
                 "fitted_points": r.fitted_points, "start": r.start,
             })
