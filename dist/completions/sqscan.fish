@@ -125,7 +125,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l seed -d 'See
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l gripper -d 'The gripper\'s settings for --grasps: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l json -d 'Print one JSON object instead of the text report'
-complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l grasps -d 'Plan grasps for every right answer and check the first against the labels: how many found objects get a grasp, and how many first grasps sweep no point that is not the object\'s'
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l grasps -d 'Plan grasps for every right answer and check the first against the labels: how many found objects get a grasp, how many first grasps sweep no point that is not the object\'s, and of those without, how many have one that a brute-force sampler over the fit finds'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -f -a "ptu" -d 'Run a mock pan-tilt unit on a pty until interrupted'

@@ -42,9 +42,13 @@ pub struct Truth {
     others: Vec<Point3<f64>>,
     /// Samples of the object's own true surface (without an open part's opening).
     own: Vec<Point3<f64>>,
-    /// Heights (base z) the gripper must stay above: the table's top where the object stands
-    /// over it, the floor.
-    floors: Vec<f64>,
+    /// Planes the gripper must stay above: the table's top where the object stands over it,
+    /// the floor.
+    floors: Vec<crate::cloud::plane::Plane>,
+    /// Up, for the arm's reach (the approach's tilt from straight down).
+    up: Vector3<f64>,
+    /// How far (m) the gripper must clear the floors and the other objects.
+    margin: f64,
 }
 
 impl Truth {
@@ -76,18 +80,64 @@ impl Truth {
             })
             .collect();
         let c = pose.translation.vector;
-        let mut floors = Vec::new();
+        let mut heights = Vec::new();
         if let Some(t) = scene.table.as_ref().filter(|t| t.contains_xy(c.x, c.y)) {
-            floors.push(t.height);
+            heights.push(t.height);
         }
         if scene.floor {
-            floors.push(0.0);
+            heights.push(0.0);
         }
+        let floors = heights
+            .into_iter()
+            .map(|h| crate::cloud::plane::Plane {
+                normal: Vector3::z(),
+                d: -h,
+            })
+            .collect();
         Truth {
             parts,
             others,
             own,
             floors,
+            up: Vector3::z(),
+            margin: TRUTH_TOLERANCE_M,
+        }
+    }
+
+    /// A real scan's stand-in for the truth around a found object: its fitted `parts`, the
+    /// scan's points labelled as other objects, the table or nothing (`others`, those within
+    /// reach of a gripper at the object) and its own labelled points (`own`), and the support
+    /// plane found. The gripper must clear the others' points and the plane (no margin: the
+    /// points are the measurement), and its contacts hold on the fit.
+    pub fn of_scan(
+        parts: Vec<Part>,
+        others: &[Point3<f64>],
+        own: Vec<Point3<f64>>,
+        plane: Option<&crate::cloud::plane::Plane>,
+        gripper: &Gripper,
+    ) -> Truth {
+        let reach = parts
+            .iter()
+            .map(|p| p.placed.shape.bounding_radius())
+            .fold(0.0, f64::max)
+            + gripper.finger_depth
+            + gripper.palm.iter().fold(0.0, |m: f64, &v| m.max(v))
+            + gripper.pregrasp
+            + gripper.max_opening;
+        let centre = parts
+            .first()
+            .map_or_else(Point3::origin, |p| Point3::from(p.placed.pose.translation.vector));
+        Truth {
+            others: others
+                .iter()
+                .filter(|p| (*p - centre).norm() < reach)
+                .copied()
+                .collect(),
+            own,
+            floors: plane.into_iter().copied().collect(),
+            up: plane.map_or_else(Vector3::z, |p| p.normal),
+            margin: 0.0,
+            parts,
         }
     }
 
@@ -111,16 +161,12 @@ impl Truth {
             }
         }
         let swept = Swept::new(gripper, g.opening);
-        for &h in &self.floors {
-            let floor = crate::cloud::plane::Plane {
-                normal: Vector3::z(),
-                d: -h,
-            };
-            if swept.lowest_over(&g.pose, &floor) < TRUTH_TOLERANCE_M {
+        for floor in &self.floors {
+            if swept.lowest_over(&g.pose, floor) < self.margin {
                 return Err("the gripper within 3 mm of the table or floor");
             }
         }
-        if self.others.iter().any(|p| swept.holds(&g.pose, p, TRUTH_TOLERANCE_M)) {
+        if self.others.iter().any(|p| swept.holds(&g.pose, p, self.margin)) {
             return Err("the gripper within 3 mm of another object");
         }
         // The pads close until they touch: the object may stand out past the planned contacts
@@ -158,10 +204,7 @@ impl Truth {
                 random_across(&part.placed, gripper, &mut rng)
             };
             g.is_some_and(|g| {
-                let tilt = (g.pose.rotation * Vector3::z())
-                    .dot(&-Vector3::z())
-                    .clamp(-1.0, 1.0)
-                    .acos();
+                let tilt = (g.pose.rotation * Vector3::z()).dot(&-self.up).clamp(-1.0, 1.0).acos();
                 tilt <= gripper.max_tilt && self.check(&g, gripper).is_ok()
             })
         })
@@ -247,5 +290,45 @@ pub fn judge(
         exists: first_valid.is_some_and(|v| v.is_ok()) || truth.any_valid(gripper, seed),
         first_valid,
         time_ms,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cloud::plane::Plane;
+    use crate::geometry::Superquadric;
+
+    /// A box standing on a table at z = 0 as a scan shows it: its fit, its surface's points
+    /// and the table's round it (a 4 mm grid out to 0.3 m, less its footprint).
+    fn box_on_table(a: [f64; 3], gripper: &Gripper) -> Truth {
+        let shape = Superquadric::new(a, 0.1, 0.1, 0.0, 0.0).unwrap();
+        let placed = PlacedSuperquadric::new(shape, Isometry3::translation(0.0, 0.0, a[2]));
+        let own = placed.sample_surface(0.004);
+        let mut table = Vec::new();
+        for i in -75..=75 {
+            for j in -75..=75 {
+                let (x, y) = (0.004 * i as f64, 0.004 * j as f64);
+                if x.abs() > a[0] + 0.002 || y.abs() > a[1] + 0.002 {
+                    table.push(Point3::new(x, y, 0.0));
+                }
+            }
+        }
+        let plane = Plane {
+            normal: Vector3::z(),
+            d: 0.0,
+        };
+        Truth::of_scan(vec![Part { placed, open: false }], &table, own, Some(&plane), gripper)
+    }
+
+    /// On a scan, a grasp exists across a box narrower than the stroke and none across one
+    /// wider every way it can be reached (from above, or from the side with a finger under the
+    /// table): the sampler answers both ways.
+    #[test]
+    fn a_scan_has_a_grasp_across_a_narrow_box_and_none_across_a_wide_flat_one() {
+        let gripper = Gripper::default();
+        assert!(box_on_table([0.03, 0.06, 0.08], &gripper).any_valid(&gripper, 1));
+        // A Weetabix box lying flat: 261 x 196 x 58 mm.
+        assert!(!box_on_table([0.13, 0.098, 0.029], &gripper).any_valid(&gripper, 1));
     }
 }

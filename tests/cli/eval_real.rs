@@ -294,6 +294,29 @@ fn eval_real_by_identity_on_stacked_simulated_scenes() {
         "{r}"
     );
     assert!(g["time_ms"]["median"].as_f64().is_some_and(|t| t > 0.0), "{r}");
+    // With a gripper opening 20 mm it gets none, and no grasp a brute-force sampler tries
+    // holds on its fit and clears the scan either.
+    let narrow = dir.join("narrow_gripper.toml");
+    std::fs::write(&narrow, "max_opening = 0.02\nmin_opening = 0.0\n").unwrap();
+    let narrow = narrow.display().to_string();
+    let r = eval_identity(
+        &file,
+        &dir,
+        "learned_box",
+        "learned_box",
+        &["--grasps", "--gripper", &narrow],
+    );
+    let g = &r["grasps"];
+    assert_eq!(
+        (
+            &g["found"],
+            &g["with_grasp"],
+            &g["without_none_exists"],
+            &g["without_where_one_exists"]
+        ),
+        (&json!(1), &json!(0), &json!(1), &json!(0)),
+        "{r}"
+    );
 
     // Learned from the box's view in the second scene (its group 4): that answer is neutral,
     // and nothing is left to find.
