@@ -497,3 +497,33 @@ fn a_tin_standing_on_a_book_is_learned_its_own_height() {
     assert!(text.contains("stands on a level surface"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A cloud of the object alone (PCL's segmented milk carton, `tests/data/real/milk.pcd`) learned
+/// without `--segmented`: segmentation takes the carton's largest face for the table and leaves
+/// a sliver of 16 points; the error says so and names the flag, and with it the carton is
+/// learned.
+#[test]
+fn a_segmented_cloud_learned_without_segmented_names_the_flag() {
+    let dir = std::env::temp_dir().join(format!("sqscan-learn-milk-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let learn = |extra: &[&str]| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_sqscan"))
+            .args(["learn", "--name", "milk", "--force", "--out"])
+            .arg(dir.join("milk.toml"))
+            .arg("--cloud")
+            .arg(crate::common::real_data("milk.pcd"))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = learn(&[]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("of the cloud's 13704 points") && err.contains("give --segmented"),
+        "{err}"
+    );
+    let o = learn(&["--segmented"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let _ = std::fs::remove_dir_all(&dir);
+}

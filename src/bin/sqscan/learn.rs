@@ -328,7 +328,19 @@ fn select_and_learn(a: &LearnArgs, view: &View, params: &mut LearnParams) -> Res
     }
     let segmentation = learn::segment(points, params);
     let selection = format!("{} finite points", points.len());
-    Ok((learn::learn_parts(points, segmentation, params, parts)?, selection))
+    // Segmenting takes the largest plane for the table and keeps one cluster standing on it: a
+    // cloud of the object alone loses its largest face to that and leaves a sliver.
+    let kept = segmentation.object.len();
+    learn::learn_parts(points, segmentation, params, parts)
+        .map(|l| (l, selection))
+        .map_err(|e| match e {
+            learn::LearnError::TooFewPoints(_) if kept * 4 < points.len() => anyhow::anyhow!(
+                "{e}: segmentation kept {kept} of the cloud's {} points as the object on its support; \
+                 if the cloud holds the object alone, give --segmented",
+                points.len()
+            ),
+            e => e.into(),
+        })
 }
 
 /// What `sqscan learn` prints: the model written, the plane, and each part's shape, pose and
