@@ -7,7 +7,7 @@
 //! knows which size one view could not fix and by how much.
 
 use super::params::LearnParams;
-use super::seen::{free_space_samples, silhouette_samples};
+use super::seen::free_space_within;
 use crate::cloud::plane::Plane;
 use crate::geometry::{PlacedSuperquadric, Superquadric};
 use nalgebra::{Point3, Translation3, Vector3};
@@ -58,16 +58,7 @@ pub fn view_allows(
     let size = extents(&placed.shape);
     let centre = placed.pose.translation.vector;
     let radius = placed.shape.bounding_radius() + REACH;
-    let mut free = match params.viewpoint {
-        Some(v) => free_space_samples(&v, others, &centre, radius),
-        None => Vec::new(),
-    };
-    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
-        free.extend(silhouette_samples(&v, object, &centre, radius, 0.004));
-    }
-    if let Some(pl) = plane {
-        free.retain(|p| pl.signed_distance(p) > 0.003);
-    }
+    let free = free_space_within(object, others, &centre, radius, plane, params);
     let step = object.len().div_ceil(MAX_OBJECT).max(1);
     let object: Vec<Point3<f64>> = object.iter().step_by(step).copied().collect();
     std::array::from_fn(|k| {

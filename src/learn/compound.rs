@@ -100,7 +100,9 @@ pub fn learn_parts(
         learned.parts.push(r);
     }
     if parts > 1 {
-        learned.sizes = super::sizes_seen(points, &learned, params);
+        let plane = learned.rests_on();
+        let free = super::free_points(points, &learned.segmentation.object, &object, plane.as_ref());
+        learned.sizes = super::sizes_seen(&learned.parts, &object, &free, plane.as_ref(), params);
     }
     Ok(learned)
 }

@@ -115,15 +115,14 @@ pub fn learn_segmented(
     let plane = support.map(|r| r.plane).or(segmentation.plane);
     let free = free_points(points, &segmentation.object, &object, plane.as_ref());
     let rec = fit_superquadric(&object, &free, plane.as_ref(), params)?;
-    let mut learned = Learned {
+    let sizes = sizes_seen(std::slice::from_ref(&rec), &object, &free, plane.as_ref(), params);
+    Ok(Learned {
         object_points: object.len(),
         segmentation,
         support,
         parts: vec![rec],
-        sizes: Vec::new(),
-    };
-    learned.sizes = sizes_seen(points, &learned, params);
-    Ok(learned)
+        sizes,
+    })
 }
 
 /// The scene points near the object whose rays are free space for its fit.
@@ -144,16 +143,18 @@ fn free_points(
 }
 
 /// Each part's sizes as the view shows them and as far as the scene lets them grow
-/// ([`allows::view_allows`]).
-fn sizes_seen(points: &[Point3<f64>], learned: &Learned, params: &LearnParams) -> Vec<[SizeSeen; 3]> {
-    let indices = &learned.segmentation.object;
-    let object: Vec<Point3<f64>> = indices.iter().map(|&i| points[i]).collect();
-    let plane = learned.rests_on();
-    let free = free_points(points, indices, &object, plane.as_ref());
-    let sizes: Vec<[SizeSeen; 3]> = learned
-        .parts
+/// ([`allows::view_allows`]): `object` the object's points, `free` the scene's points near it
+/// ([`free_points`]), `plane` what it rests on.
+fn sizes_seen(
+    parts: &[Recovered],
+    object: &[Point3<f64>],
+    free: &[Point3<f64>],
+    plane: Option<&crate::cloud::plane::Plane>,
+    params: &LearnParams,
+) -> Vec<[SizeSeen; 3]> {
+    let sizes: Vec<[SizeSeen; 3]> = parts
         .iter()
-        .map(|r| allows::view_allows(&r.placed, &object, &free, plane.as_ref(), params))
+        .map(|r| allows::view_allows(&r.placed, object, free, plane, params))
         .collect();
     for (i, s) in sizes.iter().enumerate() {
         tracing::debug!(

@@ -282,6 +282,30 @@ pub(super) fn free_space_samples(
     out
 }
 
+/// The free-space samples (along the rays to `free_points`, and just outside the silhouette of
+/// `points` where the cloud was segmented) inside the sphere `(centre, radius)`, above `plane`.
+pub(super) fn free_space_within(
+    points: &[Point3<f64>],
+    free_points: &[Point3<f64>],
+    centre: &Vector3<f64>,
+    radius: f64,
+    plane: Option<&crate::cloud::plane::Plane>,
+    params: &super::params::LearnParams,
+) -> Vec<Point3<f64>> {
+    let mut free = match params.viewpoint {
+        Some(v) => free_space_samples(&v, free_points, centre, radius),
+        None => Vec::new(),
+    };
+    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
+        free.extend(silhouette_samples(&v, points, centre, radius, 0.004));
+    }
+    if let Some(pl) = plane {
+        // Below the table nothing was seen: no free space there.
+        free.retain(|p| pl.signed_distance(p) > 0.003);
+    }
+    free
+}
+
 /// The sensor is above the top of an upright shape, yet fewer than 2 % of the points lie on the
 /// inner half of its top (a closed top in view shows plenty).
 pub(super) fn unseen_top(

@@ -5,9 +5,7 @@ use super::family::{FamilyResult, canonicalise, choose_family, is_open, volume};
 use super::params::{Cost, LearnError, LearnParams, MIN_POINTS, Recovered, ShapeFamily};
 use super::residual::{Problem, Rays, score, turn_half};
 use super::robust::robust_fit;
-use super::seen::{
-    Seen, drop_rays_through_top, free_space_samples, open_top_of_points, silhouette_samples, unseen_top,
-};
+use super::seen::{Seen, drop_rays_through_top, free_space_within, open_top_of_points, unseen_top};
 use super::segment::{MERGE_GAP, clusters, remove_stray_points, subsample, with_nearby_clusters};
 use super::starts::{moments, starts};
 use super::state::State;
@@ -296,18 +294,7 @@ fn free_space(
     params: &LearnParams,
 ) -> Vec<Point3<f64>> {
     let extent = points.iter().map(|p| (p.coords - centroid).norm()).fold(0.0, f64::max);
-    let mut free = match params.viewpoint {
-        Some(v) => free_space_samples(&v, free_points, centroid, 1.5 * extent),
-        None => Vec::new(),
-    };
-    if let (Some(v), true) = (params.viewpoint, params.silhouette) {
-        free.extend(silhouette_samples(&v, points, centroid, 1.5 * extent, 0.004));
-    }
-    if let Some(pl) = plane {
-        // Below the table nothing was seen: no free space there.
-        free.retain(|p| pl.signed_distance(p) > 0.003);
-    }
-    free
+    free_space_within(points, free_points, centroid, 1.5 * extent, plane, params)
 }
 
 /// The best of each group of results that converged to the same fit ([`same_fit`], within a

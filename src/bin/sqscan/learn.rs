@@ -152,7 +152,7 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
         w.write_all(text.as_bytes())?;
         Ok(())
     })?;
-    println!("{}", summary(&model, &out, &learned, &view.points));
+    println!("{}", summary(&model, &out, &learned));
     Ok(())
 }
 
@@ -345,8 +345,7 @@ fn select_and_learn(a: &LearnArgs, view: &View, params: &mut LearnParams) -> Res
 
 /// What `sqscan learn` prints: the model written, the plane, and each part's shape, pose and
 /// fit, with what the data shows of each size.
-fn summary(model: &Model, out: &Path, learned: &learn::Learned, points: &[Point3<f64>]) -> serde_json::Value {
-    let object: Vec<Point3<f64>> = learned.segmentation.object.iter().map(|&i| points[i]).collect();
+fn summary(model: &Model, out: &Path, learned: &learn::Learned) -> serde_json::Value {
     let parts: Vec<serde_json::Value> = learned
         .parts
         .iter()
@@ -359,7 +358,7 @@ fn summary(model: &Model, out: &Path, learned: &learn::Learned, points: &[Point3
                 "pose": sqscan::pose::PoseJson::from(&r.placed.pose),
                 // What the data shows of each size: a seen extent well below 2 a is a size the
                 // fit inferred (a hidden back or foot).
-                "seen_extent_m": learn::seen_extent(&r.placed, &object),
+                "seen_extent_m": sizes.map(|z| z.map(|z| z.seen)),
                 // The shape's extents (taper included) and the largest the scene allows each to
                 // grow to (null: nothing in view stops it within learn::REACH).
                 "extent_m": sizes.map(|z| z.map(|z| z.size)),
