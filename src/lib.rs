@@ -23,6 +23,7 @@
 //! y left, z up); poses on the wire are position + quaternion `[x, y, z, w]`; every random
 //! choice comes from a seeded generator.
 
+pub mod appearance;
 pub mod atomic;
 pub mod calibration;
 pub mod cloud;

@@ -32,6 +32,9 @@ pub struct ModelFile {
     pub part: Vec<PartFile>,
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub connection: Vec<ConnectionFile>,
+    /// The colours of the object's points, as [`crate::appearance::histogram`] gives them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub colour: Option<Vec<f64>>,
 }
 
 /// One `[[part]]` table.
@@ -134,6 +137,10 @@ pub struct Model {
     /// (the paper's mallet shaft searched alone, held above the table by the head): it need not
     /// rest on anything. A whole object does not float.
     pub held: bool,
+    /// The colours of the object's points where it was shown ([`crate::appearance`]): a
+    /// chromaticity histogram, `BINS * BINS` shares summing to 1. `None`: its colours are not
+    /// known, and nothing is checked.
+    pub colour: Option<Vec<f64>>,
     /// Where the model was read from (for messages and provenance).
     pub source: PathBuf,
 }
@@ -197,14 +204,34 @@ impl Model {
             connections.push(connection);
         }
         Self::check_tree(&parts, &connections, path)?;
+        if let Some(c) = &file.colour {
+            Self::check_colour(c).map_err(|m| bad("colour".into(), m))?;
+        }
         Ok(Model {
             name,
             description: file.description,
             parts,
             connections,
             held: file.held,
+            colour: file.colour,
             source: path.to_owned(),
         })
+    }
+
+    /// A colour histogram: its length, and shares that are shares.
+    fn check_colour(c: &[f64]) -> Result<(), String> {
+        let bins = crate::appearance::BINS * crate::appearance::BINS;
+        if c.len() != bins {
+            return Err(format!("{} values given; the histogram has {bins}", c.len()));
+        }
+        if let Some(i) = c.iter().position(|v| !(v.is_finite() && (0.0..=1.0).contains(v))) {
+            return Err(format!("value {i} is {}; give shares from 0 to 1", c[i]));
+        }
+        let sum: f64 = c.iter().sum();
+        if (sum - 1.0).abs() > 0.01 {
+            return Err(format!("the shares sum to {sum}, not 1"));
+        }
+        Ok(())
     }
 
     /// One `[[part]]` table, checked against the parts before it.
@@ -497,6 +524,41 @@ mod tests {
             format!("{PART}{HANDLE}[[connection]]\nparts = [\"body\", \"handle\"]\nangle_deg = 0.0\ndistance = 0.06\n");
         let model = Model::from_toml_str(&good, Path::new("good.toml")).unwrap();
         assert_eq!((model.parts.len(), model.connections.len()), (2, 1));
+    }
+
+    /// A colour histogram must be one: its length, its shares between 0 and 1, summing to 1.
+    #[test]
+    fn a_broken_colour_histogram_is_refused_by_name() {
+        let n = crate::appearance::BINS * crate::appearance::BINS;
+        let list = |v: &[f64]| {
+            format!(
+                "colour = [{}]\n{PART}",
+                v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(", ")
+            )
+        };
+        let mut one = vec![0.0; n];
+        one[0] = 1.0;
+        let good = Model::from_toml_str(&list(&one), Path::new("good.toml")).unwrap();
+        assert_eq!(good.colour.as_deref(), Some(&one[..]));
+        assert!(
+            Model::from_toml_str(PART, Path::new("none.toml"))
+                .unwrap()
+                .colour
+                .is_none()
+        );
+        let mut negative = one.clone();
+        negative[1] = -0.5;
+        let mut half = vec![0.0; n];
+        half[3] = 0.5;
+        for (v, message) in [
+            (&one[..3], "3 values given"),
+            (&negative[..], "value 1 is -0.5"),
+            (&half[..], "sum to 0.5"),
+        ] {
+            let (f, m) = refused(&list(v));
+            assert_eq!(f, "colour");
+            assert!(m.contains(message), "{m}");
+        }
     }
 
     /// A part of an object that the rest of it may hold up says so; a whole object is the

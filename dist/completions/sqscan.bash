@@ -285,7 +285,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__detect)
-            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --repeat --grasps --gripper --help"
+            opts="-h --models-dir --model --cloud --seed --all --out --max-range --viewpoint --hypotheses --trials --keep-plane --ignore-colour --repeat --grasps --gripper --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0
@@ -397,7 +397,7 @@ _sqscan() {
             return 0
             ;;
         sqscan__subcmd__eval__subcmd__real)
-            opts="-h --models-dir --labels --clouds --model --class --identity --catalogue --learned-from --seed --max-range --json --grasps --gripper --help"
+            opts="-h --models-dir --labels --clouds --model --class --identity --catalogue --learned-from --seed --max-range --json --ignore-colour --grasps --gripper --help"
             if [[ ${cur} == -* || ${COMP_CWORD} -eq 2 ]] ; then
                 COMPREPLY=( $(compgen -W "${opts}" -- "${cur}") )
                 return 0

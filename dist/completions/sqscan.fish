@@ -72,6 +72,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l grasps -d 'Give
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l gripper -d 'The gripper\'s settings: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l all -d 'Report every accepted instance that does not overlap a better one'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l keep-plane -d 'Keep the dominant plane instead of removing it'
+complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -l ignore-colour -d 'Do not check a found object\'s colours against the model\'s (where both have colours)'
 complete -c sqscan -n "__fish_sqscan_using_subcommand detect" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l models-dir -d 'Directory of object models [default: $SQSCAN_MODELS_DIR, else the first of ./models, /etc/sqscan/models, /usr/share/sqscan/models that exists]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand learn" -l cloud -d 'Point cloud file (.pcd, .ply, or text with x y z per line); several files are sweeps of one view (organized clouds of the same size, the scene and the sensor still), learned from their per-pixel median, which cuts the noise by about the square root of their number' -r -F
@@ -125,6 +126,7 @@ complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l seed -d 'See
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l max-range -d 'Ignore points farther than this from the viewpoint (m)' -r
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l gripper -d 'The gripper\'s settings for --grasps: a TOML file of the [gripper] table\'s keys [default: a Robotiq 2F-85-class gripper]' -r -F
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l json -d 'Print one JSON object instead of the text report'
+complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l ignore-colour -d 'Do not check a found object\'s colours against the model\'s (where both have colours)'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -l grasps -d 'Plan grasps for every right answer and check the first against the labels: how many found objects get a grasp, how many first grasps sweep no point that is not the object\'s, and of those without, how many have one that a brute-force sampler over the fit finds'
 complete -c sqscan -n "__fish_sqscan_using_subcommand eval-real" -s h -l help -d 'Print help'
 complete -c sqscan -n "__fish_sqscan_using_subcommand mock; and not __fish_seen_subcommand_from ptu rig help" -s h -l help -d 'Print help'

@@ -75,6 +75,7 @@ _arguments "${_arguments_options[@]}" : \
 '--gripper=[The gripper'\''s settings\: a TOML file of the \[gripper\] table'\''s keys \[default\: a Robotiq 2F-85-class gripper\]]:GRIPPER.toml:_files' \
 '--all[Report every accepted instance that does not overlap a better one]' \
 '--keep-plane[Keep the dominant plane instead of removing it]' \
+'--ignore-colour[Do not check a found object'\''s colours against the model'\''s (where both have colours)]' \
 '-h[Print help]' \
 '--help[Print help]' \
 && ret=0
@@ -143,6 +144,7 @@ _arguments "${_arguments_options[@]}" : \
 '--max-range=[Ignore points farther than this from the viewpoint (m)]:M:_default' \
 '--gripper=[The gripper'\''s settings for --grasps\: a TOML file of the \[gripper\] table'\''s keys \[default\: a Robotiq 2F-85-class gripper\]]:GRIPPER.toml:_files' \
 '--json[Print one JSON object instead of the text report]' \
+'--ignore-colour[Do not check a found object'\''s colours against the model'\''s (where both have colours)]' \
 '--grasps[Plan grasps for every right answer and check the first against the labels\: how many found objects get a grasp, how many first grasps sweep no point that is not the object'\''s, and of those without, how many have one that a brute-force sampler over the fit finds]' \
 '-h[Print help]' \
 '--help[Print help]' \

@@ -335,6 +335,29 @@ impl PointCloud {
         self.fields.iter().find(|f| f.name == name)
     }
 
+    /// The colour of every point, where it has one: a PCL packed `rgb` or `rgba` field
+    /// (as `F 4` bits or `U 4`), or PLY's `red`, `green` and `blue`.
+    pub fn colours(&self) -> Option<Vec<[u8; 3]>> {
+        let n = self.points.len();
+        let packed = ["rgba", "rgb"].iter().find_map(|name| self.field(name));
+        if let Some(f) = packed {
+            let unpack = |c: u32| [(c >> 16) as u8, (c >> 8) as u8, c as u8];
+            let colours: Vec<[u8; 3]> = match &f.data {
+                FieldData::F32(v) => v.iter().map(|x| unpack(x.to_bits())).collect(),
+                FieldData::U32(v) => v.iter().map(|&x| unpack(x)).collect(),
+                FieldData::I32(v) => v.iter().map(|&x| unpack(x as u32)).collect(),
+                _ => return None,
+            };
+            return (colours.len() == n).then_some(colours);
+        }
+        let channel = |name: &str| match self.field(name).map(|f| &f.data) {
+            Some(FieldData::U8(v)) if v.len() == n => Some(v),
+            _ => None,
+        };
+        let (r, g, b) = (channel("red")?, channel("green")?, channel("blue")?);
+        Some((0..n).map(|i| [r[i], g[i], b[i]]).collect())
+    }
+
     /// A new unorganized cloud of the finite points, fields kept in step.
     pub fn retain_finite(&self) -> PointCloud {
         let keep: Vec<usize> = (0..self.points.len())
@@ -413,6 +436,39 @@ impl PointCloud {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// PCL's packed colour (as float bits or as uint) and PLY's channels give the same colours;
+    /// a field of another length or kind gives none.
+    #[test]
+    fn colours_are_read_from_packed_and_separate_fields() {
+        let mut cloud = PointCloud::from_points(vec![[0.0; 3]; 2]);
+        let packed = [0x00ff_8000u32, 0x0001_0203];
+        let field = |name: &str, data: FieldData| Field {
+            name: name.into(),
+            count: 1,
+            data,
+        };
+        cloud.fields = vec![field(
+            "rgb",
+            FieldData::F32(packed.iter().map(|&b| f32::from_bits(b)).collect()),
+        )];
+        let want = vec![[255, 128, 0], [1, 2, 3]];
+        assert_eq!(cloud.colours().as_ref(), Some(&want));
+        cloud.fields = vec![field("rgba", FieldData::U32(packed.to_vec()))];
+        assert_eq!(cloud.colours().as_ref(), Some(&want));
+        cloud.fields = vec![
+            field("red", FieldData::U8(vec![255, 1])),
+            field("green", FieldData::U8(vec![128, 2])),
+            field("blue", FieldData::U8(vec![0, 3])),
+        ];
+        assert_eq!(cloud.colours().as_ref(), Some(&want));
+        cloud.fields.truncate(2);
+        assert_eq!(cloud.colours(), None);
+        cloud.fields = vec![field("rgb", FieldData::U32(vec![1]))];
+        assert_eq!(cloud.colours(), None, "one value for two points");
+        cloud.fields = vec![field("rgb", FieldData::U8(vec![1, 2]))];
+        assert_eq!(cloud.colours(), None);
+    }
 
     #[test]
     fn helpers() {

@@ -117,6 +117,7 @@ pub fn assess(
         connection_errors,
         upright: None,
         short_of_coverage,
+        colour: None,
     }
 }
 
@@ -379,6 +380,7 @@ mod tests {
             connection_errors: Vec::new(),
             upright: None,
             short_of_coverage: None,
+            colour: None,
         };
         let items: Vec<usize> = (0..12).collect();
         let make = |passing: &'static [usize]| {

@@ -21,6 +21,9 @@
 //! 5. `select`: the best candidate, or with `all` every accepted one that does not overlap a
 //!    better one, in the pose that stands on the plane.
 //!
+//! A caller that has the cloud's colours and a model that keeps its object's then runs
+//! [`check_colour`]: what the geometry found must also look like the object.
+//!
 //! When a round of search finds nothing acceptable, stages 2 to 4 run once more with fresh seeds.
 //! Every random choice comes from `Params::seed`; hypotheses run in parallel but each draws from
 //! its own stream, so the answer does not depend on the number of threads. With `SQSCAN_LOG=debug`
@@ -29,6 +32,7 @@
 mod accept;
 mod anchor;
 mod base;
+mod colour;
 mod compound;
 mod fit;
 mod input;
@@ -48,6 +52,7 @@ mod support;
 mod verify;
 mod visibility;
 
+pub use colour::check_colour;
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
 pub use prepare::Scene;

@@ -69,6 +69,10 @@ pub struct DetectionJson {
     /// For compound models: how each connection of the model is met.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub connections: Vec<ConnectionJson>,
+    /// The share of the model's colours that the points on the found surface hold (0 to 1),
+    /// where the model and the cloud have colours; below 0.35 the object is not found.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub colour: Option<f64>,
     /// Where a parallel gripper can take the object, best first (`docs/GRASPS.md`); only when
     /// asked for, and only for a found object.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
@@ -173,6 +177,7 @@ pub fn detection_json(d: &Detection) -> DetectionJson {
                 distance_error_m: finite(*dd),
             })
             .collect(),
+        colour: d.colour.map(|c| (c * 1e3).round() / 1e3),
         grasps: Vec::new(),
     }
 }
@@ -196,6 +201,7 @@ pub fn report_json(r: &Report, all: bool) -> ReportJson {
                 parts: Vec::new(),
                 upright: None,
                 connections: Vec::new(),
+                colour: None,
                 grasps: Vec::new(),
             },
         })

@@ -35,6 +35,9 @@ pub struct Detection {
     /// object may hide: the least of its other margins; the free-space check decides (see
     /// [`super::accept::check_free_space`]).
     pub short_of_coverage: Option<f64>,
+    /// The share of the model's colours that the points on the found surface hold, where both
+    /// have colours ([`super::check_colour`]).
+    pub colour: Option<f64>,
 }
 
 impl Detection {
@@ -204,6 +207,7 @@ mod tests {
             connection_errors: vec![(2.6f64.to_radians(), 0.004)],
             upright: None,
             short_of_coverage: None,
+            colour: None,
         };
         assert_eq!(
             d.to_string(),

@@ -71,6 +71,9 @@ pub struct Learned {
     pub sizes: Vec<[SizeSeen; 3]>,
     /// Points of the object (before subsampling).
     pub object_points: usize,
+    /// The colours of the object's points ([`crate::appearance::histogram`]), where the cloud
+    /// has colours: the caller, who has them, sets it; the model file keeps it.
+    pub colour: Option<Vec<f64>>,
 }
 
 /// Segment (unless `params.segment` is false) and recover one superquadric.
@@ -122,6 +125,7 @@ pub fn learn_segmented(
         support,
         parts: vec![rec],
         sizes,
+        colour: None,
     })
 }
 

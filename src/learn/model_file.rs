@@ -40,20 +40,7 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
             r.points
         ));
     }
-    for (i, r) in learned.parts.iter().enumerate() {
-        let t = r.placed.pose.translation.vector;
-        comments.push(format!(
-            "part {i}: {} points fitted, residual RMS {:.2} mm over {:.0} % inliers, median |r| {:.2} mm, start {}, centre in the cloud ({:.4}, {:.4}, {:.4})",
-            r.fitted_points,
-            r.rms * 1e3,
-            r.inlier_share * 100.0,
-            r.median_abs * 1e3,
-            r.start,
-            t.x,
-            t.y,
-            t.z
-        ));
-    }
+    comments.extend(fit_comments(learned));
     let written = written_shapes(learned);
     comments.extend(sizes_comments(learned, &written));
     if !prov.command.is_empty() {
@@ -68,6 +55,7 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
             ));
         }
     }
+    comments.extend(learned.colour.as_ref().map(|_| colour_comment()));
     // The object frame is the first part's frame; further parts are posed in it and connected
     // to it (the detector votes on the angle between the z axes and the centre distance).
     let base = object_frame(learned, &written);
@@ -112,9 +100,42 @@ pub fn model_toml(name: &str, learned: &Learned, prov: &Provenance) -> String {
         held: false,
         part,
         connection,
+        colour: learned
+            .colour
+            .as_ref()
+            .map(|h| h.iter().map(|v| round(*v, 5)).collect()),
     };
     file.to_toml(&comments)
         .expect("a model file of numbers and strings serializes")
+}
+
+/// One line a part: how its fit went.
+fn fit_comments(learned: &Learned) -> Vec<String> {
+    learned.parts.iter().enumerate().map(|(i, r)| {
+        let t = r.placed.pose.translation.vector;
+        format!(
+            "part {i}: {} points fitted, residual RMS {:.2} mm over {:.0} % inliers, median |r| {:.2} mm, start {}, centre in the cloud ({:.4}, {:.4}, {:.4})",
+            r.fitted_points,
+            r.rms * 1e3,
+            r.inlier_share * 100.0,
+            r.median_abs * 1e3,
+            r.start,
+            t.x,
+            t.y,
+            t.z
+        )
+    }).collect()
+}
+
+/// What the `colour` line holds.
+fn colour_comment() -> String {
+    use crate::appearance::{BINS, MIN_SIMILARITY, RANGE};
+    format!(
+        "colour: the share of the object's points in each cell of chromaticity r = R/(R+G+B) (rows) by \
+         g = G/(R+G+B) (columns), {BINS} cells of {w} from 0 (the last to 1); a detection sharing less than \
+         {MIN_SIMILARITY} of it is not the object",
+        w = RANGE / BINS as f64
+    )
 }
 
 /// For each part, what the view fixes of its sizes ([`super::allows`]), in the written shapes (a

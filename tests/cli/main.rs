@@ -12,5 +12,6 @@ mod eval_real;
 mod learn;
 mod models;
 mod ptu_cli;
+mod real_colour;
 mod real_data;
 mod real_learn_at;

@@ -45,6 +45,9 @@ pub struct DetectArgs {
     /// Keep the dominant plane instead of removing it
     #[arg(long)]
     keep_plane: bool,
+    /// Do not check a found object's colours against the model's (where both have colours)
+    #[arg(long)]
+    ignore_colour: bool,
     /// Run the detection N times on the cloud in this process and report the fastest run, for
     /// benchmarks: the runs after the first are warm, as in the daemon. Every run must give the
     /// same answer
@@ -143,7 +146,17 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     if a.grasps > MAX_GRASPS {
         bail!("--grasps: give at most {MAX_GRASPS}");
     }
-    let report = fastest_of(a.repeat, || detect::detect(&cloud.points, &model, &params), a.all)?;
+    let report = fastest_of(
+        a.repeat,
+        || {
+            let mut r = detect::detect(&cloud.points, &model, &params);
+            if !a.ignore_colour {
+                detect::check_colour(&mut r, &cloud, &model, a.all);
+            }
+            r
+        },
+        a.all,
+    )?;
     let mut json = detect::output::report_json(&report, a.all);
     if a.grasps > 0 {
         detect::output::add_grasps(

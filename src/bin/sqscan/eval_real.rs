@@ -57,6 +57,9 @@ pub struct EvalRealArgs {
     /// Print one JSON object instead of the text report
     #[arg(long)]
     json: bool,
+    /// Do not check a found object's colours against the model's (where both have colours)
+    #[arg(long)]
+    ignore_colour: bool,
     /// Plan grasps for every right answer and check the first against
     /// the labels: how many found objects get a grasp, how many first grasps sweep no
     /// point that is not the object's, and of those without, how many have one that a
@@ -146,7 +149,10 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         let mut params = params_for(&cloud, a.seed, None);
         params.all = true;
         params.max_range = a.max_range;
-        let report = detect::detect(&cloud.points, &model, &params);
+        let mut report = detect::detect(&cloud.points, &model, &params);
+        if !a.ignore_colour {
+            detect::check_colour(&mut report, &cloud, &model, params.all);
+        }
         times.push(report.timing.total_ms);
         let answers: Vec<Answer> = report
             .detections

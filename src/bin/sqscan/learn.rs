@@ -131,7 +131,10 @@ pub fn run(a: LearnArgs, models_dir: &Path) -> Result<()> {
     let (cloud, input) = read_view(&a.cloud)?;
     params.viewpoint = a.viewpoint.or(cloud.viewpoint_position()).or(Some(Point3::origin()));
     let view = View::of(&cloud, a.max_range, params.viewpoint.unwrap());
-    let (learned, selection) = select_and_learn(&a, &view, &mut params)?;
+    let (mut learned, selection) = select_and_learn(&a, &view, &mut params)?;
+    if let Some(c) = &view.colours {
+        learned.colour = sqscan::appearance::histogram(learned.segmentation.object.iter().map(|&i| c[i]));
+    }
     if learned.parts.len() < a.parts as usize {
         eprintln!(
             "sqscan learn: only {} part(s): nothing else left that the first explains badly",
@@ -219,6 +222,8 @@ struct View {
     points: Vec<Point3<f64>>,
     /// One a point, where the cloud has a `label` field of uint.
     labels: Option<Vec<u32>>,
+    /// One a point, where the cloud has colours.
+    colours: Option<Vec<[u8; 3]>>,
 }
 
 impl View {
@@ -227,8 +232,10 @@ impl View {
             Some(FieldData::U32(l)) => Some(l),
             _ => None,
         };
+        let all_colours = cloud.colours();
         let mut points: Vec<Point3<f64>> = Vec::with_capacity(cloud.len());
         let mut labels: Vec<u32> = Vec::new();
+        let mut colours: Vec<[u8; 3]> = Vec::new();
         for (i, p) in cloud.points.iter().enumerate() {
             if p.iter().all(|v| v.is_finite()) {
                 let q = Point3::new(p[0] as f64, p[1] as f64, p[2] as f64);
@@ -241,11 +248,15 @@ impl View {
                 if let Some(l) = label_field {
                     labels.push(l[i]);
                 }
+                if let Some(c) = &all_colours {
+                    colours.push(c[i]);
+                }
             }
         }
         View {
             points,
             labels: label_field.map(|_| labels),
+            colours: all_colours.map(|_| colours),
         }
     }
 }

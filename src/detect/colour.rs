@@ -1,0 +1,66 @@
+//! The colour check of found objects ([`crate::appearance`]): the points of the cloud on a found
+//! surface must share enough of the model's colours.
+
+use super::Report;
+use crate::appearance::{MIN_SIMILARITY, histogram, similarity};
+use crate::cloud::PointCloud;
+use crate::geometry::{PlacedKernel, PlacedSuperquadric};
+use crate::model::Model;
+use nalgebra::Point3;
+
+/// Points of the scene within this of a found surface (m, either side) are its points.
+const SURFACE_BAND: f64 = 0.006;
+
+/// The histogram of the points of `cloud` near the surfaces of a detection's parts.
+fn surface_histogram(points: &[[f32; 3]], colours: &[[u8; 3]], parts: &[PlacedSuperquadric]) -> Option<Vec<f64>> {
+    let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
+    histogram(points.iter().zip(colours).filter_map(|(p, c)| {
+        let q = Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
+        kernels
+            .iter()
+            .any(|k| {
+                k.surface_distance_near(&q, SURFACE_BAND)
+                    .is_some_and(|d| d.abs() <= SURFACE_BAND)
+            })
+            .then_some(*c)
+    }))
+}
+
+/// Check every found detection of `report` against the model's colours: a detection whose
+/// surface shares less than [`MIN_SIMILARITY`] of them is not the object (`found` cleared),
+/// and each checked one records its similarity; with `all` (every instance asked for, as
+/// [`crate::detect::Params::all`]) only the found ones stay. Nothing is checked where the model
+/// or the cloud has no colours, or a surface has too few points to say.
+pub fn check_colour(report: &mut Report, cloud: &PointCloud, model: &Model, all: bool) {
+    let Some(reference) = &model.colour else {
+        return;
+    };
+    let Some(colours) = cloud.colours() else {
+        return;
+    };
+    let t = std::time::Instant::now();
+    for d in report.detections.iter_mut().filter(|d| d.found) {
+        let parts: Vec<_> = d.parts.iter().filter_map(|p| p.placed).collect();
+        let Some(h) = surface_histogram(&cloud.points, &colours, &parts) else {
+            continue;
+        };
+        let s = similarity(reference, &h);
+        d.colour = Some(s);
+        if s < MIN_SIMILARITY {
+            tracing::debug!(
+                "colour: the detection at ({:.3} {:.3} {:.3}) shares {s:.2} of the model's colours (at least {MIN_SIMILARITY} needed): not the object",
+                d.pose.translation.x,
+                d.pose.translation.y,
+                d.pose.translation.z
+            );
+            d.found = false;
+        }
+    }
+    if all {
+        report.detections.retain(|d| d.found);
+    }
+    // It is part of deciding whether a candidate is the object.
+    let ms = 1e3 * t.elapsed().as_secs_f64();
+    report.timing.verify_ms += ms;
+    report.timing.total_ms += ms;
+}
