@@ -14,7 +14,22 @@ const SURFACE_BAND: f64 = 0.006;
 /// The histogram of the points of `cloud` near the surfaces of a detection's parts.
 fn surface_histogram(points: &[[f32; 3]], colours: &[[u8; 3]], parts: &[PlacedSuperquadric]) -> Option<Vec<f64>> {
     let kernels: Vec<PlacedKernel> = parts.iter().map(PlacedKernel::new).collect();
+    // The box in the cloud's frame that holds them all: a cloud's points are mostly elsewhere,
+    // and six comparisons in f32 turn them away at a thirtieth of the cost of the shape's own
+    // box test.
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for (k, s) in kernels.iter().zip(parts) {
+        let reach = k.frame_reach(SURFACE_BAND);
+        let c = s.pose.translation.vector;
+        for i in 0..3 {
+            lo[i] = lo[i].min((c[i] - reach[i]) as f32);
+            hi[i] = hi[i].max((c[i] + reach[i]) as f32);
+        }
+    }
     histogram(points.iter().zip(colours).filter_map(|(p, c)| {
+        if (0..3).any(|i| !(lo[i]..=hi[i]).contains(&p[i])) {
+            return None;
+        }
         let q = Point3::new(f64::from(p[0]), f64::from(p[1]), f64::from(p[2]));
         kernels
             .iter()
