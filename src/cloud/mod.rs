@@ -336,8 +336,16 @@ impl PointCloud {
     }
 
     /// The colour of every point, where it has one: a PCL packed `rgb` or `rgba` field
-    /// (as `F 4` bits or `U 4`), or PLY's `red`, `green` and `blue`.
+    /// (as `F 4` bits or `U 4`), or PLY's `red`, `green` and `blue`. None where every point has
+    /// the same colour: a writer's placeholder (zeros from a sensor without colour), not a
+    /// measurement.
     pub fn colours(&self) -> Option<Vec<[u8; 3]>> {
+        let colours = self.colour_field()?;
+        let first = *colours.first()?;
+        colours.iter().any(|c| *c != first).then_some(colours)
+    }
+
+    fn colour_field(&self) -> Option<Vec<[u8; 3]>> {
         let n = self.points.len();
         let packed = ["rgba", "rgb"].iter().find_map(|name| self.field(name));
         if let Some(f) = packed {
@@ -438,7 +446,7 @@ mod tests {
     use super::*;
 
     /// PCL's packed colour (as float bits or as uint) and PLY's channels give the same colours;
-    /// a field of another length or kind gives none.
+    /// a field of another length or kind, or one colour for every point, gives none.
     #[test]
     fn colours_are_read_from_packed_and_separate_fields() {
         let mut cloud = PointCloud::from_points(vec![[0.0; 3]; 2]);
@@ -468,6 +476,8 @@ mod tests {
         assert_eq!(cloud.colours(), None, "one value for two points");
         cloud.fields = vec![field("rgb", FieldData::U8(vec![1, 2]))];
         assert_eq!(cloud.colours(), None);
+        cloud.fields = vec![field("rgb", FieldData::F32(vec![0.0, 0.0]))];
+        assert_eq!(cloud.colours(), None, "all one colour: a placeholder");
     }
 
     #[test]
