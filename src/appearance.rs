@@ -26,8 +26,9 @@ pub const MIN_POINTS: usize = 30;
 /// A detection whose surface's histogram shares less than this with the model's is not the
 /// object. The instances of the twelve objects of the real table scenes found by geometry
 /// share 0.45 to 0.98 with the view each was learned from; the other objects the geometry
-/// takes for them, 0.15 and up.
+/// takes for them, 0.16 and up.
 pub const MIN_SIMILARITY: f64 = 0.35;
+
 /// A normalized chromaticity histogram of `colours` (`BINS * BINS` shares, `r` major, summing
 /// to 1); `None` below [`MIN_POINTS`].
 pub fn histogram(colours: impl IntoIterator<Item = [u8; 3]>) -> Option<Vec<f64>> {

@@ -66,14 +66,15 @@ fn labelled_centre(scene: &str, group: u32) -> [f64; 3] {
 /// The white floral canister, learned from mOSD learn40, is 83 mm across and 104 mm tall: the
 /// geometry alone takes for it the end of the orange Pringles can lying in learn30 (as thick,
 /// its other end hidden behind the grey block), which shares almost none of its colours. With
-/// them it is found nowhere in learn30, and still found where it stands in test44.
+/// them it is found nowhere in learn30, and still found where it stands in test44; eval-real
+/// counts the answer the colours refused.
 #[test]
 fn the_floral_canister_is_not_found_on_the_lying_pringles_can() {
     let dir = std::env::temp_dir().join(format!("sqscan-colour-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let model = dir.join("floral_canister.toml");
     let cloud = data("learn40.pcd");
-    sqscan(&[
+    let learned = sqscan(&[
         "learn".as_ref(),
         "--cloud".as_ref(),
         cloud.as_os_str(),
@@ -85,6 +86,7 @@ fn the_floral_canister_is_not_found_on_the_lying_pringles_can() {
         "--out".as_ref(),
         model.as_os_str(),
     ]);
+    assert_eq!(learned["colour"], true, "{learned}");
     let text = std::fs::read_to_string(&model).unwrap();
     assert!(text.contains("\ncolour = ["), "{text}");
 
@@ -104,5 +106,48 @@ fn the_floral_canister_is_not_found_on_the_lying_pringles_can() {
         .collect();
     assert_eq!(near.len(), 1, "{found:?} against the labelled {truth:?}");
     assert!(near[0].1.is_some_and(|c| c > 0.6), "{near:?}");
+
+    // eval-real counts what the colours refused: learn30's can is no false answer, but one
+    // refused; test44's canister is found either way.
+    let labels = dir.join("labels.json");
+    let object = |scene: &str, group: u32, identity: &str| {
+        serde_json::json!({"class": "other", "identity": identity, "group": group,
+            "centroid": labelled_centre(scene, group), "visible": "full"})
+    };
+    let scenes = serde_json::json!([
+        {"scene": "learn30", "objects": [object("learn30.pcd", 2, "grey_block"), object("learn30.pcd", 3, "pringles_can")]},
+        {"scene": "test44", "objects": [object("test44.pcd", 6, "floral_canister")]},
+    ]);
+    std::fs::write(&labels, scenes.to_string()).unwrap();
+    let clouds = data("learn30.pcd").parent().unwrap().to_owned();
+    let eval = |extra: &[&str]| {
+        let mut args: Vec<&std::ffi::OsStr> = vec!["eval-real".as_ref(), "--labels".as_ref(), labels.as_os_str()];
+        args.extend([
+            "--clouds".as_ref(),
+            clouds.as_os_str(),
+            "--model".as_ref(),
+            model.as_os_str(),
+        ]);
+        args.extend(["--identity", "floral_canister", "--seed", "5", "--json"].map(std::ffi::OsStr::new));
+        args.extend(extra.iter().map(std::ffi::OsStr::new));
+        sqscan(&args)
+    };
+    let checked = eval(&[]);
+    assert_eq!(checked["recall"]["all"]["found"], 1, "{checked}");
+    assert_eq!(
+        (checked["false_answers"].as_u64(), checked["refused_by_colour"].as_u64()),
+        (Some(0), Some(1)),
+        "{checked}"
+    );
+    let by_shape = eval(&["--ignore-colour"]);
+    assert_eq!(by_shape["recall"]["all"]["found"], 1, "{by_shape}");
+    assert_eq!(
+        (
+            by_shape["false_answers"].as_u64(),
+            by_shape["refused_by_colour"].as_u64()
+        ),
+        (Some(1), Some(0)),
+        "{by_shape}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -130,6 +130,8 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
     };
     let mut times = Vec::new();
     let mut rows = Vec::new();
+    // Answers the shape gave and the colours refused.
+    let mut refused_by_colour = 0;
     let mut grasps = GraspTally {
         gripper: match &a.gripper {
             Some(p) => crate::detect::read_gripper(p)?,
@@ -151,7 +153,9 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         params.max_range = a.max_range;
         let mut report = detect::detect(&cloud.points, &model, &params);
         if !a.ignore_colour {
+            let before = report.detections.len();
             detect::check_colour(&mut report, &cloud, &model, params.all);
+            refused_by_colour += before - report.detections.len();
         }
         times.push(report.timing.total_ms);
         let answers: Vec<Answer> = report
@@ -180,6 +184,7 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         summary["grasps"] = grasps.json();
     }
     summary["catalogue"] = json!(catalogue_path.map(|p| p.display().to_string()));
+    summary["refused_by_colour"] = json!(refused_by_colour);
     if a.json {
         println!("{summary}");
     } else {
@@ -445,8 +450,8 @@ fn print_text(s: &Value, a: &EvalRealArgs) {
     println!("by support: {}", breakdown(&s["recall"]["by_support"]));
     println!("by visibility: {}", breakdown(&s["recall"]["by_visibility"]));
     println!(
-        "false answers: {} in {} scenes ({} neutral answers)",
-        s["false_answers"], s["scenes_with_false_answers"], s["neutral_answers"]
+        "false answers: {} in {} scenes ({} neutral answers; {} more the shape gave, refused by their colours)",
+        s["false_answers"], s["scenes_with_false_answers"], s["neutral_answers"], s["refused_by_colour"]
     );
     println!(
         "time per query: median {:.1} ms, p95 {:.1} ms",

@@ -386,6 +386,8 @@ fn summary(model: &Model, out: &Path, learned: &learn::Learned) -> serde_json::V
         "plane": learned.segmentation.plane.map(|p| p.coefficients()),
         "support": learned.support.map(|r| r.plane.coefficients()),
         "model_pose": sqscan::pose::PoseJson::from(&learn::model_pose(learned)),
+        // Whether the model keeps its object's colours (the cloud had them).
+        "colour": model.colour.is_some(),
         "parts": parts,
     })
 }
