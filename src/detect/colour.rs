@@ -41,6 +41,42 @@ fn surface_histogram(points: &[[f32; 3]], colours: &[[u8; 3]], parts: &[PlacedSu
     }))
 }
 
+/// [`super::detect`] with the colour check. With `all`, every accepted instance, checked. A
+/// single answer is the detector's, checked; where the colours refuse it and the model and the
+/// cloud have colours, the search runs again for every accepted candidate and the best one the
+/// colours pass is the answer (a lookalike ranked first does not hide the object behind it), or
+/// the refused one ("not here") where none passes. Only a refusal costs the second run.
+pub fn detect_checked(cloud: &PointCloud, model: &Model, params: &super::Params) -> Report {
+    let mut single = super::detect(&cloud.points, model, params);
+    let best_found = single.detections.first().is_some_and(|d| d.found);
+    check_colour(&mut single, cloud, model, params.all);
+    let refused = best_found && single.detections.first().is_some_and(|d| !d.found);
+    if params.all || !refused {
+        return single;
+    }
+    let every = super::Params {
+        all: true,
+        ..params.clone()
+    };
+    let mut r = super::detect(&cloud.points, model, &every);
+    check_colour(&mut r, cloud, model, true);
+    let Some(first) = r.detections.into_iter().next() else {
+        add_timing(&mut single, &r.timing);
+        return single;
+    };
+    r.detections = vec![first];
+    add_timing(&mut r, &single.timing);
+    r
+}
+
+/// Add `spent` to `report`'s times: both runs answered one question.
+fn add_timing(report: &mut Report, spent: &super::Timing) {
+    report.timing.plane_ms += spent.plane_ms;
+    report.timing.search_ms += spent.search_ms;
+    report.timing.verify_ms += spent.verify_ms;
+    report.timing.total_ms += spent.total_ms;
+}
+
 /// Check every found detection of `report` against the model's colours: a detection whose
 /// surface shares less than [`MIN_SIMILARITY`] of them is not the object (`found` cleared),
 /// and each checked one records its similarity; with `all` (every instance asked for, as

@@ -52,7 +52,7 @@ mod support;
 mod verify;
 mod visibility;
 
-pub use colour::check_colour;
+pub use colour::{check_colour, detect_checked};
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
 pub use prepare::Scene;

@@ -107,6 +107,30 @@ fn the_floral_canister_is_not_found_on_the_lying_pringles_can() {
     assert_eq!(near.len(), 1, "{found:?} against the labelled {truth:?}");
     assert!(near[0].1.is_some_and(|c| c > 0.6), "{near:?}");
 
+    // Asked for one answer: in learn30 the shape's best is refused by its colours and nothing
+    // else passes ("not here", with the share it had); in test44 the canister.
+    let one = |scene: &str| {
+        let models = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("models");
+        let cloud = data(scene);
+        let args: [&std::ffi::OsStr; 9] = [
+            "detect".as_ref(),
+            "--model".as_ref(),
+            model.as_os_str(),
+            "--cloud".as_ref(),
+            cloud.as_os_str(),
+            "--seed".as_ref(),
+            "5".as_ref(),
+            "--models-dir".as_ref(),
+            models.as_os_str(),
+        ];
+        sqscan(&args)
+    };
+    let refused = one("learn30.pcd");
+    assert_eq!(refused["found"], false, "{refused}");
+    assert!(refused["colour"].as_f64().is_some_and(|c| c < 0.35), "{refused}");
+    let single = one("test44.pcd");
+    assert_eq!(single["found"], true, "{single}");
+
     // eval-real counts what the colours refused: learn30's can is no false answer, but one
     // refused; test44's canister is found either way.
     let labels = dir.join("labels.json");

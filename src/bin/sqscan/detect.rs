@@ -149,11 +149,11 @@ pub fn detect(a: DetectArgs, models_dir: &Path) -> Result<()> {
     let report = fastest_of(
         a.repeat,
         || {
-            let mut r = detect::detect(&cloud.points, &model, &params);
-            if !a.ignore_colour {
-                detect::check_colour(&mut r, &cloud, &model, a.all);
+            if a.ignore_colour {
+                detect::detect(&cloud.points, &model, &params)
+            } else {
+                detect::detect_checked(&cloud, &model, &params)
             }
-            r
         },
         a.all,
     )?;
