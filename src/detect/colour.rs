@@ -86,10 +86,14 @@ pub fn check_colour(report: &mut Report, cloud: &PointCloud, model: &Model, all:
     let Some(reference) = &model.colour else {
         return;
     };
+    // Unpacking a camera's colours walks every point: only for a found object.
+    if !report.detections.iter().any(|d| d.found) {
+        return;
+    }
+    let t = std::time::Instant::now();
     let Some(colours) = cloud.colours() else {
         return;
     };
-    let t = std::time::Instant::now();
     for d in report.detections.iter_mut().filter(|d| d.found) {
         let parts: Vec<_> = d.parts.iter().filter_map(|p| p.placed).collect();
         let Some(h) = surface_histogram(&cloud.points, &colours, &parts) else {
