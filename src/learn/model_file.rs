@@ -132,7 +132,7 @@ fn colour_comment() -> String {
     use crate::appearance::{BINS, MIN_SIMILARITY, RANGE};
     format!(
         "colour: the share of the object's points in each cell of chromaticity r = R/(R+G+B) (rows) by \
-         g = G/(R+G+B) (columns), {BINS} cells of {w} from 0 (the last to 1); a detection sharing less than \
+         g = G/(R+G+B) (columns), {BINS} cells of {w:.3} from 0 (the last to 1); a detection sharing less than \
          {MIN_SIMILARITY} of it is not the object",
         w = RANGE / BINS as f64
     )
@@ -242,5 +242,16 @@ pub(super) fn part_file(name: &str, sq: &Superquadric, open: bool, pose: Option<
                 ..PoseSpec::default()
             }
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    /// The comment gives the cell width as a person writes it, not as a float prints.
+    #[test]
+    fn the_colour_comment_gives_the_cell_width_rounded() {
+        let c = super::colour_comment();
+        assert!(c.contains("10 cells of 0.070 from 0"), "{c}");
+        assert!(!c.contains("0.0699"), "{c}");
     }
 }
