@@ -52,7 +52,7 @@ mod support;
 mod verify;
 mod visibility;
 
-pub use colour::{check_colour, detect_checked};
+pub use colour::{check_colour, detect_all_checked, detect_checked};
 pub use fit::{Fit, fit_pose, fit_pose_tol, measure_of_fit};
 pub use params::{Acceptance, Params};
 pub use prepare::Scene;
@@ -162,7 +162,7 @@ fn detect_on_pool(scene: &std::sync::Arc<Scene>, model: &Model, params: &Params,
     if let Some(plane) = &report.plane {
         select::flag_upright(&mut candidates, model, plane);
     }
-    report.detections = select::select(candidates, params.all, prep.max_size);
+    report.detections = select::select(candidates, params.all, params.overlapping, prep.max_size);
     if let Some(plane) = &report.plane {
         select::stand_on_plane(&mut report.detections, model, plane);
     }

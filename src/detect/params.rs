@@ -31,6 +31,10 @@ pub struct Params {
     pub viewpoint: Option<Point3<f64>>,
     /// Return every accepted, non-overlapping instance instead of the best one.
     pub all: bool,
+    /// With `all`, return the accepted instances that overlap a better one as well, best first:
+    /// for a caller that judges them further before choosing among overlapping ones (the colour
+    /// check, [`super::detect_all_checked`]), so that one it turns away does not hide another.
+    pub overlapping: bool,
     pub acceptance: Acceptance,
 }
 
@@ -104,6 +108,7 @@ impl Default for Params {
             max_range: None,
             viewpoint: None,
             all: false,
+            overlapping: false,
             acceptance: Acceptance::default(),
         }
     }

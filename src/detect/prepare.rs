@@ -211,7 +211,7 @@ pub fn index(scene: std::sync::Arc<Scene>, model: &Model, params: &Params) -> Pr
         .iter()
         .map(|p| p.shape.min_size())
         .fold(f64::INFINITY, f64::min);
-    let max_size = model.parts.iter().map(|p| p.shape.max_size()).fold(0.0, f64::max);
+    let max_size = super::select::overlap_distance(model);
     // Subsample to a quarter of the smallest size: a 30-point sample within min(a) of its seed
     // then still spans the patch, and the trials touch a fraction of the points.
     let objects = &scene.objects;

@@ -151,12 +151,13 @@ pub fn run(a: EvalRealArgs, models_dir: &Path) -> Result<()> {
         let mut params = params_for(&cloud, a.seed, None);
         params.all = true;
         params.max_range = a.max_range;
-        let mut report = detect::detect(&cloud.points, &model, &params);
-        if !a.ignore_colour {
-            let before = report.detections.len();
-            detect::check_colour(&mut report, &cloud, &model, params.all);
-            refused_by_colour += before - report.detections.len();
-        }
+        let report = if a.ignore_colour {
+            detect::detect(&cloud.points, &model, &params)
+        } else {
+            let (report, refused) = detect::detect_all_checked(&cloud, &model, &params);
+            refused_by_colour += refused;
+            report
+        };
         times.push(report.timing.total_ms);
         let answers: Vec<Answer> = report
             .detections
