@@ -52,16 +52,12 @@ pub fn detect_checked(cloud: &PointCloud, model: &Model, params: &super::Params)
     }
     let mut single = super::detect(&cloud.points, model, params);
     let best_found = single.detections.first().is_some_and(|d| d.found);
-    check_colour(&mut single, cloud, model, false);
+    check_colour(&mut single, cloud, model);
     let refused = best_found && single.detections.first().is_some_and(|d| !d.found);
     if !refused {
         return single;
     }
-    let every = super::Params {
-        all: true,
-        ..params.clone()
-    };
-    let (mut r, _) = detect_all_checked(cloud, model, &every);
+    let (mut r, _) = detect_all_checked(cloud, model, params);
     let Some(first) = r.detections.into_iter().next() else {
         add_timing(&mut single, &r.timing);
         return single;
@@ -78,13 +74,14 @@ pub fn detect_checked(cloud: &PointCloud, model: &Model, params: &super::Params)
 /// otherwise hide it and then be refused itself. Where the model or the cloud has no colours,
 /// [`super::detect`] with `all`.
 pub fn detect_all_checked(cloud: &PointCloud, model: &Model, params: &super::Params) -> (Report, usize) {
+    let reference = model.colour.as_deref();
     let every = super::Params {
         all: true,
-        overlapping: model.colour.is_some(),
+        overlapping: reference.is_some(),
         ..params.clone()
     };
     let mut r = super::detect(&cloud.points, model, &every);
-    let Some(reference) = model.colour.as_deref().filter(|_| every.overlapping) else {
+    let Some(reference) = reference else {
         return (r, 0);
     };
     let max_size = super::select::overlap_distance(model);
@@ -137,10 +134,11 @@ fn judge(d: &mut Detection, reference: &[f64], points: &[[f32; 3]], colours: &[[
 
 /// Check every found detection of `report` against the model's colours: a detection whose
 /// surface shares less than [`MIN_SIMILARITY`] of them is not the object (`found` cleared),
-/// and each checked one records its similarity; with `all` (every instance asked for, as
-/// [`crate::detect::Params::all`]) only the found ones stay. Nothing is checked where the model
-/// or the cloud has no colours, or a surface has too few points to say.
-pub fn check_colour(report: &mut Report, cloud: &PointCloud, model: &Model, all: bool) {
+/// and each checked one records its similarity. Nothing is checked where the model or the cloud
+/// has no colours, or a surface has too few points to say. For every instance in a cloud,
+/// [`detect_all_checked`]: checked after the detector has set overlapping candidates aside, a
+/// refused one would already have hidden those it overlaps.
+pub fn check_colour(report: &mut Report, cloud: &PointCloud, model: &Model) {
     let Some(reference) = &model.colour else {
         return;
     };
@@ -154,9 +152,6 @@ pub fn check_colour(report: &mut Report, cloud: &PointCloud, model: &Model, all:
     };
     for d in report.detections.iter_mut().filter(|d| d.found) {
         judge(d, reference, &cloud.points, &colours);
-    }
-    if all {
-        report.detections.retain(|d| d.found);
     }
     // It is part of deciding whether a candidate is the object.
     let ms = 1e3 * t.elapsed().as_secs_f64();
